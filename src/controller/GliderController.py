@@ -1,0 +1,117 @@
+"""GliderController: passivity-based law (Eqs. (23)-(30)), P, PI, open loop.
+
+Thin pythonfmu wrapper over :mod:`glider_controller.laws`. The output has direct
+feedthrough: ``delta_cmd`` is computed from the inputs set at the same communication
+point, when it is read.
+"""
+
+from __future__ import annotations
+
+import math
+
+from glider_controller.laws import Law, PIController, passivity_law
+from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_plant.model import equilibrium, saturate
+from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
+
+_EQ = equilibrium(GliderParams())
+
+
+class GliderController(GliderSlave):
+    """Tail-angle controller for the steady glide."""
+
+    description = "Passivity-based, P, PI or open-loop tail-angle controller"
+    VARIABLES = (
+        Var("V_hat", "input", "m/s", "speed fed back (estimate)", _EQ.V),
+        Var("theta_g_hat", "input", "rad", "glide angle fed back (estimate)", _EQ.theta_g),
+        Var("delta_cmd", "output", "rad", "tail command"),
+        Var(
+            "law",
+            "parameter",
+            "1",
+            "0 open loop, 1 passivity-based, 2 P, 3 PI",
+            1,
+            type="Integer",
+            tunable=True,
+            valid=Range(0, 3, False, False),
+        ),
+        Var(
+            "K_c",
+            "parameter",
+            "1",
+            "passivity-law gain (Eq. 28)",
+            10.0,
+            tunable=True,
+            valid=POSITIVE,
+        ),
+        Var(
+            "K_P", "parameter", "1", "P/PI proportional gain", 2.0, tunable=True, valid=NON_NEGATIVE
+        ),
+        Var("K_I", "parameter", "Hz", "PI integral gain", 1.0, tunable=True, valid=NON_NEGATIVE),
+        Var(
+            "delta_open",
+            "parameter",
+            "rad",
+            "tail angle of the open-loop law",
+            0.0,
+            tunable=True,
+            valid=Range(-math.pi, math.pi),
+        ),
+        Var(
+            "t_enable",
+            "parameter",
+            "s",
+            "before this time the output is delta_open",
+            0.0,
+            tunable=True,
+            valid=Range(),
+        ),
+        Var(
+            "delta_max",
+            "parameter",
+            "rad",
+            "tail angle limit",
+            math.pi / 2,
+            valid=Range(0.0, math.pi),
+        ),
+        *model_constant_vars(),
+    )
+    FEEDTHROUGH = {"delta_cmd": ("V_hat", "theta_g_hat")}
+    INTERNAL_STATE = ("_p", "_eq", "_pi")
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        # delta_cmd is computed when read (direct feedthrough)
+        self.vars[self._vr("delta_cmd")].getter = self.command
+
+    def _vr(self, name: str) -> int:
+        return next(vr for vr, v in self.vars.items() if v.name == name)
+
+    def initialize(self) -> None:
+        self._p = GliderParams.from_mapping(vars(self))
+        self._eq = equilibrium(self._p)
+        self._pi = PIController(self.K_P, self.K_I, self.delta_max)
+
+    def _enabled(self) -> bool:
+        return self._time >= self.t_enable - 1e-9
+
+    def command(self) -> float:
+        """Tail command (rad) for the current inputs and time."""
+        if not self._initialized:
+            return saturate(self.delta_open, self.delta_max)
+        if not self._enabled() or self.law == Law.OPEN_LOOP:
+            return saturate(self.delta_open, self.delta_max)
+        if self.law == Law.PASSIVITY:
+            return passivity_law(
+                self.V_hat, self.theta_g_hat, self.K_c, self._p, self._eq, self.delta_max
+            )
+        self._pi.K_P = self.K_P
+        self._pi.K_I = self.K_I if self.law == Law.PI else 0.0
+        return self._pi.output(self.theta_g_hat - self._eq.theta_g)
+
+    def step(self, t: float, h: float) -> bool:
+        self.check_inputs()
+        if self.law == Law.PI and self._enabled():
+            self._pi.K_P, self._pi.K_I = self.K_P, self.K_I
+            self._pi.update(self.theta_g_hat - self._eq.theta_g, h)
+        return True

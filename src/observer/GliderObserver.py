@@ -1,0 +1,125 @@
+"""GliderObserver: Butterworth pre-filter (Sec. 5.1) + nonlinear observer (Sec. 4).
+
+Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_observer.model`.
+"""
+
+from __future__ import annotations
+
+from glider_observer.filter import ButterworthFilter
+from glider_observer.model import observer_gain, observer_step
+from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_plant.model import StallError, equilibrium
+from glider_plant.params import POSITIVE, GliderParams, Range
+
+_EQ = equilibrium(GliderParams())
+
+
+class GliderObserver(GliderSlave):
+    """Estimates speed, glide angle, angle of attack and pitch rate from pitch alone."""
+
+    description = "Butterworth pre-filter + nonlinear observer of the glider state"
+    VARIABLES = (
+        Var("theta_meas", "input", "rad", "measured pitch", _EQ.theta_g + _EQ.alpha),
+        Var("delta_cmd", "input", "rad", "tail command applied to the plant"),
+        Var("theta_filt", "output", "rad", "pitch after the pre-filter"),
+        Var("V_hat", "output", "m/s", "estimated speed"),
+        Var("theta_g_hat", "output", "rad", "estimated glide angle"),
+        Var("alpha_hat", "output", "rad", "estimated angle of attack"),
+        Var("omega2_hat", "output", "rad/s", "estimated pitch rate"),
+        Var("theta_hat", "output", "rad", "estimated pitch theta_g_hat + alpha_hat"),
+        *model_constant_vars(),
+        Var(
+            "R",
+            "parameter",
+            "rad2",
+            "measurement-noise variance in the Riccati design",
+            0.1,
+            valid=POSITIVE,
+        ),
+        Var("Q_V", "parameter", "1", "process-noise weight on V", 1e-3, valid=POSITIVE),
+        Var("Q_theta_g", "parameter", "1", "process-noise weight on theta_g", 1e-3, valid=POSITIVE),
+        Var("Q_alpha", "parameter", "1", "process-noise weight on alpha", 1e-3, valid=POSITIVE),
+        Var("Q_omega2", "parameter", "1", "process-noise weight on omega2", 1e-3, valid=POSITIVE),
+        Var(
+            "filter_enabled",
+            "parameter",
+            "1",
+            "pre-filter on (true) or bypassed",
+            True,
+            type="Boolean",
+        ),
+        Var(
+            "f_sample",
+            "parameter",
+            "Hz",
+            "pre-filter sampling frequency (= 1/step)",
+            50.0,
+            valid=POSITIVE,
+        ),
+        Var("f_cutoff", "parameter", "Hz", "pre-filter cut-off frequency", 10.0, valid=POSITIVE),
+        Var(
+            "start_at_equilibrium",
+            "parameter",
+            "1",
+            "start the estimate at the model's equilibrium (ignore *_hat_0)",
+            True,
+            type="Boolean",
+        ),
+        Var("V_hat_0", "parameter", "m/s", "initial speed estimate", _EQ.V, valid=POSITIVE),
+        Var(
+            "theta_g_hat_0",
+            "parameter",
+            "rad",
+            "initial glide-angle estimate",
+            _EQ.theta_g,
+            valid=Range(),
+        ),
+        Var(
+            "alpha_hat_0",
+            "parameter",
+            "rad",
+            "initial angle-of-attack estimate",
+            _EQ.alpha,
+            valid=Range(),
+        ),
+        Var(
+            "omega2_hat_0", "parameter", "rad/s", "initial pitch-rate estimate", 0.0, valid=Range()
+        ),
+        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.01, valid=POSITIVE),
+    )
+    INTERNAL_STATE = ("_p", "_H", "_filter", "_xh")
+
+    def initialize(self) -> None:
+        self._p = GliderParams.from_mapping(vars(self))
+        Q = (self.Q_V, self.Q_theta_g, self.Q_alpha, self.Q_omega2)
+        self._H = observer_gain(self._p, self.R, Q)
+        self._filter = ButterworthFilter(self.f_sample, self.f_cutoff)
+        if self.start_at_equilibrium:
+            e = equilibrium(self._p)
+            self._xh = (e.V, e.theta_g, e.alpha, 0.0)
+        else:
+            self._xh = (self.V_hat_0, self.theta_g_hat_0, self.alpha_hat_0, self.omega2_hat_0)
+        self.theta_filt = self.theta_meas
+        self._publish()
+
+    def _publish(self) -> None:
+        self.V_hat, self.theta_g_hat, self.alpha_hat, self.omega2_hat = self._xh
+        self.theta_hat = self.theta_g_hat + self.alpha_hat
+
+    def step(self, t: float, h: float) -> bool:
+        self.check_inputs()
+        self.theta_filt = self._filter(self.theta_meas) if self.filter_enabled else self.theta_meas
+        try:
+            self._xh = observer_step(
+                self._xh,
+                self.theta_filt,
+                self._p.K_udelta * self.delta_cmd,
+                h,
+                self._p,
+                self._H,
+                self.h_max,
+            )
+        except StallError as err:
+            return self.discard(f"observer estimate {err} at t = {t:g} s")
+        self._publish()
+        return True

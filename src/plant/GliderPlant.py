@@ -1,0 +1,111 @@
+"""GliderPlant: glider body (Eqs. (6)-(9)) + kinematics + tail servo + pitch sensor.
+
+Thin pythonfmu wrapper: it declares the variables and calls :mod:`glider_plant.model`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_plant.model import PitchSensor, StallError, plant_step, saturate
+from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
+
+R90 = math.pi / 2
+
+
+class GliderPlant(GliderSlave):
+    """Underwater glider in the sagittal plane with a whale-tail control surface."""
+
+    description = "Underwater glider (sagittal plane), tail servo and pitch sensor"
+    VARIABLES = (
+        Var("delta_cmd", "input", "rad", "commanded tail angle (servo set-point)"),
+        Var("F_x", "input", "N", "disturbance force, inertial x (forward-horizontal)"),
+        Var("F_z", "input", "N", "disturbance force, inertial z (down)"),
+        Var("M_y", "input", "N.m", "disturbance pitch moment (nose up positive)"),
+        Var("theta_meas", "output", "rad", "measured pitch: true pitch + sensor noise"),
+        Var("theta", "output", "rad", "true pitch theta_g + alpha"),
+        Var("V", "output", "m/s", "speed"),
+        Var("theta_g", "output", "rad", "glide angle (up positive)"),
+        Var("alpha", "output", "rad", "angle of attack"),
+        Var("omega2", "output", "rad/s", "pitch rate"),
+        Var("delta", "output", "rad", "actual tail angle (servo output)"),
+        Var("x", "output", "m", "horizontal position"),
+        Var("z", "output", "m", "depth (positive down)"),
+        *model_constant_vars(),
+        Var("tau_servo", "parameter", "s", "tail servo time constant", 0.01, valid=Range(0.0)),
+        Var("delta_max", "parameter", "rad", "tail angle limit", R90, valid=Range(0.0, math.pi)),
+        Var(
+            "noise_std",
+            "parameter",
+            "rad",
+            "sensor noise standard deviation",
+            0.0,
+            valid=NON_NEGATIVE,
+        ),
+        Var(
+            "noise_seed",
+            "parameter",
+            "1",
+            "sensor noise seed",
+            0,
+            type="Integer",
+            valid=Range(-(2**31), 2**31, False, False),
+        ),
+        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.01, valid=POSITIVE),
+        Var("V_0", "parameter", "m/s", "initial speed", 0.2, valid=POSITIVE),
+        Var(
+            "theta_g_0",
+            "parameter",
+            "rad",
+            "initial glide angle",
+            math.radians(-35.0),
+            valid=Range(-math.pi, math.pi),
+        ),
+        Var(
+            "alpha_0",
+            "parameter",
+            "rad",
+            "initial angle of attack",
+            math.radians(1.0),
+            valid=Range(-R90, R90),
+        ),
+        Var("omega2_0", "parameter", "rad/s", "initial pitch rate", 0.0, valid=Range()),
+        Var("delta_0", "parameter", "rad", "initial tail angle", 0.0, valid=Range()),
+        Var("x_0", "parameter", "m", "initial horizontal position", 0.0, valid=Range()),
+        Var("z_0", "parameter", "m", "initial depth", 0.0, valid=Range()),
+    )
+    INTERNAL_STATE = ("_p", "_sensor", "_state")
+
+    def initialize(self) -> None:
+        self._p = GliderParams.from_mapping(vars(self))
+        self._sensor = PitchSensor(self.noise_std, self.noise_seed)
+        if abs(self.delta_0) > self.delta_max:
+            self.fail(f"delta_0 = {self.delta_0!r} is invalid: expected |delta_0| <= delta_max")
+        self._state = (self.V_0, self.theta_g_0, self.alpha_0, self.omega2_0, self.x_0, self.z_0)
+        self.delta = self.delta_0
+        self._publish()
+
+    def _publish(self) -> None:
+        self.V, self.theta_g, self.alpha, self.omega2, self.x, self.z = self._state
+        self.theta = self.theta_g + self.alpha
+        self.theta_meas = self._sensor.measure(self.theta)
+
+    def step(self, t: float, h: float) -> bool:
+        self.check_inputs()
+        cmd = saturate(self.delta_cmd, self.delta_max)
+        try:
+            self._state, self.delta = plant_step(
+                self._state,
+                self.delta,
+                cmd,
+                h,
+                self._p,
+                self.tau_servo,
+                (self.F_x, self.F_z, self.M_y),
+                self.h_max,
+            )
+        except StallError as err:
+            return self.discard(f"{err} at t = {t:g} s")
+        self._publish()
+        return True

@@ -1,0 +1,232 @@
+"""Shared FMI plumbing for the three pythonfmu slaves (bundled in every FMU, same code).
+
+A slave declares its variables as a table of :class:`Var`; this base registers them,
+writes a complete modelDescription (units with a ``deg`` display unit for angles,
+valid variabilities, ModelStructure with output dependencies and InitialUnknowns),
+checks the FMI call sequence and saves/restores the internal state with the FMU state.
+
+pythonfmu maps every Python exception to ``fmi2Fatal`` (message in the log when the
+instance logs); a clean stop (stall) is ``do_step`` returning False, i.e. ``fmi2Discard``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any, NamedTuple
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
+from pythonfmu.fmi2slave import Fmi2Slave
+from pythonfmu.variables import Boolean, Integer, Real
+
+from .params import MODEL_CONSTANTS, ParameterError, Range
+
+DEG = 180.0 / math.pi
+
+
+class Var(NamedTuple):
+    """One FMU variable: name, causality, unit, description, start, type, variability."""
+
+    name: str
+    causality: str  # "input" | "output" | "parameter"
+    unit: str
+    description: str
+    start: float = 0.0
+    type: str = "Real"  # "Real" | "Integer" | "Boolean"
+    tunable: bool = False
+    valid: Range | None = None  # checked before the first step (parameters, inputs)
+
+
+class FmiUsageError(RuntimeError):
+    """An illegal FMI call sequence (e.g. doStep before initialisation)."""
+
+
+# SI base-unit exponents of every unit the slaves use, and display units.
+_UNITS: dict[str, dict[str, str]] = {
+    "m": {"m": "1"},
+    "m/s": {"m": "1", "s": "-1"},
+    "m/s2": {"m": "1", "s": "-2"},
+    "rad": {"rad": "1"},
+    "rad/s": {"rad": "1", "s": "-1"},
+    "rad2": {"rad": "2"},
+    "s": {"s": "1"},
+    "Hz": {"s": "-1"},
+    "N": {"kg": "1", "m": "1", "s": "-2"},
+    "N.m": {"kg": "1", "m": "2", "s": "-2"},
+    "kg": {"kg": "1"},
+    "kg/m": {"kg": "1", "m": "-1"},
+    "kg/s": {"kg": "1", "s": "-1"},
+    "kg.m2": {"kg": "1", "m": "2"},
+    "rad.s": {"rad": "1", "s": "1"},
+}
+_DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad.s": ("deg.s", DEG)}
+
+
+def model_constant_vars() -> tuple[Var, ...]:
+    """The glider's model constants as fixed parameters (single source: MODEL_CONSTANTS)."""
+    return tuple(
+        Var(s.name, "parameter", s.unit, s.description, s.default, valid=s.valid)
+        for s in MODEL_CONSTANTS
+    )
+
+
+class GliderSlave(Fmi2Slave):
+    """Base of the glider slaves: declare :attr:`VARIABLES`, implement :meth:`initialize`
+    and :meth:`step`; list :attr:`FEEDTHROUGH` (output -> inputs it depends on directly).
+    """
+
+    VARIABLES: tuple[Var, ...] = ()
+    FEEDTHROUGH: dict[str, tuple[str, ...]] = {}
+    #: attributes (besides the variables) saved with the FMU state
+    INTERNAL_STATE: tuple[str, ...] = ()
+
+    author = "glider-cosim"
+    license = "MIT"
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._initialized = False
+        self._time = 0.0
+        self._discarded = False
+        for v in self.VARIABLES:
+            start = v.start
+            if v.type == "Integer":
+                start = int(start)
+            elif v.type == "Boolean":
+                start = bool(start)
+            setattr(self, v.name, start)
+            causality = getattr(Fmi2Causality, v.causality)
+            desc = f"{v.description} [{v.unit}]"
+            if v.causality == "parameter":
+                variability = Fmi2Variability.tunable if v.tunable else Fmi2Variability.fixed
+            elif v.type == "Real":
+                variability = Fmi2Variability.continuous
+            else:
+                variability = Fmi2Variability.discrete
+            cls = {"Real": Real, "Integer": Integer, "Boolean": Boolean}[v.type]
+            self.register_variable(
+                cls(v.name, causality=causality, variability=variability, description=desc)
+            )
+
+    # ------------------------------------------------------------------ XML
+    def to_xml(self, model_options: dict[str, str] | None = None) -> Element:  # noqa: D401
+        root = super().to_xml(model_options or {})
+        spec = {v.name: v for v in self.VARIABLES}
+        # units on the Real elements
+        used = set()
+        index = {}
+        for i, sv in enumerate(root.find("ModelVariables"), start=1):
+            name = sv.get("name")
+            index[name] = i
+            v = spec.get(name)
+            real = sv.find("Real")
+            if v is None or real is None:
+                continue
+            if v.unit in _UNITS:
+                real.set("unit", v.unit)
+                used.add(v.unit)
+                if v.unit in _DISPLAY:
+                    real.set("displayUnit", _DISPLAY[v.unit][0])
+        # UnitDefinitions go right after CoSimulation
+        units = Element("UnitDefinitions")
+        for u in sorted(used):
+            ue = SubElement(units, "Unit", name=u)
+            SubElement(ue, "BaseUnit", _UNITS[u])
+            if u in _DISPLAY:
+                dname, factor = _DISPLAY[u]
+                SubElement(ue, "DisplayUnit", name=dname, factor=repr(factor))
+        pos = list(root).index(root.find("CoSimulation")) + 1
+        root.insert(pos, units)
+        # ModelStructure: outputs with their direct dependencies, InitialUnknowns
+        structure = root.find("ModelStructure")
+        for child in list(structure):
+            structure.remove(child)
+        outputs = [v.name for v in self.VARIABLES if v.causality == "output"]
+        if outputs:
+            out_el = SubElement(structure, "Outputs")
+            init_el = SubElement(structure, "InitialUnknowns")
+            for name in outputs:
+                deps = " ".join(str(index[d]) for d in self.FEEDTHROUGH.get(name, ()))
+                kinds = " ".join("dependent" for _ in self.FEEDTHROUGH.get(name, ()))
+                attrs = {"index": str(index[name]), "dependencies": deps}
+                if deps:
+                    attrs["dependenciesKind"] = kinds
+                SubElement(out_el, "Unknown", attrs)
+                SubElement(init_el, "Unknown", {"index": str(index[name])})
+        return root
+
+    # ----------------------------------------------------------- validation
+    def fail(self, message: str) -> None:
+        """Log ``message`` as an error and raise; pythonfmu reports it as fmi2Fatal."""
+        self.log(f"{self.instance_name}: {message}", Fmi2Status.error)
+        raise ParameterError(message)
+
+    def validate_parameters(self) -> None:
+        """Check every variable that declares a valid range (names value and range)."""
+        for v in self.VARIABLES:
+            if v.valid is None or v.causality == "output":
+                continue
+            value = getattr(self, v.name)
+            if not v.valid.contains(float(value)):
+                self.fail(f"{v.name} = {value!r} is invalid: expected {v.valid.describe()}")
+
+    def check_inputs(self) -> None:
+        """Refuse non-finite inputs at a step."""
+        for v in self.VARIABLES:
+            if v.causality == "input" and not math.isfinite(getattr(self, v.name)):
+                self.fail(
+                    f"input {v.name} = {getattr(self, v.name)!r} at t = {self._time:g} s "
+                    "is invalid: expected a finite value"
+                )
+
+    # ------------------------------------------------------------ lifecycle
+    def setup_experiment(self, start_time: float, stop_time: float | None, tolerance: float | None):
+        self._time = float(start_time)
+
+    def exit_initialization_mode(self) -> None:
+        self.validate_parameters()
+        self.initialize()
+        self._initialized = True
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if not self._initialized:
+            self.fail("doStep called before the instance was initialised")
+        if self._discarded:
+            self.fail("doStep called after the instance stopped (fmi2Discard)")
+        if not step_size > 0.0:
+            self.fail(f"communication step = {step_size!r} is invalid: expected > 0 s")
+        if abs(current_time - self._time) > 1e-9 * max(1.0, abs(self._time)):
+            self.fail(
+                f"doStep at t = {current_time!r} s is invalid: expected the current time "
+                f"{self._time!r} s"
+            )
+        ok = self.step(current_time, step_size)
+        if ok:
+            self._time = current_time + step_size
+        else:
+            self._discarded = True
+        return ok
+
+    def discard(self, message: str) -> bool:
+        """Log a clean stop (e.g. a stall) and return False (fmi2Discard)."""
+        self.log(f"{self.instance_name}: {message}", Fmi2Status.discard)
+        return False
+
+    def initialize(self) -> None:  # pragma: no cover - overridden
+        """Compute the initial state from the parameters."""
+
+    def step(self, t: float, h: float) -> bool:  # pragma: no cover - overridden
+        """Advance from ``t`` by ``h``; return False to stop cleanly."""
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- state
+    def _get_fmu_state(self) -> dict[str, Any]:
+        state = {v.name: getattr(self, v.name) for v in self.VARIABLES}
+        for name in ("_initialized", "_time", "_discarded", *self.INTERNAL_STATE):
+            state[name] = copy.deepcopy(getattr(self, name))
+        return state
+
+    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+        for name, value in state.items():
+            setattr(self, name, copy.deepcopy(value))
