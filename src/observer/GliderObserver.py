@@ -6,7 +6,7 @@ Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_obser
 from __future__ import annotations
 
 from glider_observer.filter import ButterworthFilter
-from glider_observer.model import observer_gain, observer_step
+from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
 from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
 from glider_plant.model import StallError, equilibrium
 from glider_plant.params import POSITIVE, GliderParams, Range
@@ -33,13 +33,34 @@ class GliderObserver(GliderSlave):
             "parameter",
             "rad2",
             "measurement-noise variance in the Riccati design",
-            0.1,
+            DEFAULT_R,
             valid=POSITIVE,
         ),
-        Var("Q_V", "parameter", "1", "process-noise weight on V", 1e-3, valid=POSITIVE),
-        Var("Q_theta_g", "parameter", "1", "process-noise weight on theta_g", 1e-3, valid=POSITIVE),
-        Var("Q_alpha", "parameter", "1", "process-noise weight on alpha", 1e-3, valid=POSITIVE),
-        Var("Q_omega2", "parameter", "1", "process-noise weight on omega2", 1e-3, valid=POSITIVE),
+        Var("Q_V", "parameter", "1", "process-noise weight on V", DEFAULT_Q[0], valid=POSITIVE),
+        Var(
+            "Q_theta_g",
+            "parameter",
+            "1",
+            "process-noise weight on theta_g",
+            DEFAULT_Q[1],
+            valid=POSITIVE,
+        ),
+        Var(
+            "Q_alpha",
+            "parameter",
+            "1",
+            "process-noise weight on alpha",
+            DEFAULT_Q[2],
+            valid=POSITIVE,
+        ),
+        Var(
+            "Q_omega2",
+            "parameter",
+            "1",
+            "process-noise weight on omega2",
+            DEFAULT_Q[3],
+            valid=POSITIVE,
+        ),
         Var(
             "filter_enabled",
             "parameter",

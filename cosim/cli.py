@@ -1,0 +1,153 @@
+"""``glider-cosim``: build the FMUs, run scenarios, analyse the closed loop.
+
+Exit codes: 0 success, 1 the run stopped or failed in an FMU (results up to the failure
+are written), 2 bad input (arguments, scenario, FMU files), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from .master import MasterError, SystemSpecError
+from .scenario import ScenarioError, shipped_scenarios
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit code 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} is invalid: expected a finite number > 0")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="glider-cosim", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    b = sub.add_parser("build", help="build the three FMUs")
+    b.add_argument("--out", default="fmus", help="output folder (default: fmus)")
+
+    r = sub.add_parser("run", help="run a scenario (default: the paper's Sec. 3.3 case)")
+    r.add_argument(
+        "scenario",
+        nargs="?",
+        default=None,
+        help=f"TOML file or shipped name ({', '.join(shipped_scenarios())}); default: default",
+    )
+    r.add_argument("--out", default="out", help="results folder (default: out/<scenario>)")
+    r.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    r.add_argument("--coupling", choices=("gauss-seidel", "jacobi"), default=None)
+    r.add_argument("--step", type=_positive, default=None, help="communication step, s")
+    r.add_argument("--stop-time", type=_positive, default=None, help="stop time, s")
+    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+
+    a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
+    a.add_argument("--json", action="store_true", help="one JSON object on stdout")
+
+    sub.add_parser("scenarios", help="list the shipped scenarios")
+    return p
+
+
+def _run(args: argparse.Namespace) -> int:
+    from .runner import simulate
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    out = Path(args.out)
+    if args.out == "out":
+        out = out / scenario.name
+    result = simulate(
+        scenario,
+        out,
+        fmu_dir=args.fmu_dir,
+        coupling=args.coupling,
+        step=args.step,
+        stop_time=args.stop_time,
+        plots=not args.no_plots,
+    )
+    m = result.metrics
+    deg = 57.29577951308232
+
+    def fmt(key: str, scale: float = 1.0, unit: str = "") -> str:
+        v = m.get(key)
+        return "n/a" if v is None else f"{v * scale:.3f}{unit}"
+
+    print(
+        f"scenario {scenario.name} ({scenario.source}): {m['rows']} rows to "
+        f"t = {m['end_time_s']} s, coupling {m['coupling']}, step {m['step_s']} s"
+    )
+    print(
+        f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"
+        f", overshoot {fmt('overshoot_rad', deg, ' deg')}, effort "
+        f"{fmt('control_effort', unit=' rad s')}, max |delta_cmd| "
+        f"{fmt('max_abs_delta_cmd_rad', deg, ' deg')}"
+    )
+    print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
+    if result.status != "ok":
+        print(f"glider-cosim: run {result.status}: {result.message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from .analysis import analyze, format_report
+
+    result = analyze()
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(format_report(result))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``glider-cosim`` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "build":
+            from .build import build_all
+
+            for name, path in build_all(args.out).items():
+                print(f"{name}: {path}")
+            code = 0
+        elif args.command == "run":
+            code = _run(args)
+        elif args.command == "analyze":
+            code = _analyze(args)
+        else:
+            print("\n".join(shipped_scenarios()))
+            code = 0
+    except (ScenarioError, SystemSpecError) as err:
+        print(f"glider-cosim: error: {err}", file=sys.stderr)
+        code = 2
+    except MasterError as err:
+        print(f"glider-cosim: error: {err}", file=sys.stderr)
+        code = 1
+    except KeyboardInterrupt:
+        print("glider-cosim: interrupted; results so far are written", file=sys.stderr)
+        code = 130
+    except OSError as err:
+        print(f"glider-cosim: error: {err}", file=sys.stderr)
+        code = 2
+    return code
+
+
+def console_main() -> None:
+    """Console script: run :func:`main`, flush, and leave without the interpreter's
+    finalisation (pythonfmu's binary can abort the process there; see README)."""
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

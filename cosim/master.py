@@ -1,0 +1,562 @@
+"""Fixed-step co-simulation master on ``fmpy.fmi2`` for any FMI 2.0 co-simulation FMUs.
+
+Instances are connected output -> input by variable name; value references come from
+each FMU's model description. Time is ``t0 + k*h`` with an integer step counter.
+
+Coupling schemes (what happens at every communication point ``t_k``):
+
+``gauss-seidel`` (default)
+    Values are exchanged in the order of the declared dependencies: outputs without
+    direct feedthrough are read first, then each instance with direct feedthrough gets
+    its inputs and is read (in topological order), then the remaining inputs are set;
+    all instances then step from ``t_k`` to ``t_k + h``. A feedthrough output (our
+    controller) therefore acts on inputs set at the same point.
+``jacobi``
+    All outputs are read, then all inputs are set, then all instances step: a
+    feedthrough output acts on the inputs of the previous point (one extra sample).
+
+Failures: an FMU call that returns fmi2Discard stops the run cleanly
+(:class:`FMUStopped`); fmi2Error/fmi2Fatal raise :class:`FMUCallError`. Either way the
+rows recorded so far are kept (the recorder streams them) and every instance that is
+not in a fatal state is terminated and freed; a fatal instance is never called again.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import shutil
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+
+COUPLINGS = ("gauss-seidel", "jacobi")
+_STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
+_CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
+
+
+class MasterError(Exception):
+    """Base of the master's errors."""
+
+
+class SystemSpecError(MasterError, ValueError):
+    """The system is ill-formed: unknown instance or variable, type mismatch, input left
+    unconnected, algebraic loop, bad step or stop time."""
+
+
+class FMUCallError(MasterError, RuntimeError):
+    """An FMI call returned fmi2Error or fmi2Fatal.
+
+    Attributes ``instance``, ``call``, ``time`` (s), ``status`` and ``log`` (the FMU's
+    own messages for that instance).
+    """
+
+    def __init__(self, instance: str, call: str, time: float, status: int, log: Sequence[str]):
+        self.instance, self.call, self.time, self.status = instance, call, time, status
+        self.log = list(log)
+        detail = self.log[-1] if self.log else "no log message"
+        super().__init__(
+            f"{instance}: {call} at t = {time:.6g} s returned {_STATUS.get(status, status)}: "
+            f"{detail}"
+        )
+
+
+class FMUStopped(FMUCallError):
+    """An FMI call returned fmi2Discard: the FMU stopped the run cleanly (e.g. a stall)."""
+
+
+@dataclass(frozen=True)
+class VarRef:
+    """``instance.variable``."""
+
+    instance: str
+    variable: str
+
+    @classmethod
+    def parse(cls, text: str) -> VarRef:
+        inst, sep, var = text.partition(".")
+        if not sep or not inst or not var:
+            raise SystemSpecError(
+                f"'{text}' is not a variable reference: expected instance.variable"
+            )
+        return cls(inst, var)
+
+    def __str__(self) -> str:
+        return f"{self.instance}.{self.variable}"
+
+
+@dataclass
+class Event:
+    """Set variables once a condition first holds at a communication point.
+
+    ``variable`` is ``"time"`` or ``instance.variable`` (an output); the condition is
+    ``value >= threshold`` (``op=">="``) or ``value <= threshold``. Actions are applied
+    ``delay`` seconds after the condition first holds.
+    """
+
+    variable: str
+    op: str
+    threshold: float
+    actions: dict[str, float | int | bool]
+    delay: float = 0.0
+    fired_at: float | None = None
+    applied: bool = False
+
+    def holds(self, value: float) -> bool:
+        return value >= self.threshold if self.op == ">=" else value <= self.threshold
+
+
+@dataclass
+class Disturbance:
+    """A step (from ``time`` on) or pulse (``time`` to ``time + duration``) on an input."""
+
+    target: str
+    kind: str
+    time: float
+    value: float
+    duration: float = 0.0
+
+    def at(self, t: float) -> float:
+        eps = 1e-9
+        if t < self.time - eps:
+            return 0.0
+        if self.kind == "pulse" and t >= self.time + self.duration - eps:
+            return 0.0
+        return self.value
+
+
+@dataclass
+class System:
+    """FMUs under instance names, parameters, connections and driven inputs."""
+
+    fmus: dict[str, Path]
+    connections: list[tuple[str, str]]
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: inputs the master drives (constant base value, plus disturbances)
+    driven: dict[str, float] = field(default_factory=dict)
+    disturbances: list[Disturbance] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+    #: variables recorded; None = every output of every instance
+    record: list[str] | None = None
+
+
+class Recorder(Protocol):
+    """Receives the column names once, then one row per communication point."""
+
+    def start(self, columns: Sequence[str]) -> None: ...
+
+    def row(self, values: Sequence[float]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class _Group:
+    """Preallocated value-reference and value arrays for a batched get/set."""
+
+    def __init__(self, vrs: Sequence[int], type_: str):
+        n = len(vrs)
+        self.n = n
+        self.type = type_
+        self.vr = (ctypes.c_uint * n)(*vrs)
+        self.value = (_CTYPES[type_] * n)()
+
+
+class Instance:
+    """One FMU instance under a name (fmpy ``FMU2Slave`` with batched value access)."""
+
+    def __init__(self, name: str, fmu: Path, unzipdir: str | None = None):
+        self.name = name
+        self.fmu = Path(fmu)
+        if not self.fmu.exists():
+            raise SystemSpecError(f"instance {name}: FMU file {self.fmu} does not exist")
+        try:
+            self.md = read_model_description(str(self.fmu))
+        except Exception as err:  # fmpy raises plain Exception for bad archives
+            raise SystemSpecError(
+                f"instance {name}: {self.fmu} is not a readable FMU ({err})"
+            ) from None
+        if self.md.fmiVersion != "2.0" or self.md.coSimulation is None:
+            raise SystemSpecError(
+                f"instance {name}: {self.fmu} is not an FMI 2.0 co-simulation FMU"
+            )
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
+        # outputs that depend directly on inputs (None = all inputs, conservatively)
+        self.feedthrough = {
+            u.variable.name
+            for u in self.md.outputs
+            if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
+        }
+        self.unzipdir = unzipdir or extract(str(self.fmu))
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzipdir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
+        self.log: list[str] = []
+        self.alive = False  # instantiated and not fatal
+        self.fatal = False
+
+    def var(self, name: str, causality: Iterable[str] | None = None):
+        v = self.vars.get(name)
+        if v is None:
+            raise SystemSpecError(
+                f"instance {self.name} ({self.md.modelName}) has no variable '{name}'"
+            )
+        if causality is not None and v.causality not in causality:
+            raise SystemSpecError(
+                f"{self.name}.{name} has causality {v.causality}: expected one of "
+                f"{', '.join(causality)}"
+            )
+        return v
+
+
+class CoSimulation:
+    """Load, connect, initialise and step a :class:`System`.
+
+    Parameters
+    ----------
+    system : System
+        The instances and their wiring.
+    step : float
+        Communication step, s (default 0.02 s, 50 Hz).
+    coupling : str
+        ``"gauss-seidel"`` or ``"jacobi"``.
+    start_time : float
+        Start time, s.
+    """
+
+    def __init__(
+        self,
+        system: System,
+        step: float = 0.02,
+        coupling: str = "gauss-seidel",
+        start_time: float = 0.0,
+    ):
+        if coupling not in COUPLINGS:
+            raise SystemSpecError(
+                f"coupling '{coupling}' is unknown: expected one of {', '.join(COUPLINGS)}"
+            )
+        if not (math.isfinite(step) and step > 0.0):
+            raise SystemSpecError(f"step = {step!r} is invalid: expected a finite value > 0 s")
+        self.system = system
+        self.step_size = float(step)
+        self.coupling = coupling
+        self.t0 = float(start_time)
+        self.k = 0
+        self.instances: dict[str, Instance] = {}
+        self._keep_callbacks: list[Any] = []
+        self._loaded = False
+
+    # ------------------------------------------------------------------ setup
+    def _resolve(self, ref: str, causality: Iterable[str] | None = None):
+        r = VarRef.parse(ref)
+        inst = self.instances.get(r.instance)
+        if inst is None:
+            raise SystemSpecError(
+                f"'{ref}': no instance '{r.instance}' (instances: {', '.join(self.instances)})"
+            )
+        return inst, inst.var(r.variable, causality)
+
+    def load(self) -> None:
+        """Read the FMUs and check the wiring; no FMU code runs yet."""
+        for name, path in self.system.fmus.items():
+            self.instances[name] = Instance(name, Path(path))
+        sources: dict[str, str] = {}
+        for src, dst in self.system.connections:
+            si, sv = self._resolve(src, ("output",))
+            di, dv = self._resolve(dst, ("input",))
+            if sv.type != dv.type:
+                raise SystemSpecError(
+                    f"connection {src} -> {dst}: type mismatch ({sv.type} -> {dv.type})"
+                )
+            if dst in sources:
+                raise SystemSpecError(f"input {dst} is connected twice ({sources[dst]}, {src})")
+            sources[dst] = src
+        for ref in list(self.system.driven) + [d.target for d in self.system.disturbances]:
+            _, v = self._resolve(ref, ("input",))
+            if v.type != "Real":
+                raise SystemSpecError(f"driven input {ref} must be Real, is {v.type}")
+            if ref in sources:
+                raise SystemSpecError(f"input {ref} is both connected and driven")
+        for inst in self.instances.values():
+            for name in inst.inputs:
+                ref = f"{inst.name}.{name}"
+                if (
+                    ref not in sources
+                    and ref not in self.system.driven
+                    and not any(d.target == ref for d in self.system.disturbances)
+                ):
+                    raise SystemSpecError(
+                        f"input {ref} is left unconnected: connect it or drive it "
+                        "(a constant or a disturbance)"
+                    )
+        for inst_name, params in self.system.parameters.items():
+            for name in params:
+                self._resolve(f"{inst_name}.{name}", ("parameter", "input"))
+        for ev in self.system.events:
+            if ev.variable != "time":
+                self._resolve(ev.variable, ("output",))
+            for target in ev.actions:
+                self._resolve(target, ("parameter", "input"))
+        self._sources = sources
+        self._plan()
+        self._loaded = True
+
+    def _plan(self) -> None:
+        """Order of the exchange and the batched value groups."""
+        insts = self.instances
+        ft = {n for n, i in insts.items() if i.feedthrough and self.coupling == "gauss-seidel"}
+        # feedthrough instance A must be resolved before B if B reads a feedthrough output of A
+        deps: dict[str, set[str]] = {n: set() for n in ft}
+        for dst, src in self._sources.items():
+            s, d = VarRef.parse(src), VarRef.parse(dst)
+            if (
+                s.instance in ft
+                and s.variable in insts[s.instance].feedthrough
+                and d.instance in ft
+            ):
+                deps[d.instance].add(s.instance)
+        order: list[str] = []
+        while deps:
+            ready = sorted(n for n, ds in deps.items() if not ds - set(order))
+            if not ready:
+                raise SystemSpecError(
+                    "algebraic loop through direct-feedthrough outputs of "
+                    f"{', '.join(sorted(deps))}: not supported"
+                )
+            for n in ready:
+                order.append(n)
+                del deps[n]
+        self._ft_order = order
+        self._plain = [n for n in insts if n not in ft]
+        # recorded columns: every output by default (non-Real ones as numbers)
+        record = self.system.record
+        if record is None:
+            record = [f"{n}.{o}" for n, i in insts.items() for o in i.outputs]
+        needed = list(
+            dict.fromkeys(
+                record
+                + list(self._sources.values())
+                + [e.variable for e in self.system.events if e.variable != "time"]
+            )
+        )
+        self.columns = ["time"] + record
+        # per instance: one read group per type (outputs it must provide)
+        self._read: dict[str, list[tuple[_Group, list[str]]]] = {}
+        for n, inst in insts.items():
+            names = [VarRef.parse(r).variable for r in needed if VarRef.parse(r).instance == n]
+            self._read[n] = self._groups(inst, names)
+        # per instance: inputs to set from connections (per type)
+        self._write: dict[str, list[tuple[_Group, list[str]]]] = {}
+        for n, inst in insts.items():
+            dsts = [d for d in self._sources if VarRef.parse(d).instance == n]
+            self._write[n] = [
+                (g, [self._sources[f"{n}.{v}"] for v in names])
+                for g, names in self._groups(inst, [VarRef.parse(d).variable for d in dsts])
+            ]
+        self._driven = {}
+        for ref in dict.fromkeys(
+            list(self.system.driven) + [d.target for d in self.system.disturbances]
+        ):
+            inst, v = self._resolve(ref)
+            self._driven[ref] = (inst, v.valueReference)
+        self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven}
+        self._row_index = [needed.index(r) for r in record]
+        self._needed = needed
+        self.values: dict[str, float] = dict.fromkeys(needed, 0.0)
+
+    @staticmethod
+    def _groups(inst: Instance, names: Sequence[str]) -> list[tuple[_Group, list[str]]]:
+        by_type: dict[str, list[str]] = {}
+        for n in names:
+            by_type.setdefault(inst.vars[n].type, []).append(n)
+        out = []
+        for type_, ns in by_type.items():
+            if type_ not in _CTYPES:
+                raise SystemSpecError(f"{inst.name}.{ns[0]}: type {type_} is not supported")
+            out.append((_Group([inst.vars[n].valueReference for n in ns], type_), ns))
+        return out
+
+    # ------------------------------------------------------------- FMI calls
+    def _call(self, inst: Instance, call: str, fn: Callable[..., Any], *args: Any) -> Any:
+        if not inst.alive:
+            raise MasterError(f"{inst.name}: {call} on an instance that is not alive")
+        try:
+            return fn(*args)
+        except FMICallException as err:
+            status = int(err.status)
+            t = self.t0 + self.k * self.step_size
+            if status >= 4:
+                inst.fatal = True
+                inst.alive = False
+            cls = FMUStopped if status == 2 else FMUCallError
+            raise cls(inst.name, call, t, status, inst.log) from None
+
+    def _make_callbacks(self, inst: Instance) -> fmi2CallbackFunctions:
+        def logger(env, instance_name, status, category, message):
+            text = message.decode("utf-8", "replace") if message else ""
+            inst.log.append(f"[{_STATUS.get(status, status)}] {text}")
+            del inst.log[:-50]
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(logger)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(ctypes.CDLL(None).calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(ctypes.CDLL(None).free)
+        self._keep_callbacks.append(cb)
+        return cb
+
+    def _set_value(self, inst: Instance, name: str, value: Any) -> None:
+        v = inst.vars[name]
+        s = inst.slave
+        vr = [v.valueReference]
+        if v.type == "Real":
+            self._call(inst, f"fmi2SetReal({name})", s.setReal, vr, [float(value)])
+        elif v.type == "Integer":
+            self._call(inst, f"fmi2SetInteger({name})", s.setInteger, vr, [int(value)])
+        elif v.type == "Boolean":
+            self._call(inst, f"fmi2SetBoolean({name})", s.setBoolean, vr, [bool(value)])
+        else:
+            raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be set")
+
+    def initialize(self) -> None:
+        """Instantiate, set parameters, initialise every instance."""
+        if not self._loaded:
+            self.load()
+        for inst in self.instances.values():
+            cb = self._make_callbacks(inst)
+            try:
+                inst.slave.instantiate(callbacks=cb, loggingOn=True)
+            except Exception as err:  # fmpy raises plain Exception here
+                raise FMUCallError(inst.name, "fmi2Instantiate", self.t0, 3, inst.log) from err
+            inst.alive = True
+        for inst in self.instances.values():
+            s = inst.slave
+            self._call(inst, "fmi2SetupExperiment", s.setupExperiment, None, self.t0)
+            for name, value in self.system.parameters.get(inst.name, {}).items():
+                self._set_value(inst, name, value)
+            self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
+            self._call(inst, "fmi2ExitInitializationMode", s.exitInitializationMode)
+
+    # ---------------------------------------------------------------- stepping
+    def _read_instance(self, name: str) -> None:
+        inst = self.instances[name]
+        comp = inst.slave.component
+        for g, names in self._read[name]:
+            fn = getattr(inst.slave, f"fmi2Get{g.type}")
+            self._call(inst, f"fmi2Get{g.type}", fn, comp, g.vr, g.n, g.value)
+            for i, n in enumerate(names):
+                self.values[f"{name}.{n}"] = g.value[i]
+
+    def _write_instance(self, name: str) -> None:
+        inst = self.instances[name]
+        comp = inst.slave.component
+        vals = self.values
+        for g, srcs in self._write[name]:
+            for i, src in enumerate(srcs):
+                g.value[i] = vals[src]
+            fn = getattr(inst.slave, f"fmi2Set{g.type}")
+            self._call(inst, f"fmi2Set{g.type}", fn, comp, g.vr, g.n, g.value)
+
+    def _drive(self, t: float) -> None:
+        for ref, (inst, vr) in self._driven.items():
+            value = self._driven_base[ref] + sum(
+                d.at(t) for d in self.system.disturbances if d.target == ref
+            )
+            self._call(inst, "fmi2SetReal", inst.slave.setReal, [vr], [value])
+
+    def _exchange(self) -> None:
+        for n in self._plain:
+            self._read_instance(n)
+        for n in self._ft_order:
+            self._write_instance(n)
+            self._read_instance(n)
+        for n in self._plain:
+            self._write_instance(n)
+
+    def _events(self, t: float) -> bool:
+        changed = False
+        for ev in self.system.events:
+            if ev.applied:
+                continue
+            if ev.fired_at is None:
+                value = t if ev.variable == "time" else self.values[ev.variable]
+                if ev.holds(value):
+                    ev.fired_at = t
+            if ev.fired_at is not None and t >= ev.fired_at + ev.delay - 1e-9:
+                for target, value in ev.actions.items():
+                    inst, _ = self._resolve(target)
+                    if target in self._driven_base:
+                        self._driven_base[target] = float(value)
+                    else:
+                        self._set_value(inst, VarRef.parse(target).variable, value)
+                ev.applied = True
+                changed = True
+        return changed
+
+    def communication_point(self) -> list[float]:
+        """Exchange values at ``t_k`` (events included) and return the recorded row."""
+        t = self.t0 + self.k * self.step_size
+        self._drive(t)
+        self._exchange()
+        if self._events(t):
+            self._drive(t)
+            self._exchange()
+        vals = self.values
+        needed = self._needed
+        return [t] + [float(vals[needed[i]]) for i in self._row_index]
+
+    def do_step(self) -> None:
+        """Step every instance from ``t_k`` to ``t_k + h``."""
+        t = self.t0 + self.k * self.step_size
+        h = self.step_size
+        for inst in self.instances.values():
+            self._call(inst, "fmi2DoStep", inst.slave.fmi2DoStep, inst.slave.component, t, h, 1)
+        self.k += 1
+
+    def run(self, stop_time: float, recorder: Recorder) -> None:
+        """Initialise, then step to ``stop_time`` recording every point (t0 included).
+
+        Raises :class:`FMUStopped` or :class:`FMUCallError` after the rows computed so
+        far were handed to ``recorder``; the caller closes it and frees the instances
+        (:meth:`close`).
+        """
+        if not (math.isfinite(stop_time) and stop_time > self.t0):
+            raise SystemSpecError(
+                f"stop_time = {stop_time!r} is invalid: expected a finite value > start time "
+                f"{self.t0:g} s"
+            )
+        n = round((stop_time - self.t0) / self.step_size)
+        self.initialize()
+        recorder.start(self.columns)
+        recorder.row(self.communication_point())
+        for _ in range(n):
+            self.do_step()
+            recorder.row(self.communication_point())
+
+    def close(self) -> None:
+        """Terminate and free every instance that is not in a fatal state."""
+        for inst in self.instances.values():
+            if inst.alive:
+                inst.alive = False
+                for fn in (inst.slave.terminate, inst.slave.freeInstance):
+                    try:
+                        fn()
+                    except FMICallException:
+                        pass
+            if inst.unzipdir:
+                shutil.rmtree(inst.unzipdir, ignore_errors=True)
+                inst.unzipdir = None

@@ -1,0 +1,224 @@
+"""Run a scenario on the three glider FMUs: the Python API behind ``glider-cosim run``."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .build import build_all
+from .master import CoSimulation, FMUCallError, FMUStopped, System
+from .metrics import compute_metrics
+from .scenario import Scenario, load_scenario
+
+FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
+DEFAULT_FMU_DIR = Path("fmus")
+DISTURBANCE_INPUTS = ("plant.F_x", "plant.F_z", "plant.M_y")
+
+
+def default_connections(feedback: str = "observer") -> list[tuple[str, str]]:
+    """The closed loop: plant -> observer -> controller -> plant (and -> observer)."""
+    conns = [
+        ("plant.theta_meas", "observer.theta_meas"),
+        ("controller.delta_cmd", "observer.delta_cmd"),
+        ("controller.delta_cmd", "plant.delta_cmd"),
+    ]
+    if feedback == "state":
+        conns += [("plant.V", "controller.V_hat"), ("plant.theta_g", "controller.theta_g_hat")]
+    else:
+        conns += [
+            ("observer.V_hat", "controller.V_hat"),
+            ("observer.theta_g_hat", "controller.theta_g_hat"),
+        ]
+    return conns
+
+
+def system_for(scenario: Scenario, fmu_dir: Path) -> System:
+    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped)."""
+    fmus = {
+        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
+        for inst, name in FMU_NAMES.items()
+    }
+    driven = dict.fromkeys(DISTURBANCE_INPUTS, 0.0)
+    driven.update(scenario.inputs)
+    return System(
+        fmus=fmus,
+        connections=default_connections(scenario.feedback),
+        parameters={k: dict(v) for k, v in scenario.parameters.items()},
+        driven=driven,
+        disturbances=list(scenario.disturbances),
+        events=[type(e)(**{**e.__dict__}) for e in scenario.events],
+        record=scenario.record,
+    )
+
+
+class ArrayRecorder:
+    """Keeps rows in a preallocated-in-chunks list (for the API)."""
+
+    def __init__(self) -> None:
+        self.columns: list[str] = []
+        self.rows: list[Sequence[float]] = []
+
+    def start(self, columns: Sequence[str]) -> None:
+        self.columns = list(columns)
+
+    def row(self, values: Sequence[float]) -> None:
+        self.rows.append(values)
+
+    def close(self) -> None:
+        pass
+
+    def array(self) -> np.ndarray:
+        return np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
+
+
+class CsvRecorder:
+    """Streams rows to a CSV file (constant memory); ``close`` flushes."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._f = None
+        self.n_rows = 0
+
+    def start(self, columns: Sequence[str]) -> None:
+        self._f = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115
+        self._f.write(",".join(columns) + "\n")
+
+    def row(self, values: Sequence[float]) -> None:
+        self._f.write(",".join(map(repr, values)) + "\n")
+        self.n_rows += 1
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+            self._f = None
+
+
+@dataclass
+class RunResult:
+    """Outcome of a run: the trajectory, its metrics, and how it ended.
+
+    ``status`` is ``"ok"``, ``"stopped"`` (an FMU discarded the step, e.g. a stall) or
+    ``"error"`` (an FMU error/fatal); ``message`` says which instance, call and time.
+    """
+
+    scenario: Scenario
+    columns: list[str]
+    data: np.ndarray
+    metrics: dict[str, Any]
+    status: str = "ok"
+    message: str = ""
+    files: dict[str, Path] = field(default_factory=dict)
+
+    def column(self, name: str) -> np.ndarray:
+        """One column by name (e.g. ``"plant.theta_g"``)."""
+        try:
+            return self.data[:, self.columns.index(name)]
+        except ValueError:
+            raise KeyError(f"no column '{name}' (columns: {', '.join(self.columns)})") from None
+
+
+def simulate(
+    scenario: Scenario | str | Path | None = None,
+    out: str | Path | None = None,
+    *,
+    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    build: bool = True,
+    coupling: str | None = None,
+    step: float | None = None,
+    stop_time: float | None = None,
+    plots: bool = True,
+) -> RunResult:
+    """Run a scenario and return its results.
+
+    Parameters
+    ----------
+    scenario : Scenario, path, shipped name or None
+        ``None`` runs the default (paper Sec. 3.3) scenario.
+    out : path, optional
+        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
+        it, nothing is written and the rows are kept in memory.
+    fmu_dir : path
+        Where the FMUs are (built there first if missing or stale, when ``build``).
+    coupling, step, stop_time : optional
+        Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
+    plots : bool
+        Write the PNG plots (with ``out``).
+
+    Returns
+    -------
+    RunResult
+        ``data`` has one row per communication point (the initial one included).
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    fmu_dir = Path(fmu_dir)
+    if build:
+        build_all(fmu_dir, only_stale=True)
+    system = system_for(scenario, fmu_dir)
+    sim = CoSimulation(
+        system,
+        step=step if step is not None else scenario.step,
+        coupling=coupling or scenario.coupling,
+    )
+    stop = stop_time if stop_time is not None else scenario.stop_time
+    files: dict[str, Path] = {}
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        files["results"] = out / "results.csv"
+        recorder: ArrayRecorder | CsvRecorder = CsvRecorder(files["results"])
+    else:
+        recorder = ArrayRecorder()
+    status, message = "ok", ""
+    try:
+        sim.run(stop, recorder)
+    except FMUStopped as err:
+        status, message = "stopped", str(err)
+    except FMUCallError as err:
+        status, message = "error", str(err)
+    except KeyboardInterrupt:
+        status, message = "interrupted", "interrupted by the user (Ctrl-C)"
+    finally:
+        recorder.close()
+        sim.close()
+    if isinstance(recorder, CsvRecorder):
+        columns = sim.columns if recorder.n_rows else []
+        data = (
+            np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
+            if recorder.n_rows
+            else np.empty((0, len(sim.columns)))
+        )
+        columns = sim.columns
+    else:
+        columns, data = recorder.columns or sim.columns, recorder.array()
+    metrics = compute_metrics(columns, data, scenario, sim)
+    metrics.update(status=status, message=message)
+    result = RunResult(scenario, columns, data, metrics, status, message, files)
+    if out is not None:
+        files["metrics"] = out / "metrics.json"
+        files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
+        if plots and len(data) > 1:
+            from .plots import write_plots
+
+            files.update(write_plots(result, out))
+    if status == "interrupted":
+        raise KeyboardInterrupt
+    return result
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.floating | np.integer):
+        return _jsonable(obj.item())
+    return obj

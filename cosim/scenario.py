@@ -1,0 +1,264 @@
+"""TOML scenarios: the system around the three glider FMUs, its parameters and events.
+
+A scenario is data: it is parsed with :mod:`tomllib` and checked key by key; nothing
+in it is executed. Angles may be given in radians (numbers) or as ``"-35 deg"``.
+
+Keys (all optional; defaults give the paper's Sec. 3.3 case)::
+
+    name, description, notes  strings
+    stop_time = 60.0          s, > 0
+    step = 0.02               communication step, s, > 0
+    coupling = "gauss-seidel" or "jacobi"
+    feedback = "observer"     controller fed by the observer, or "state" (true state)
+    record = [...]            instance.variable list (default: every output)
+    [plant] [observer] [controller]   parameters of each instance
+                              (controller.law may be "open-loop", "passivity", "p", "pi")
+    [fmus]                    instance = "path/to/other.fmu" (swap a component)
+    [inputs]                  "plant.F_x" = 0.0: constant values of driven inputs
+    [[disturbance]]           target, kind ("step"|"pulse"), time, value, duration
+    [[event]]                 when = "plant.z >= 1.0" | "time >= 5", delay, set = {...}
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from .master import Disturbance, Event
+
+INSTANCES = ("plant", "observer", "controller")
+LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
+_TOP = {
+    "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "record",
+    "fmus", "inputs", "disturbance", "event", *INSTANCES,
+}  # fmt: skip
+_DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
+_COND = re.compile(r"^\s*([A-Za-z_][\w.]*)\s*(>=|<=)\s*(.+?)\s*$")
+
+
+class ScenarioError(ValueError):
+    """A scenario file is malformed; the message names the file and the key."""
+
+
+@dataclass
+class Scenario:
+    """A parsed scenario (see the module docstring for the keys)."""
+
+    name: str = "default"
+    description: str = ""
+    notes: str = ""
+    source: str = "<defaults>"
+    stop_time: float = 60.0
+    step: float = 0.02
+    coupling: str = "gauss-seidel"
+    feedback: str = "observer"
+    record: list[str] | None = None
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    fmus: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, float] = field(default_factory=dict)
+    disturbances: list[Disturbance] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+
+
+def _number(value: Any, where: str) -> float | int | bool:
+    """A TOML value as a number; ``"X deg"`` becomes radians."""
+    if isinstance(value, bool | int | float):
+        return value
+    if isinstance(value, str):
+        m = _DEG.match(value)
+        if m:
+            return math.radians(float(m.group(1)))
+    raise ScenarioError(f"{where}: {value!r} is not a number: expected a number or 'X deg'")
+
+
+def _float(value: Any, where: str, positive: bool = False, non_negative: bool = False) -> float:
+    v = _number(value, where)
+    if isinstance(v, bool) or not math.isfinite(float(v)):
+        raise ScenarioError(f"{where}: {value!r} is invalid: expected a finite number")
+    v = float(v)
+    if positive and not v > 0:
+        raise ScenarioError(f"{where}: {value!r} is invalid: expected a number > 0")
+    if non_negative and v < 0:
+        raise ScenarioError(f"{where}: {value!r} is invalid: expected a number >= 0")
+    return v
+
+
+def _table(value: Any, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where}: expected a table, got {type(value).__name__}")
+    return value
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
+    """Check and convert the TOML document ``data`` (from ``source``) to a :class:`Scenario`."""
+    for key in data:
+        if key not in _TOP:
+            raise ScenarioError(
+                f"{source}: unknown key '{key}': expected one of {', '.join(sorted(_TOP))}"
+            )
+    sc = Scenario(source=source)
+    for key in ("name", "description", "notes"):
+        if key in data:
+            if not isinstance(data[key], str):
+                raise ScenarioError(f"{source}: key '{key}': expected a string")
+            setattr(sc, key, data[key])
+    if "stop_time" in data:
+        sc.stop_time = _float(data["stop_time"], f"{source}: key 'stop_time'", positive=True)
+    if "step" in data:
+        sc.step = _float(data["step"], f"{source}: key 'step'", positive=True)
+    if "coupling" in data:
+        if data["coupling"] not in ("gauss-seidel", "jacobi"):
+            raise ScenarioError(
+                f"{source}: key 'coupling': {data['coupling']!r} is invalid: expected "
+                "'gauss-seidel' or 'jacobi'"
+            )
+        sc.coupling = data["coupling"]
+    if "feedback" in data:
+        if data["feedback"] not in ("observer", "state"):
+            raise ScenarioError(
+                f"{source}: key 'feedback': {data['feedback']!r} is invalid: expected "
+                "'observer' or 'state'"
+            )
+        sc.feedback = data["feedback"]
+    if "record" in data:
+        rec = data["record"]
+        if not (isinstance(rec, list) and all(isinstance(r, str) for r in rec)):
+            raise ScenarioError(f"{source}: key 'record': expected a list of 'instance.variable'")
+        sc.record = list(rec)
+    for inst in INSTANCES:
+        if inst in data:
+            params = {}
+            for k, v in _table(data[inst], f"{source}: key '{inst}'").items():
+                where = f"{source}: key '{inst}.{k}'"
+                if inst == "controller" and k == "law" and isinstance(v, str):
+                    if v not in LAWS:
+                        raise ScenarioError(
+                            f"{where}: {v!r} is invalid: expected one of {', '.join(LAWS)}"
+                        )
+                    v = LAWS[v]
+                params[k] = _number(v, where)
+            sc.parameters[inst] = params
+    for k, v in _table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
+        if k not in INSTANCES:
+            raise ScenarioError(
+                f"{source}: key 'fmus.{k}': unknown instance: expected one of "
+                f"{', '.join(INSTANCES)}"
+            )
+        if not isinstance(v, str):
+            raise ScenarioError(f"{source}: key 'fmus.{k}': expected a path string")
+        path = Path(v)
+        if not path.is_absolute() and source not in ("<string>", "<defaults>"):
+            path = Path(source).parent / path
+        if not path.exists():
+            raise ScenarioError(f"{source}: key 'fmus.{k}': {path} does not exist")
+        sc.fmus[k] = str(path)
+    for k, v in _table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
+        sc.inputs[k] = _float(v, f"{source}: key 'inputs.{k}'")
+    dist = data.get("disturbance", [])
+    if not isinstance(dist, list):
+        raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
+    for i, d in enumerate(dist):
+        where = f"{source}: key 'disturbance[{i}]'"
+        d = _table(d, where)
+        extra = set(d) - {"target", "kind", "time", "value", "duration"}
+        if extra:
+            raise ScenarioError(f"{where}: unknown key '{sorted(extra)[0]}'")
+        kind = d.get("kind", "step")
+        if kind not in ("step", "pulse"):
+            raise ScenarioError(f"{where}.kind: {kind!r} is invalid: expected 'step' or 'pulse'")
+        if not isinstance(d.get("target"), str):
+            raise ScenarioError(f"{where}.target: expected 'instance.variable' (e.g. plant.F_z)")
+        sc.disturbances.append(
+            Disturbance(
+                target=d["target"],
+                kind=kind,
+                time=_float(d.get("time", 0.0), f"{where}.time", non_negative=True),
+                value=_float(d.get("value", 0.0), f"{where}.value"),
+                duration=_float(
+                    d.get("duration", 0.0), f"{where}.duration", positive=kind == "pulse"
+                ),
+            )
+        )
+    events = data.get("event", [])
+    if not isinstance(events, list):
+        raise ScenarioError(f"{source}: key 'event': expected an array of tables")
+    for i, e in enumerate(events):
+        where = f"{source}: key 'event[{i}]'"
+        e = _table(e, where)
+        extra = set(e) - {"when", "delay", "set"}
+        if extra:
+            raise ScenarioError(f"{where}: unknown key '{sorted(extra)[0]}'")
+        m = _COND.match(str(e.get("when", "")))
+        if not m:
+            raise ScenarioError(
+                f"{where}.when: {e.get('when')!r} is invalid: expected 'time >= T' or "
+                "'instance.variable >= X' (or <=)"
+            )
+        actions = {}
+        for target, v in _table(e.get("set", {}), f"{where}.set").items():
+            if target == "controller.law" and isinstance(v, str):
+                if v not in LAWS:
+                    raise ScenarioError(
+                        f"{where}.set: law {v!r} is invalid: expected one of {', '.join(LAWS)}"
+                    )
+                v = LAWS[v]
+            actions[target] = _number(v, f"{where}.set.{target}")
+        if not actions:
+            raise ScenarioError(f"{where}.set: expected at least one 'instance.variable' = value")
+        try:
+            threshold = float(m.group(3))
+        except ValueError:
+            threshold = _float(m.group(3), f"{where}.when")
+        sc.events.append(
+            Event(
+                variable=m.group(1),
+                op=m.group(2),
+                threshold=threshold,
+                actions=actions,
+                delay=_float(e.get("delay", 0.0), f"{where}.delay", non_negative=True),
+            )
+        )
+    return sc
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Load a scenario file, or a shipped one by name (``None``: the default).
+
+    Raises
+    ------
+    ScenarioError
+        If the file does not exist, is not valid TOML or has invalid keys.
+    """
+    if path is None:
+        path = "default"
+    p = Path(path)
+    if not p.exists() and p.suffix == "" and str(path) in shipped_scenarios():
+        text = (resources.files("glider_cosim") / "scenarios" / f"{path}.toml").read_text()
+        source = f"<shipped>/{path}.toml"
+    else:
+        if not p.exists():
+            raise ScenarioError(
+                f"{path}: scenario file does not exist (shipped scenarios: "
+                f"{', '.join(shipped_scenarios())})"
+            )
+        try:
+            text = p.read_text()
+        except (OSError, UnicodeDecodeError) as err:
+            raise ScenarioError(f"{path}: cannot read scenario file ({err})") from None
+        source = str(p)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{source}: not valid TOML ({err})") from None
+    return parse_scenario(data, source)
+
+
+def shipped_scenarios() -> list[str]:
+    """Names of the scenarios shipped in the package."""
+    d = resources.files("glider_cosim") / "scenarios"
+    return sorted(f.name[:-5] for f in d.iterdir() if f.name.endswith(".toml"))
