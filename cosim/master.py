@@ -23,6 +23,7 @@ not in a fatal state is terminated and freed; a fatal instance is never called a
 
 from __future__ import annotations
 
+import bisect
 import ctypes
 import math
 import shutil
@@ -65,7 +66,9 @@ class FMUCallError(MasterError, RuntimeError):
     def __init__(self, instance: str, call: str, time: float, status: int, log: Sequence[str]):
         self.instance, self.call, self.time, self.status = instance, call, time, status
         self.log = list(log)
-        detail = self.log[-1] if self.log else "no log message"
+        errors = [m for m in self.log if m.startswith(("[fmi2Error]", "[fmi2Discard]"))]
+        detail = (errors[0] if errors else self.log[-1]) if self.log else "no log message"
+        detail = " ".join(detail.split())
         super().__init__(
             f"{instance}: {call} at t = {time:.6g} s returned {_STATUS.get(status, status)}: "
             f"{detail}"
@@ -147,6 +150,8 @@ class System:
     driven: dict[str, float] = field(default_factory=dict)
     disturbances: list[Disturbance] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
+    #: inputs driven by a table (times in s, values), held from each time to the next
+    tables: dict[str, tuple[Sequence[float], Sequence[float]]] = field(default_factory=dict)
     #: variables recorded; None = every output of every instance
     record: list[str] | None = None
 
@@ -286,23 +291,20 @@ class CoSimulation:
             if dst in sources:
                 raise SystemSpecError(f"input {dst} is connected twice ({sources[dst]}, {src})")
             sources[dst] = src
-        for ref in list(self.system.driven) + [d.target for d in self.system.disturbances]:
+        for ref in self._driven_refs():
             _, v = self._resolve(ref, ("input",))
             if v.type != "Real":
                 raise SystemSpecError(f"driven input {ref} must be Real, is {v.type}")
             if ref in sources:
                 raise SystemSpecError(f"input {ref} is both connected and driven")
+        driven = set(self._driven_refs())
         for inst in self.instances.values():
             for name in inst.inputs:
                 ref = f"{inst.name}.{name}"
-                if (
-                    ref not in sources
-                    and ref not in self.system.driven
-                    and not any(d.target == ref for d in self.system.disturbances)
-                ):
+                if ref not in sources and ref not in driven:
                     raise SystemSpecError(
                         f"input {ref} is left unconnected: connect it or drive it "
-                        "(a constant or a disturbance)"
+                        "(a constant, a table or a disturbance)"
                     )
         for inst_name, params in self.system.parameters.items():
             for name in params:
@@ -368,16 +370,24 @@ class CoSimulation:
                 (g, [self._sources[f"{n}.{v}"] for v in names])
                 for g, names in self._groups(inst, [VarRef.parse(d).variable for d in dsts])
             ]
-        self._driven = {}
-        for ref in dict.fromkeys(
-            list(self.system.driven) + [d.target for d in self.system.disturbances]
-        ):
-            inst, v = self._resolve(ref)
-            self._driven[ref] = (inst, v.valueReference)
-        self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven}
+        # driven inputs: one batched group per instance
+        self._driven: list[tuple[Instance, _Group, list[str]]] = []
+        by_inst: dict[str, list[str]] = {}
+        for ref in self._driven_refs():
+            by_inst.setdefault(VarRef.parse(ref).instance, []).append(ref)
+        for n, refs in by_inst.items():
+            inst = insts[n]
+            vrs = [inst.vars[VarRef.parse(r).variable].valueReference for r in refs]
+            self._driven.append((inst, _Group(vrs, "Real"), refs))
+        self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
         self._row_index = [needed.index(r) for r in record]
         self._needed = needed
         self.values: dict[str, float] = dict.fromkeys(needed, 0.0)
+
+    def _driven_refs(self) -> list[str]:
+        sysm = self.system
+        refs = list(sysm.driven) + [d.target for d in sysm.disturbances] + list(sysm.tables)
+        return list(dict.fromkeys(refs))
 
     @staticmethod
     def _groups(inst: Instance, names: Sequence[str]) -> list[tuple[_Group, list[str]]]:
@@ -472,11 +482,26 @@ class CoSimulation:
             self._call(inst, f"fmi2Set{g.type}", fn, comp, g.vr, g.n, g.value)
 
     def _drive(self, t: float) -> None:
-        for ref, (inst, vr) in self._driven.items():
-            value = self._driven_base[ref] + sum(
-                d.at(t) for d in self.system.disturbances if d.target == ref
+        tables = self.system.tables
+        for inst, g, refs in self._driven:
+            for i, ref in enumerate(refs):
+                value = self._driven_base[ref]
+                for d in self.system.disturbances:
+                    if d.target == ref:
+                        value += d.at(t)
+                if ref in tables:
+                    times, values = tables[ref]
+                    value += values[max(bisect.bisect_right(times, t + 1e-9) - 1, 0)]
+                g.value[i] = value
+            self._call(
+                inst,
+                "fmi2SetReal",
+                inst.slave.fmi2SetReal,
+                inst.slave.component,
+                g.vr,
+                g.n,
+                g.value,
             )
-            self._call(inst, "fmi2SetReal", inst.slave.setReal, [vr], [value])
 
     def _exchange(self) -> None:
         for n in self._plain:
