@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from glider_controller.laws import PIController, passivity_law, passivity_output
 from glider_plant.model import derivatives, equilibrium, plant_step
 from glider_plant.params import GliderParams

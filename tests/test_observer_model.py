@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import scipy.signal
+
 from glider_observer.filter import ButterworthFilter, butterworth_coefficients
 from glider_observer.model import (
     DEFAULT_Q,

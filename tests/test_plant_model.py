@@ -7,6 +7,8 @@ import statistics
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
+
 from glider_plant.model import (
     PitchSensor,
     StallError,
@@ -16,7 +18,6 @@ from glider_plant.model import (
     servo_response,
 )
 from glider_plant.params import GliderParams, ParameterError
-from scipy.integrate import solve_ivp
 
 P = GliderParams()
 X0 = (0.2, math.radians(-35.0), math.radians(1.0), 0.0)

@@ -12,6 +12,8 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
+from scipy.integrate import solve_ivp
+
 from glider_controller.laws import passivity_law
 from glider_cosim.build import COMPONENTS
 from glider_cosim.master import CoSimulation, FMUCallError, System
@@ -19,7 +21,6 @@ from glider_cosim.reference import ATOL, CASES, read_csv, run_reference
 from glider_cosim.runner import ArrayRecorder
 from glider_plant.model import derivatives, equilibrium
 from glider_plant.params import GliderParams
-from scipy.integrate import solve_ivp
 
 pytestmark = pytest.mark.integration
 NAMES = [c.name for c in COMPONENTS]
