@@ -29,24 +29,29 @@ BAND_FRACTION = 0.02
 BAND_FLOOR = math.radians(0.1)
 
 
-def takeover_time(params: dict[str, Any], events: Sequence[Any]) -> float:
-    """When the controller takes over: its t_enable or the last event acting on it."""
+def takeover_time(params: dict[str, Any], events: Sequence[Any]) -> float | None:
+    """When the controller takes over: its t_enable or the last event acting on it.
+
+    None if an event that acts on the controller never fired (it never took over).
+    """
     t_on = float(params.get("t_enable", 0.0))
     for ev in events:
-        if ev.fired_at is not None and any(a.startswith("controller.") for a in ev.actions):
+        if any(a.startswith("controller.") for a in ev.actions):
+            if ev.fired_at is None:
+                return None
             t_on = max(t_on, ev.fired_at + ev.delay)
     return t_on
 
 
 def glide_metrics(
-    t: np.ndarray, theta_g: np.ndarray, delta_cmd: np.ndarray, theta_ge: float, t_on: float
+    t: np.ndarray, theta_g: np.ndarray, delta_cmd: np.ndarray, theta_ge: float, t_on: float | None
 ) -> dict[str, float | None]:
     """Metrics of one trajectory (see the module docstring); arrays in s and rad."""
     out: dict[str, float | None] = {"theta_ge_rad": theta_ge, "t_on_s": t_on}
     h = float(t[1] - t[0]) if len(t) > 1 else 0.0
     out["control_effort"] = float(np.sum(np.abs(delta_cmd[:-1])) * h) if len(t) > 1 else 0.0
     out["max_abs_delta_cmd_rad"] = float(np.max(np.abs(delta_cmd))) if len(t) else 0.0
-    i0 = int(np.searchsorted(t, t_on - 1e-9))
+    i0 = len(t) if t_on is None else int(np.searchsorted(t, t_on - 1e-9))
     if i0 >= len(t):
         out.update(rise_time_s=None, overshoot_rad=None, overshoot_pct=None, settling_time_s=None)
         return out
@@ -61,7 +66,7 @@ def glide_metrics(
     past = -np.sign(e0) * e
     over = max(0.0, float(np.max(past)))
     out["overshoot_rad"] = over
-    out["overshoot_pct"] = 100.0 * over / abs(e0)
+    out["overshoot_pct"] = 100.0 * over / abs(e0) if abs(e0) >= BAND_FLOOR else None
     band = max(BAND_FRACTION * abs(e0), BAND_FLOOR)
     outside = np.nonzero(np.abs(e) > band)[0]
     if len(outside) == 0:

@@ -163,7 +163,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     if not isinstance(dist, list):
         raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
     for i, d in enumerate(dist):
-        where = f"{source}: key 'disturbance[{i}]'"
+        where = f"{source}: key disturbance[{i}]"
         d = _table(d, where)
         extra = set(d) - {"target", "kind", "time", "value", "duration"}
         if extra:
@@ -188,7 +188,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     if not isinstance(events, list):
         raise ScenarioError(f"{source}: key 'event': expected an array of tables")
     for i, e in enumerate(events):
-        where = f"{source}: key 'event[{i}]'"
+        where = f"{source}: key event[{i}]"
         e = _table(e, where)
         extra = set(e) - {"when", "delay", "set"}
         if extra:

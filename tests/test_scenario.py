@@ -1,0 +1,89 @@
+"""Scenario parsing: shipped scenarios load; malformed ones name the file and key."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from glider_cosim.scenario import ScenarioError, load_scenario, shipped_scenarios
+
+
+def test_shipped_scenarios_load():
+    names = shipped_scenarios()
+    assert {"default", "sec53-protocol", "sec53-literal"} <= set(names)
+    for n in names:
+        assert load_scenario(n).name == n
+
+
+def test_default_is_sec33_with_a_stable_gain():
+    sc = load_scenario(None)
+    assert sc.stop_time == 60.0 and sc.step == 0.02 and sc.coupling == "gauss-seidel"
+    assert sc.parameters["plant"]["theta_g_0"] == pytest.approx(math.radians(-35.0))
+    assert sc.parameters["controller"] == {"law": 1, "K_c": 10.0}
+
+
+def write(tmp_path, text):
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("stop_time = ", r"s.toml: not valid TOML"),
+        ("stoptime = 5", r"s.toml: unknown key 'stoptime': expected one of"),
+        ("stop_time = 'long'", r"s.toml: key 'stop_time': 'long' is not a number"),
+        ("stop_time = -5.0", r"s.toml: key 'stop_time': -5.0 is invalid: expected a number > 0"),
+        ("step = 0", r"key 'step': 0 is invalid: expected a number > 0"),
+        ("coupling = 'gs'", r"key 'coupling': 'gs' is invalid: expected 'gauss-seidel' or"),
+        ("plant = 3", r"key 'plant': expected a table"),
+        ("[plant]\nV_0 = 'fast'", r"key 'plant.V_0': 'fast' is not a number"),
+        ("[controller]\nlaw = 'pid'", r"key 'controller.law': 'pid' is invalid"),
+        ("[fmus]\nplant = 'missing.fmu'", r"key 'fmus.plant': .*missing.fmu does not exist"),
+        ("[[disturbance]]\ntarget = 'plant.F_x'\nkind = 'ramp'", r"disturbance\[0\].kind"),
+        ("[[disturbance]]\ntarget = 'plant.F_x'\ntime = -1.0", r"disturbance\[0\].time: -1.0"),
+        ("[[disturbance]]\ntarget = 'plant.F_x'\nkind='pulse'", r"duration: 0.0 is invalid"),
+        ("[[event]]\nwhen = 'z is deep'\nset = {a = 1}", r"event\[0\].when: 'z is deep'"),
+        ("[[event]]\nwhen = 'time >= 1'", r"event\[0\].set: expected at least one"),
+        ("[[event]]\nwhen = 'time >= 1'\nset={a=1}\nexec='x'", r"event\[0\]: unknown key 'exec'"),
+    ],
+)
+def test_malformed_scenarios_name_file_and_key(tmp_path, text, message):
+    with pytest.raises(ScenarioError, match=message) as err:
+        load_scenario(write(tmp_path, text))
+    assert "\n" not in str(err.value).strip() or "TOML" in str(err.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ScenarioError, match=r"nope.toml: scenario file does not exist"):
+        load_scenario(tmp_path / "nope.toml")
+
+
+def test_degrees_events_and_disturbances(tmp_path):
+    sc = load_scenario(
+        write(
+            tmp_path,
+            """
+[plant]
+theta_g_0 = "-30 deg"
+[[disturbance]]
+target = "plant.F_z"
+kind = "pulse"
+time = 5.0
+duration = 1.0
+value = 0.2
+[[event]]
+when = "plant.z >= 1.5"
+delay = 0.5
+set = { "controller.law" = "pi", "controller.K_P" = 3 }
+""",
+        )
+    )
+    assert sc.parameters["plant"]["theta_g_0"] == pytest.approx(-math.pi / 6)
+    d = sc.disturbances[0]
+    assert (d.at(4.99), d.at(5.0), d.at(5.99), d.at(6.0)) == (0.0, 0.2, 0.2, 0.0)
+    ev = sc.events[0]
+    assert (ev.variable, ev.op, ev.threshold, ev.delay) == ("plant.z", ">=", 1.5, 0.5)
+    assert ev.actions == {"controller.law": 3, "controller.K_P": 3}
