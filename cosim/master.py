@@ -26,6 +26,7 @@ from __future__ import annotations
 import bisect
 import ctypes
 import math
+import operator
 import shutil
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -380,8 +381,8 @@ class CoSimulation:
             vrs = [inst.vars[VarRef.parse(r).variable].valueReference for r in refs]
             self._driven.append((inst, _Group(vrs, "Real"), refs))
         self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
-        self._row_index = [needed.index(r) for r in record]
-        self._needed = needed
+        getter = operator.itemgetter(*record) if record else (lambda v: ())
+        self._row_getter = getter if len(record) != 1 else (lambda v: (getter(v),))
         self.values: dict[str, float] = dict.fromkeys(needed, 0.0)
 
     def _driven_refs(self) -> list[str]:
@@ -408,13 +409,7 @@ class CoSimulation:
         try:
             return fn(*args)
         except FMICallException as err:
-            status = int(err.status)
-            t = self.t0 + self.k * self.step_size
-            if status >= 4:
-                inst.fatal = True
-                inst.alive = False
-            cls = FMUStopped if status == 2 else FMUCallError
-            raise cls(inst.name, call, t, status, inst.log) from None
+            self._raise(inst, call, int(err.status))
 
     def _make_callbacks(self, inst: Instance) -> fmi2CallbackFunctions:
         def logger(env, instance_name, status, category, message):
@@ -460,59 +455,100 @@ class CoSimulation:
                 self._set_value(inst, name, value)
             self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
             self._call(inst, "fmi2ExitInitializationMode", s.exitInitializationMode)
+        self._plan_calls()
+        self._pending_events = sum(not ev.applied for ev in self.system.events)
+        self._drive_static = not self.system.disturbances and not self.system.tables
+        self._drive_done = False
 
     # ---------------------------------------------------------------- stepping
-    def _read_instance(self, name: str) -> None:
-        inst = self.instances[name]
-        comp = inst.slave.component
-        for g, names in self._read[name]:
-            fn = getattr(inst.slave, f"fmi2Get{g.type}")
-            self._call(inst, f"fmi2Get{g.type}", fn, comp, g.vr, g.n, g.value)
-            for i, n in enumerate(names):
-                self.values[f"{name}.{n}"] = g.value[i]
+    def _check(self, inst: Instance, call: str, status: int) -> None:
+        """Raise for a status worse than fmi2Warning (raw ctypes calls)."""
+        if status > 1:
+            self._raise(inst, call, status)
 
-    def _write_instance(self, name: str) -> None:
-        inst = self.instances[name]
-        comp = inst.slave.component
-        vals = self.values
-        for g, srcs in self._write[name]:
-            for i, src in enumerate(srcs):
-                g.value[i] = vals[src]
-            fn = getattr(inst.slave, f"fmi2Set{g.type}")
-            self._call(inst, f"fmi2Set{g.type}", fn, comp, g.vr, g.n, g.value)
+    def _raise(self, inst: Instance, call: str, status: int) -> None:
+        t = self.t0 + self.k * self.step_size
+        if status >= 4:
+            inst.fatal = True
+            inst.alive = False
+        cls = FMUStopped if status == 2 else FMUCallError
+        raise cls(inst.name, call, t, status, inst.log)
+
+    def _plan_calls(self) -> None:
+        """Raw ctypes functions with preallocated arrays for the per-step calls."""
+        self._readers: dict[str, list[tuple]] = {}
+        self._writers: dict[str, list[tuple]] = {}
+        for n, inst in self.instances.items():
+            dll, comp = inst.slave.dll, inst.slave.component
+            self._readers[n] = [
+                (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.n,
+                 g.value, [f"{n}.{v}" for v in names])
+                for g, names in self._read[n]
+            ]  # fmt: skip
+            self._writers[n] = [
+                (inst, getattr(dll, f"fmi2Set{g.type}"), f"fmi2Set{g.type}", comp, g.vr, g.n,
+                 g.value, srcs)
+                for g, srcs in self._write[n]
+            ]  # fmt: skip
+        # the exchange of one communication point, flattened in its order
+        ops = [(True, *r) for n in self._plain for r in self._readers[n]]
+        for n in self._ft_order:
+            ops += [(False, *w) for w in self._writers[n]]
+            ops += [(True, *r) for r in self._readers[n]]
+        ops += [(False, *w) for n in self._plain for w in self._writers[n]]
+        self._exchange_ops = ops
+        self._steppers = [
+            (inst, inst.slave.dll.fmi2DoStep, inst.slave.component)
+            for inst in self.instances.values()
+        ]
+        self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
 
     def _drive(self, t: float) -> None:
+        if self._drive_static and self._drive_done:
+            return  # constant inputs already set: the FMUs hold them
+        self._drive_done = True
         tables = self.system.tables
-        for inst, g, refs in self._driven:
-            for i, ref in enumerate(refs):
+        disturbances = self.system.disturbances
+        for j, (inst, g, refs) in enumerate(self._driven):
+            new = []
+            for ref in refs:
                 value = self._driven_base[ref]
-                for d in self.system.disturbances:
+                for d in disturbances:
                     if d.target == ref:
                         value += d.at(t)
                 if ref in tables:
                     times, values = tables[ref]
                     value += values[max(bisect.bisect_right(times, t + 1e-9) - 1, 0)]
+                new.append(value)
+            if new == self._driven_last[j]:
+                continue  # unchanged since the last call: the FMU holds its inputs
+            for i, value in enumerate(new):
                 g.value[i] = value
-            self._call(
+            self._check(
                 inst,
                 "fmi2SetReal",
-                inst.slave.fmi2SetReal,
-                inst.slave.component,
-                g.vr,
-                g.n,
-                g.value,
+                inst.slave.dll.fmi2SetReal(inst.slave.component, g.vr, g.n, g.value),
             )
+            self._driven_last[j] = new
 
     def _exchange(self) -> None:
-        for n in self._plain:
-            self._read_instance(n)
-        for n in self._ft_order:
-            self._write_instance(n)
-            self._read_instance(n)
-        for n in self._plain:
-            self._write_instance(n)
+        vals = self.values
+        for read, inst, fn, call, comp, vr, n, value, names in self._exchange_ops:
+            if read:
+                status = fn(comp, vr, n, value)
+                if status > 1:
+                    self._raise(inst, call, status)
+                vals.update(zip(names, value))
+            else:
+                for i, src in enumerate(names):
+                    value[i] = vals[src]
+                status = fn(comp, vr, n, value)
+                if status > 1:
+                    self._raise(inst, call, status)
 
     def _events(self, t: float) -> bool:
+        if not self._pending_events:
+            return False
         changed = False
         for ev in self.system.events:
             if ev.applied:
@@ -526,13 +562,15 @@ class CoSimulation:
                     inst, _ = self._resolve(target)
                     if target in self._driven_base:
                         self._driven_base[target] = float(value)
+                        self._drive_done = False
                     else:
                         self._set_value(inst, VarRef.parse(target).variable, value)
                 ev.applied = True
                 changed = True
+                self._pending_events -= 1
         return changed
 
-    def communication_point(self) -> list[float]:
+    def communication_point(self) -> tuple[float, ...]:
         """Exchange values at ``t_k`` (events included) and return the recorded row."""
         t = self.t0 + self.k * self.step_size
         self._drive(t)
@@ -540,16 +578,16 @@ class CoSimulation:
         if self._events(t):
             self._drive(t)
             self._exchange()
-        vals = self.values
-        needed = self._needed
-        return [t] + [float(vals[needed[i]]) for i in self._row_index]
+        return (t, *self._row_getter(self.values))
 
     def do_step(self) -> None:
         """Step every instance from ``t_k`` to ``t_k + h``."""
         t = self.t0 + self.k * self.step_size
         h = self.step_size
-        for inst in self.instances.values():
-            self._call(inst, "fmi2DoStep", inst.slave.fmi2DoStep, inst.slave.component, t, h, 1)
+        for inst, fn, comp in self._steppers:
+            status = fn(comp, t, h, 1)
+            if status > 1:
+                self._raise(inst, "fmi2DoStep", status)
         self.k += 1
 
     def run(self, stop_time: float, recorder: Recorder) -> None:

@@ -88,9 +88,11 @@ class CsvRecorder:
     def start(self, columns: Sequence[str]) -> None:
         self._f = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115
         self._f.write(",".join(columns) + "\n")
+        # 17 significant digits: every float64 reads back bit for bit
+        self._fmt = ",".join(["%.17g"] * len(columns)) + "\n"
 
     def row(self, values: Sequence[float]) -> None:
-        self._f.write(",".join(map(repr, values)) + "\n")
+        self._f.write(self._fmt % (values if isinstance(values, tuple) else tuple(values)))
         self.n_rows += 1
 
     def close(self) -> None:
@@ -188,7 +190,6 @@ def simulate(
         recorder.close()
         sim.close()
     if isinstance(recorder, CsvRecorder):
-        columns = sim.columns if recorder.n_rows else []
         data = (
             np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
             if recorder.n_rows

@@ -77,12 +77,14 @@ class GliderController(GliderSlave):
         *model_constant_vars(),
     )
     FEEDTHROUGH = {"delta_cmd": ("V_hat", "theta_g_hat")}
+    COMPUTED = ("delta_cmd",)  # read through its getter, not the attribute
     INTERNAL_STATE = ("_p", "_eq", "_pi")
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         # delta_cmd is computed when read (direct feedthrough)
         self.vars[self._vr("delta_cmd")].getter = self.command
+        self._index_reals()
 
     def _vr(self, name: str) -> int:
         return next(vr for vr, v in self.vars.items() if v.name == name)
@@ -97,17 +99,17 @@ class GliderController(GliderSlave):
 
     def command(self) -> float:
         """Tail command (rad) for the current inputs and time."""
-        if not self._initialized:
+        law = self.law
+        if law == 0 or not self._initialized or self._time < self.t_enable - 1e-9:
             return saturate(self.delta_open, self.delta_max)
-        if not self._enabled() or self.law == Law.OPEN_LOOP:
-            return saturate(self.delta_open, self.delta_max)
-        if self.law == Law.PASSIVITY:
+        if law == 1:
             return passivity_law(
                 self.V_hat, self.theta_g_hat, self.K_c, self._p, self._eq, self.delta_max
             )
-        self._pi.K_P = self.K_P
-        self._pi.K_I = self.K_I if self.law == Law.PI else 0.0
-        return self._pi.output(self.theta_g_hat - self._eq.theta_g)
+        pi = self._pi
+        pi.K_P = self.K_P
+        pi.K_I = self.K_I if law == Law.PI else 0.0
+        return pi.output(self.theta_g_hat - self._eq.theta_g)
 
     def step(self, t: float, h: float) -> bool:
         self.check_inputs()

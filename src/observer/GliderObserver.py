@@ -106,7 +106,7 @@ class GliderObserver(GliderSlave):
         Var(
             "omega2_hat_0", "parameter", "rad/s", "initial pitch-rate estimate", 0.0, valid=Range()
         ),
-        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.01, valid=POSITIVE),
+        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.02, valid=POSITIVE),
     )
     INTERNAL_STATE = ("_p", "_H", "_filter", "_xh")
 

@@ -86,7 +86,7 @@ def observer_step(
     h: float,
     p: GliderParams,
     H: Sequence[float],
-    h_max: float = 0.01,
+    h_max: float = 0.02,
 ) -> State4:
     """Integrate Eq. (34) over one step with ``theta`` and ``u_delta`` held (RK4).
 

@@ -52,7 +52,7 @@ class GliderPlant(GliderSlave):
             type="Integer",
             valid=Range(-(2**31), 2**31, False, False),
         ),
-        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.01, valid=POSITIVE),
+        Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.02, valid=POSITIVE),
         Var("V_0", "parameter", "m/s", "initial speed", 0.2, valid=POSITIVE),
         Var(
             "theta_g_0",

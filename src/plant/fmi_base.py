@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import math
+import operator
 from typing import Any, NamedTuple
 from xml.etree.ElementTree import Element, SubElement
 
@@ -78,6 +79,8 @@ class GliderSlave(Fmi2Slave):
 
     VARIABLES: tuple[Var, ...] = ()
     FEEDTHROUGH: dict[str, tuple[str, ...]] = {}
+    #: outputs read through a getter that computes them (direct feedthrough)
+    COMPUTED: tuple[str, ...] = ()
     #: attributes (besides the variables) saved with the FMU state
     INTERNAL_STATE: tuple[str, ...] = ()
 
@@ -108,6 +111,15 @@ class GliderSlave(Fmi2Slave):
             self.register_variable(
                 cls(v.name, causality=causality, variability=variability, description=desc)
             )
+        self._inputs = tuple(v.name for v in self.VARIABLES if v.causality == "input")
+        self._index_reals()
+
+    def _index_reals(self) -> None:
+        """Value reference -> getter / attribute name of every Real variable."""
+        self._real_getters = {vr: v.getter for vr, v in self.vars.items() if isinstance(v, Real)}
+        self._real_names = {vr: v.name for vr, v in self.vars.items() if isinstance(v, Real)}
+        self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
+        self._get_cache: dict[tuple[int, ...], Any] = {}
 
     # ------------------------------------------------------------------ XML
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:  # noqa: D401
@@ -173,12 +185,41 @@ class GliderSlave(Fmi2Slave):
 
     def check_inputs(self) -> None:
         """Refuse non-finite inputs at a step."""
-        for v in self.VARIABLES:
-            if v.causality == "input" and not math.isfinite(getattr(self, v.name)):
+        for name in self._inputs:
+            value = getattr(self, name)
+            if not math.isfinite(value):
                 self.fail(
-                    f"input {v.name} = {getattr(self, v.name)!r} at t = {self._time:g} s "
-                    "is invalid: expected a finite value"
+                    f"input {name} = {value!r} at t = {self._time:g} s is invalid: "
+                    "expected a finite value"
                 )
+
+    # fast paths for the hot get/set calls (pythonfmu's generic ones check every type)
+    def get_real(self, vrs: list[int]) -> list[float]:
+        key = tuple(vrs)
+        fast = self._get_cache.get(key)
+        if fast is None:
+            getters = self._real_getters
+            if not key or not all(vr in getters for vr in key):
+                return super().get_real(vrs)
+            if all(vr in self._plain_reals for vr in key):
+                attr = operator.attrgetter(*(self._real_names[vr] for vr in key))
+                fast = attr if len(key) > 1 else (lambda obj: (attr(obj),))
+            elif len(key) == 1:
+                g0 = getters[key[0]]
+                fast = lambda obj: [g0()]  # noqa: E731
+            else:
+                gs = tuple(getters[vr] for vr in key)
+                fast = lambda obj: [g() for g in gs]  # noqa: E731
+            self._get_cache[key] = fast
+        return list(fast(self))
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        names = self._real_names
+        try:
+            for vr, value in zip(vrs, values, strict=True):
+                setattr(self, names[vr], value)
+        except KeyError:
+            super().set_real(vrs, values)
 
     # ------------------------------------------------------------ lifecycle
     def setup_experiment(self, start_time: float, stop_time: float | None, tolerance: float | None):

@@ -145,7 +145,7 @@ def plant_step(
     p: GliderParams,
     tau_servo: float,
     disturbance: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    h_max: float = 0.01,
+    h_max: float = 0.02,
 ) -> tuple[State6, float]:
     """Advance body, kinematics and servo over one communication step.
 

@@ -155,12 +155,14 @@ def test_stall_stops_cleanly_and_keeps_the_rows(fmu_dir, tmp_path):
     assert p.returncode == 1
     err = p.stderr.strip().splitlines()
     assert len(err) == 1
-    assert "plant: fmi2DoStep at t = 11.1 s returned fmi2Discard" in err[0]
+    # the tumbling glider stalls: the observer's estimate (9.8 s) before the plant (11.1 s)
+    assert "observer: fmi2DoStep at t = 9.8 s returned fmi2Discard" in err[0]
     assert "glider stalled: V = " in err[0]
     rows = (tmp_path / "results.csv").read_text().splitlines()
-    assert len(rows) == 1 + 556  # header + t = 0 .. 11.1 s
+    assert len(rows) == 1 + 491  # header + t = 0 .. 9.8 s
     m = json.loads((tmp_path / "metrics.json").read_text())
-    assert m["status"] == "stopped" and m["end_time_s"] == pytest.approx(11.1)
+    assert m["status"] == "stopped" and m["end_time_s"] == pytest.approx(9.8)
+    assert m["rise_time_s"] is None  # the controller never took over
 
 
 def test_fmu_error_is_reported_with_instance_call_and_time(fmu_dir, tmp_path):

@@ -1,0 +1,111 @@
+"""Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
+against the same sampled loop calling the model code directly (no FMI).
+
+Usage: python bench/cosim_step.py [--json] [--repeat N]
+The last line with --json is one JSON object (figures quoted in README).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from glider_cosim.build import build_all
+from glider_cosim.master import CoSimulation
+from glider_cosim.monolithic import COLUMNS, simulate_monolithic
+from glider_cosim.runner import CsvRecorder, system_for
+from glider_cosim.scenario import load_scenario
+
+
+def cosim_step_times(fmu_dir: Path, out: Path) -> list[float]:
+    """Per-macro-step wall times (s) of the default scenario under the master."""
+    sc = load_scenario(None)
+    sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
+    rec = CsvRecorder(out / "results.csv")
+    times = []
+    try:
+        sim.initialize()
+        rec.start(sim.columns)
+        rec.row(sim.communication_point())
+        n = round(sc.stop_time / sc.step)
+        clock = time.perf_counter
+        for _ in range(n):
+            t0 = clock()
+            sim.do_step()
+            rec.row(sim.communication_point())
+            times.append(clock() - t0)
+    finally:
+        rec.close()
+        sim.close()
+    return times
+
+
+def monolithic_step_times(fmu_dir: Path, out: Path) -> list[float]:
+    """Per-step wall times (s) of the same loop without FMI, recording the same CSV."""
+    times: list[float] = []
+    last = [0.0]
+    rec = CsvRecorder(out / "monolithic.csv")
+
+    def row(r):
+        rec.row(r)
+        now = time.perf_counter()
+        times.append(now - last[0])
+        last[0] = now
+
+    simulate_monolithic(load_scenario(None), fmu_dir=fmu_dir, stop_time=1.0)  # scipy import
+    rec.start(COLUMNS)
+    last[0] = time.perf_counter()
+    simulate_monolithic(load_scenario(None), row=row, fmu_dir=fmu_dir)
+    rec.close()
+    return times[1:]
+
+
+def cold_run_seconds(fmu_dir: Path, out: Path) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(
+        [sys.executable, "-c", "from glider_cosim.cli import console_main; console_main()",
+         "run", "--out", str(out / "cold"), "--fmu-dir", str(fmu_dir)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", action="store_true", help="print one JSON object last")
+    ap.add_argument("--repeat", type=int, default=3, help="runs; the best median is kept")
+    ap.add_argument("--fmu-dir", default="fmus")
+    args = ap.parse_args()
+    fmu_dir = Path(args.fmu_dir)
+    build_all(fmu_dir, only_stale=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        cosim = min(statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat))
+        mono = min(
+            statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
+        )
+        cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
+    result = {
+        "us_per_macro_step": round(cosim * 1e6, 1),
+        "monolithic_us_per_macro_step": round(mono * 1e6, 1),
+        "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
+        "ratio_to_libcosim": None,
+        "cold_run_s": round(cold, 2),
+        "scenario": "default (60 s, 3 FMUs, 50 Hz, both loops recording the same CSV)",
+        "cpus": os.cpu_count(),
+    }
+    if not args.json:
+        for k, v in result.items():
+            print(f"{k}: {v}")
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
