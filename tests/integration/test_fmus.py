@@ -235,3 +235,11 @@ def test_invalid_parameters_are_refused_before_the_first_step(fmu_dir, name, par
     assert err.value.status >= 3  # error/fatal: never a run producing NaNs
     assert message in str(err.value)
     assert "\n" not in str(err.value)
+
+
+def test_interface_docs_are_generated_from_the_fmus(fmu_dir):
+    from glider_cosim.docs import interface_markdown
+
+    text = interface_markdown({n: fmu_dir / f"{n}.fmu" for n in NAMES})
+    doc = Path(__file__).resolve().parents[2] / "docs" / "interfaces.md"
+    assert doc.read_text() == text, "run: python -m glider_cosim.docs"
