@@ -118,6 +118,11 @@ class GliderSlave(Fmi2Slave):
         """Value reference -> getter / attribute name of every Real variable."""
         self._real_getters = {vr: v.getter for vr, v in self.vars.items() if isinstance(v, Real)}
         self._real_names = {vr: v.name for vr, v in self.vars.items() if isinstance(v, Real)}
+        spec = {v.name: v for v in self.VARIABLES}
+        self._spec_by_vr = {vr: spec[v.name] for vr, v in self.vars.items() if v.name in spec}
+        self._real_inputs = {
+            vr: n for vr, n in self._real_names.items() if self._spec_by_vr[vr].causality == "input"
+        }
         self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
         self._get_cache: dict[tuple[int, ...], Any] = {}
 
@@ -214,12 +219,38 @@ class GliderSlave(Fmi2Slave):
         return list(fast(self))
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
-        names = self._real_names
-        try:
-            for vr, value in zip(vrs, values, strict=True):
-                setattr(self, names[vr], value)
-        except KeyError:
-            super().set_real(vrs, values)
+        inputs = self._real_inputs
+        for vr, value in zip(vrs, values, strict=True):
+            name = inputs.get(vr)
+            if name is not None:
+                setattr(self, name, value)
+            else:
+                self._set_other(vr, value, super().set_real)
+
+    def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        for vr, value in zip(vrs, values, strict=True):
+            self._set_other(vr, value, super().set_integer)
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        for vr, value in zip(vrs, values, strict=True):
+            self._set_other(vr, value, super().set_boolean)
+
+    def _set_other(self, vr: int, value: Any, setter: Any) -> None:
+        """Set a parameter (checked once initialised) or refuse to set an output."""
+        v = self._spec_by_vr.get(vr)
+        if v is None:
+            self.fail(f"value reference {vr} is unknown")
+        if v.causality == "output":
+            self.fail(f"{v.name} is an output: it cannot be set")
+        if self._initialized and v.causality == "parameter":
+            if not v.tunable:
+                self.fail(
+                    f"{v.name} is a fixed parameter: it cannot be set after initialisation "
+                    "(only tunable parameters can)"
+                )
+            if v.valid is not None and not v.valid.contains(float(value)):
+                self.fail(f"{v.name} = {value!r} is invalid: expected {v.valid.describe()}")
+        setter([vr], [value])
 
     # ------------------------------------------------------------ lifecycle
     def setup_experiment(self, start_time: float, stop_time: float | None, tolerance: float | None):
