@@ -15,7 +15,7 @@ import statistics
 import time
 from pathlib import Path
 
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from glider_controller.laws import passivity_law
@@ -38,7 +38,7 @@ def fmu_us(fmu: Path, inputs: dict[str, float], steps: int) -> float:
     vr = {v.name: v.valueReference for v in md.modelVariables}
     s = FMU2Slave(
         guid=md.guid,
-        unzipDirectory=extract(str(fmu)),
+        unzipDirectory=_extracted(fmu),
         modelIdentifier=md.coSimulation.modelIdentifier,
         instanceName="bench",
     )
@@ -55,7 +55,7 @@ def fmu_us(fmu: Path, inputs: dict[str, float], steps: int) -> float:
         do_step(comp, k * h, h, 1)
         times.append(clock() - t0)
     s.terminate()
-    s.freeInstance()
+    s.fmi2FreeInstance(s.component)
     return statistics.median(times) * 1e6
 
 

@@ -23,7 +23,9 @@ not in a fatal state is terminated and freed; a fatal instance is never called a
 
 from __future__ import annotations
 
+import atexit
 import bisect
+import contextlib
 import ctypes
 import math
 import operator
@@ -178,10 +180,34 @@ class _Group:
         self.value = (_CTYPES[type_] * n)()
 
 
+_EXTRACTED: dict[tuple[str, int, int], str] = {}
+
+
+def _extracted(fmu: Path) -> str:
+    """Folder an FMU is unpacked to, once per process and FMU file version.
+
+    Instances of the same FMU share the unpacked binary, and a binary is never unloaded
+    (no dlclose): unloading and reloading C++ libraries with thread-local storage while
+    other threads (e.g. OpenBLAS's) live can corrupt the heap at process exit. The
+    folders are removed at exit.
+    """
+    st = fmu.stat()
+    key = (str(fmu.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _EXTRACTED:
+        _EXTRACTED[key] = extract(str(fmu))
+    return _EXTRACTED[key]
+
+
+@atexit.register
+def _remove_extracted() -> None:
+    for folder in _EXTRACTED.values():
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 class Instance:
     """One FMU instance under a name (fmpy ``FMU2Slave`` with batched value access)."""
 
-    def __init__(self, name: str, fmu: Path, unzipdir: str | None = None):
+    def __init__(self, name: str, fmu: Path):
         self.name = name
         self.fmu = Path(fmu)
         if not self.fmu.exists():
@@ -205,7 +231,7 @@ class Instance:
             for u in self.md.outputs
             if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
         }
-        self.unzipdir = unzipdir or extract(str(self.fmu))
+        self.unzipdir = _extracted(self.fmu)
         self.slave = FMU2Slave(
             guid=self.md.guid,
             unzipDirectory=self.unzipdir,
@@ -448,6 +474,12 @@ class CoSimulation:
             except Exception as err:  # fmpy raises plain Exception here
                 raise FMUCallError(inst.name, "fmi2Instantiate", self.t0, 3, inst.log) from err
             inst.alive = True
+        self._setup_instances()
+        self._plan_calls()
+
+    def _setup_instances(self) -> None:
+        """Set up, parameterise and initialise the (fresh or reset) instances."""
+        self.k = 0
         for inst in self.instances.values():
             s = inst.slave
             self._call(inst, "fmi2SetupExperiment", s.setupExperiment, None, self.t0)
@@ -455,10 +487,34 @@ class CoSimulation:
                 self._set_value(inst, name, value)
             self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
             self._call(inst, "fmi2ExitInitializationMode", s.exitInitializationMode)
-        self._plan_calls()
-        self._pending_events = sum(not ev.applied for ev in self.system.events)
+        for ev in self.system.events:
+            ev.fired_at, ev.applied = None, False
+        self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
+        self._pending_events = len(self.system.events)
         self._drive_static = not self.system.disturbances and not self.system.tables
         self._drive_done = False
+        self._driven_last = dict.fromkeys(range(len(self._driven)))
+
+    def reset(self, parameters: dict[str, dict[str, Any]] | None = None) -> None:
+        """fmi2Reset every instance and initialise it again, for another run.
+
+        pythonfmu's reset restores the defaults, so the system's parameters (updated
+        with ``parameters``, per instance) are set again. Value references, call plans
+        and loaded libraries are kept. Raises :class:`MasterError` if an instance is in
+        a fatal state (it cannot be reset: build a new :class:`CoSimulation`).
+        """
+        for inst in self.instances.values():
+            if not inst.alive:
+                raise MasterError(f"{inst.name}: cannot reset an instance that is not alive")
+        for inst, params in (parameters or {}).items():
+            if inst not in self.instances:
+                raise SystemSpecError(f"reset: no instance '{inst}'")
+            for name in params:
+                self._resolve(f"{inst}.{name}", ("parameter", "input"))
+            self.system.parameters.setdefault(inst, {}).update(params)
+        for inst in self.instances.values():
+            self._call(inst, "fmi2Reset", inst.slave.reset)
+        self._setup_instances()
 
     # ---------------------------------------------------------------- stepping
     def _check(self, inst: Instance, call: str, status: int) -> None:
@@ -615,11 +671,9 @@ class CoSimulation:
         for inst in self.instances.values():
             if inst.alive:
                 inst.alive = False
-                for fn in (inst.slave.terminate, inst.slave.freeInstance):
-                    try:
-                        fn()
-                    except FMICallException:
-                        pass
-            if inst.unzipdir:
-                shutil.rmtree(inst.unzipdir, ignore_errors=True)
-                inst.unzipdir = None
+                slave = inst.slave
+                with contextlib.suppress(FMICallException):
+                    slave.terminate()
+                # free the instance but keep the library loaded (see _extracted)
+                with contextlib.suppress(FMICallException):
+                    slave.fmi2FreeInstance(slave.component)

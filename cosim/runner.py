@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .build import build_all
-from .master import CoSimulation, FMUCallError, FMUStopped, System
+from .master import CoSimulation, FMUCallError, FMUStopped, System, SystemSpecError
 from .metrics import compute_metrics
 from .scenario import Scenario, load_scenario
 
@@ -169,6 +169,10 @@ def simulate(
         coupling=coupling or scenario.coupling,
     )
     stop = stop_time if stop_time is not None else scenario.stop_time
+    try:
+        sim.load()
+    except SystemSpecError as err:
+        raise SystemSpecError(f"{scenario.source}: {err}") from None
     files: dict[str, Path] = {}
     if out is not None:
         out = Path(out)

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
 from glider_controller.laws import passivity_law
 from glider_cosim.build import COMPONENTS
-from glider_cosim.master import CoSimulation, FMUCallError, System
+from glider_cosim.master import CoSimulation, FMUCallError, System, _extracted
 from glider_cosim.reference import ATOL, CASES, read_csv, run_reference
 from glider_cosim.runner import ArrayRecorder
 from glider_plant.model import derivatives, equilibrium
@@ -32,7 +32,7 @@ class Slave:
     def __init__(self, fmu: Path, name: str = "inst"):
         self.md = read_model_description(str(fmu))
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.dir = extract(str(fmu))
+        self.dir = _extracted(Path(fmu))  # shared, never unloaded (see the master)
         self.s = FMU2Slave(
             guid=self.md.guid,
             unzipDirectory=self.dir,
@@ -70,7 +70,7 @@ class Slave:
 
     def free(self):
         self.s.terminate()
-        self.s.freeInstance()
+        self.s.fmi2FreeInstance(self.s.component)
 
 
 @pytest.mark.parametrize("name", NAMES)
