@@ -30,6 +30,8 @@ import ctypes
 import math
 import operator
 import shutil
+import signal
+import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -178,6 +180,28 @@ class _Group:
         self.type = type_
         self.vr = (ctypes.c_uint * n)(*vrs)
         self.value = (_CTYPES[type_] * n)()
+
+
+@contextlib.contextmanager
+def _deferred_sigint():
+    """Turn Ctrl-C into a flag checked between steps (main thread only).
+
+    A KeyboardInterrupt raised inside an FMU's Python code would become fmi2Fatal; the
+    master stops at the next communication point instead and raises it there.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    flag = []
+
+    def handler(signum, frame):
+        flag.append(signum)
+
+    old = signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(flag)
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 _EXTRACTED: dict[tuple[str, int, int], str] = {}
@@ -659,12 +683,15 @@ class CoSimulation:
                 f"{self.t0:g} s"
             )
         n = round((stop_time - self.t0) / self.step_size)
-        self.initialize()
-        recorder.start(self.columns)
-        recorder.row(self.communication_point())
-        for _ in range(n):
-            self.do_step()
+        with _deferred_sigint() as interrupted:
+            self.initialize()
+            recorder.start(self.columns)
             recorder.row(self.communication_point())
+            for _ in range(n):
+                if interrupted():
+                    raise KeyboardInterrupt
+                self.do_step()
+                recorder.row(self.communication_point())
 
     def close(self) -> None:
         """Terminate and free every instance that is not in a fatal state."""

@@ -50,7 +50,7 @@ class GliderPlant(GliderSlave):
             "sensor noise seed",
             0,
             type="Integer",
-            valid=Range(-(2**31), 2**31, False, False),
+            valid=Range(0, 2**31 - 1, False, False),
         ),
         Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.02, valid=POSITIVE),
         Var("V_0", "parameter", "m/s", "initial speed", 0.2, valid=POSITIVE),

@@ -258,7 +258,10 @@ class GliderSlave(Fmi2Slave):
 
     def exit_initialization_mode(self) -> None:
         self.validate_parameters()
-        self.initialize()
+        try:
+            self.initialize()
+        except ParameterError as err:  # consistency checks of the models
+            self.fail(str(err))
         self._initialized = True
 
     def do_step(self, current_time: float, step_size: float) -> bool:
