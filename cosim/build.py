@@ -25,8 +25,13 @@ class Component:
     packages: tuple[Path, ...]
 
     @property
-    def script(self) -> Path:
-        return self.packages[0] / f"{self.name}.py"
+    def slave_module(self) -> str:
+        """Module holding the slave class, e.g. ``glider_plant.slave``."""
+        return f"{PACKAGE_NAMES[self.packages[0]]}.slave"
+
+    @property
+    def sources(self) -> list[Path]:
+        return sorted(f for pkg in self.packages for f in pkg.glob("*.py"))
 
 
 def _pkg(module) -> Path:
@@ -45,14 +50,10 @@ PACKAGE_NAMES = {
 }
 
 
-def _sources(c: Component) -> list[Path]:
-    return sorted(f for pkg in c.packages for f in pkg.glob("*.py"))
-
-
 def source_hash(c: Component) -> str:
     """SHA-256 over the component's source files (names and contents)."""
     h = hashlib.sha256()
-    for f in _sources(c):
+    for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()
@@ -74,20 +75,27 @@ def build_component(c: Component, out: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_") as tmp:
         stage = Path(tmp)
-        shutil.copy2(c.script, stage / c.script.name)
-        slave_scripts = {x.script.name for x in COMPONENTS}
+        # The FMU's script is a shim that imports the slave class: pythonfmu re-executes
+        # the script at every instantiation (and leaks what it defines), so it defines
+        # nothing itself. Its name is the model identifier, unique per FMU.
+        script = stage / f"{c.name}.py"
+        script.write_text(
+            f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
+            f"from {c.slave_module} import {c.name}\n\n__all__ = [\"{c.name}\"]\n\n"
+            "# pythonfmu 0.7 releases one reference to this namespace per instantiation that\n"
+            "# it never owned; the slave's constructor gives one back, this one bridges the\n"
+            "# gap between the two (see glider_plant.fmi_base).\n"
+            "_NAMESPACE = globals()\n"
+        )
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
-            shutil.copytree(
-                pkg, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", *slave_scripts)
-            )
-            (dst / "glider_cosim_source.sha256").unlink(missing_ok=True)
+            shutil.copytree(pkg, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")
         project.append(stage / "glider_cosim_source.sha256")
         fmu = FmuBuilder.build_FMU(
-            stage / c.script.name,
+            script,
             dest=out,
             project_files=project,
             canGetAndSetFMUstate=True,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import copy
 import math
 import operator
+import sys
 from typing import Any, NamedTuple
 from xml.etree.ElementTree import Element, SubElement
 
@@ -72,6 +73,9 @@ def model_constant_vars() -> tuple[Var, ...]:
     )
 
 
+_SCRIPT_DICT_REFS: list[dict[str, Any]] = []
+
+
 class GliderSlave(Fmi2Slave):
     """Base of the glider slaves: declare :attr:`VARIABLES`, implement :meth:`initialize`
     and :meth:`step`; list :attr:`FEEDTHROUGH` (output -> inputs it depends on directly).
@@ -89,6 +93,13 @@ class GliderSlave(Fmi2Slave):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
+        # pythonfmu 0.7's binary (findClass) releases, at every fmi2Instantiate, a
+        # reference to the FMU script module's __dict__ that it never owned; our script
+        # is a one-line shim, so that dict would soon be freed while in use. Hold one
+        # reference per instantiation to balance it (harmless if the bug is fixed).
+        script_module = sys.modules.get(self.modelName or "")
+        if script_module is not None:
+            _SCRIPT_DICT_REFS.append(vars(script_module))
         self._initialized = False
         self._time = 0.0
         self._discarded = False

@@ -1,0 +1,80 @@
+"""Reliability benchmark: N instantiate/initialise/step/reset/free cycles of the three
+FMUs in one process; reports resident memory (RSS) growth.
+
+Usage: python bench/repeated_use.py [--cycles 1000] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from glider_cosim.build import build_all
+from glider_cosim.master import CoSimulation
+from glider_cosim.runner import system_for
+from glider_cosim.scenario import load_scenario
+
+
+def rss_mib() -> float:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def cycle(fmu_dir: Path, sc) -> None:
+    sim = CoSimulation(system_for(sc, fmu_dir))
+    try:
+        sim.initialize()
+        for _ in range(10):
+            sim.communication_point()
+            sim.do_step()
+        sim.reset({"controller": {"K_c": 12.0}})
+        for _ in range(10):
+            sim.communication_point()
+            sim.do_step()
+    finally:
+        sim.close()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cycles", type=int, default=1000)
+    ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    fmu_dir = Path(args.fmu_dir)
+    build_all(fmu_dir, only_stale=True)
+    sc = load_scenario(None)
+    warm = min(50, args.cycles // 10)
+    for _ in range(warm):
+        cycle(fmu_dir, sc)
+    rss0 = rss_mib()
+    t0 = time.perf_counter()
+    marks = {}
+    for i in range(warm, args.cycles):
+        cycle(fmu_dir, sc)
+        if (i + 1) % max(1, args.cycles // 4) == 0:
+            marks[i + 1] = round(rss_mib(), 1)
+    rss1 = rss_mib()
+    n = args.cycles - warm
+    result = {
+        "cycles": args.cycles,
+        "fmus_per_cycle": 3,
+        "rss_after_warmup_mib": round(rss0, 1),
+        "rss_end_mib": round(rss1, 1),
+        "growth_kib_per_cycle": round((rss1 - rss0) * 1024 / max(n, 1), 2),
+        "rss_marks_mib": marks,
+        "ms_per_cycle": round((time.perf_counter() - t0) / max(n, 1) * 1e3, 1),
+    }
+    if not args.json:
+        for k, v in result.items():
+            print(f"{k}: {v}")
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
