@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -52,6 +51,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--step", type=_positive, default=None, help="communication step, s")
     r.add_argument("--stop-time", type=_positive, default=None, help="stop time, s")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="INSTANCE.NAME=VALUE",
+        help="override a parameter (repeatable): controller.K_c=6, plant.theta_g_0='-30 deg'",
+    )
+
+    rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
+    rep.add_argument("--out", default="out/report", help="report folder (default: out/report)")
+    rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -61,10 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from .report import apply_overrides
     from .runner import simulate
-    from .scenario import load_scenario
+    from .scenario import load_scenario, parse_sets
 
     scenario = load_scenario(args.scenario)
+    if args.set:
+        scenario = apply_overrides(scenario, parse_sets(args.set))
     out = Path(args.out)
     if args.out == "out":
         out = out / scenario.name
@@ -101,6 +115,18 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _report(args: argparse.Namespace) -> int:
+    from .report import build_report
+
+    try:
+        from .analysis import analyze
+    except ImportError:  # pragma: no cover - analysis is part of the package
+        analyze = None
+    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress)
+    print(f"wrote {path}")
+    return 0
+
+
 def _analyze(args: argparse.Namespace) -> int:
     from .analysis import analyze, format_report
 
@@ -124,6 +150,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = 0
         elif args.command == "run":
             code = _run(args)
+        elif args.command == "report":
+            code = _report(args)
         elif args.command == "analyze":
             code = _analyze(args)
         else:
@@ -145,9 +173,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def console_main() -> None:
-    """Console script: run :func:`main`, flush, and leave without the interpreter's
-    finalisation (pythonfmu's binary can abort the process there; see README)."""
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
+    """Console script: run :func:`main` and exit with its code."""
+    sys.exit(main())

@@ -123,3 +123,52 @@ def simulate_monolithic(
             pp["h_max"],
         )
     return np.array(rows)
+
+
+def simulate_continuous(
+    scenario: Scenario, output_step: float = 0.02, fmu_dir: str | Path = "fmus"
+) -> np.ndarray:
+    """The scenario's loop in continuous time: plant, servo, observer and controller
+    integrated together with ``solve_ivp`` (no sampling, no pre-filter, no noise).
+
+    Returns rows of (time, plant.theta_g, observer.theta_g_hat, controller.delta_cmd) on
+    the ``output_step`` grid. Only the passivity law without events or disturbances.
+    """
+    from scipy.integrate import solve_ivp
+
+    from glider_plant.model import derivatives
+
+    if scenario.events or scenario.disturbances or scenario.fmus:
+        raise ScenarioError(f"{scenario.source}: the continuous loop supports no events")
+    fmu_dir = Path(fmu_dir)
+    pp, op, cp = (
+        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
+        for inst, name in FMU_NAMES.items()
+    )
+    if cp["law"] != Law.PASSIVITY:
+        raise ScenarioError(f"{scenario.source}: the continuous loop needs the passivity law")
+    p, po, pc = (GliderParams.from_mapping(d) for d in (pp, op, cp))
+    eq_c, e_o = equilibrium(pc), equilibrium(po)
+    H = observer_gain(po, op["R"], (op["Q_V"], op["Q_theta_g"], op["Q_alpha"], op["Q_omega2"]))
+    state_fb = scenario.feedback == "state"
+
+    def command(y):
+        fb = (y[0], y[1]) if state_fb else (y[5], y[6])
+        return passivity_law(fb[0], fb[1], cp["K_c"], pc, eq_c, cp["delta_max"])
+
+    def rhs(t, y):
+        cmd = saturate(command(y), pp["delta_max"])
+        dx = derivatives(t, tuple(y[:4]), p.K_udelta * y[4], p)
+        dd = (cmd - y[4]) / pp["tau_servo"]
+        xh = tuple(y[5:9])
+        fo = derivatives(t, xh, po.K_udelta * command(y), po)
+        err = (y[1] + y[2]) - (xh[1] + xh[2])
+        return [*dx, dd, *(f + hk * err for f, hk in zip(fo, H, strict=True))]
+
+    y0 = [pp["V_0"], pp["theta_g_0"], pp["alpha_0"], pp["omega2_0"], pp["delta_0"],
+          e_o.V, e_o.theta_g, e_o.alpha, 0.0]  # fmt: skip
+    n = round(scenario.stop_time / output_step)
+    t = np.arange(n + 1) * output_step
+    sol = solve_ivp(rhs, (0.0, t[-1]), y0, method="LSODA", t_eval=t, rtol=1e-10, atol=1e-12)
+    cmd = [command(sol.y[:, k]) for k in range(sol.y.shape[1])]
+    return np.column_stack([sol.t, sol.y[1], sol.y[6], cmd])

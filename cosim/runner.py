@@ -21,13 +21,14 @@ DEFAULT_FMU_DIR = Path("fmus")
 DISTURBANCE_INPUTS = ("plant.F_x", "plant.F_z", "plant.M_y")
 
 
-def default_connections(feedback: str = "observer") -> list[tuple[str, str]]:
+def default_connections(feedback: str = "observer", observer: bool = True) -> list[tuple[str, str]]:
     """The closed loop: plant -> observer -> controller -> plant (and -> observer)."""
-    conns = [
-        ("plant.theta_meas", "observer.theta_meas"),
-        ("controller.delta_cmd", "observer.delta_cmd"),
-        ("controller.delta_cmd", "plant.delta_cmd"),
-    ]
+    conns = [("controller.delta_cmd", "plant.delta_cmd")]
+    if observer:
+        conns += [
+            ("plant.theta_meas", "observer.theta_meas"),
+            ("controller.delta_cmd", "observer.delta_cmd"),
+        ]
     if feedback == "state":
         conns += [("plant.V", "controller.V_hat"), ("plant.theta_g", "controller.theta_g_hat")]
     else:
@@ -43,12 +44,13 @@ def system_for(scenario: Scenario, fmu_dir: Path) -> System:
     fmus = {
         inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
         for inst, name in FMU_NAMES.items()
+        if scenario.observer or inst != "observer"
     }
     driven = dict.fromkeys(DISTURBANCE_INPUTS, 0.0)
     driven.update(scenario.inputs)
     return System(
         fmus=fmus,
-        connections=default_connections(scenario.feedback),
+        connections=default_connections(scenario.feedback, scenario.observer),
         parameters={k: dict(v) for k, v in scenario.parameters.items()},
         driven=driven,
         disturbances=list(scenario.disturbances),

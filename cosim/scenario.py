@@ -10,6 +10,7 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
     step = 0.02               communication step, s, > 0
     coupling = "gauss-seidel" or "jacobi"
     feedback = "observer"     controller fed by the observer, or "state" (true state)
+    with_observer = true      false: no observer instance (only with feedback = "state")
     record = [...]            instance.variable list (default: every output)
     [plant] [observer] [controller]   parameters of each instance
                               (controller.law may be "open-loop", "passivity", "p", "pi")
@@ -34,7 +35,8 @@ from .master import Disturbance, Event
 INSTANCES = ("plant", "observer", "controller")
 LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
 _TOP = {
-    "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "record",
+    "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
+    "record",
     "fmus", "inputs", "disturbance", "event", *INSTANCES,
 }  # fmt: skip
 _DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
@@ -57,6 +59,7 @@ class Scenario:
     step: float = 0.02
     coupling: str = "gauss-seidel"
     feedback: str = "observer"
+    observer: bool = True
     record: list[str] | None = None
     parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
     fmus: dict[str, str] = field(default_factory=dict)
@@ -125,6 +128,19 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
                 "'observer' or 'state'"
             )
         sc.feedback = data["feedback"]
+    if "with_observer" in data:
+        if not isinstance(data["with_observer"], bool):
+            raise ScenarioError(f"{source}: key 'with_observer': expected true or false")
+        sc.observer = data["with_observer"]
+        if not sc.observer and sc.feedback != "state":
+            raise ScenarioError(
+                f"{source}: key 'with_observer': false needs feedback = 'state' (the "
+                "controller would have no input)"
+            )
+        for key in ("observer", "fmus"):
+            if not sc.observer and "observer" in (data if key == "observer" else
+                                                  data.get("fmus", {})):  # fmt: skip
+                raise ScenarioError(f"{source}: key '{key}': the scenario has no observer")
     if "record" in data:
         rec = data["record"]
         if not (isinstance(rec, list) and all(isinstance(r, str) for r in rec)):
@@ -262,3 +278,28 @@ def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped in the package."""
     d = resources.files("glider_cosim") / "scenarios"
     return sorted(f.name[:-5] for f in d.iterdir() if f.name.endswith(".toml"))
+
+
+def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int | bool]:
+    """``["controller.K_c=6", "plant.theta_g_0=-30 deg"]`` -> overrides (angles in rad)."""
+    out: dict[str, float | int | bool] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        inst, dot, name = key.strip().partition(".")
+        if not sep or not dot or inst not in INSTANCES or not name:
+            raise ScenarioError(
+                f"{source} {item!r}: expected INSTANCE.NAME=VALUE with INSTANCE one of "
+                f"{', '.join(INSTANCES)}"
+            )
+        text = text.strip()
+        if inst == "controller" and name == "law" and text in LAWS:
+            out[key.strip()] = LAWS[text]
+            continue
+        try:
+            value: float | int | bool = (
+                int(text) if re.fullmatch(r"[-+]?\d+", text) else float(text)
+            )
+        except ValueError:
+            value = _number(text, f"{source} {item!r}")
+        out[key.strip()] = value
+    return out

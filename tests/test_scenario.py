@@ -87,3 +87,25 @@ set = { "controller.law" = "pi", "controller.K_P" = 3 }
     ev = sc.events[0]
     assert (ev.variable, ev.op, ev.threshold, ev.delay) == ("plant.z", ">=", 1.5, 0.5)
     assert ev.actions == {"controller.law": 3, "controller.K_P": 3}
+
+
+def test_set_overrides_parse_numbers_degrees_and_laws():
+    from glider_cosim.scenario import parse_sets
+
+    out = parse_sets(["controller.K_c=6", "plant.theta_g_0=-30 deg", "controller.law=pi",
+                      "plant.noise_seed=4"])  # fmt: skip
+    assert out == {"controller.K_c": 6, "plant.theta_g_0": pytest.approx(-math.pi / 6),
+                   "controller.law": 3, "plant.noise_seed": 4}  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"--set 'K_c=6': expected INSTANCE.NAME=VALUE"):
+        parse_sets(["K_c=6"])
+    with pytest.raises(ScenarioError, match=r"--set 'plant.V_0=fast'.*'fast' is not a number"):
+        parse_sets(["plant.V_0=fast"])
+
+
+def test_with_observer_false_needs_state_feedback(tmp_path):
+    sc = load_scenario(write(tmp_path, 'feedback = "state"\nwith_observer = false\n'))
+    assert sc.observer is False
+    with pytest.raises(ScenarioError, match=r"key 'with_observer': false needs feedback"):
+        load_scenario(write(tmp_path, "with_observer = false\n"))
+    with pytest.raises(ScenarioError, match=r"key 'with_observer': expected true or false"):
+        load_scenario(write(tmp_path, 'with_observer = "no"\n'))
