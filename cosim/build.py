@@ -81,7 +81,7 @@ def build_component(c: Component, out: Path) -> Path:
         script = stage / f"{c.name}.py"
         script.write_text(
             f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
-            f"from {c.slave_module} import {c.name}\n\n__all__ = [\"{c.name}\"]\n\n"
+            f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n\n'
             "# pythonfmu 0.7 releases one reference to this namespace per instantiation that\n"
             "# it never owned; the slave's constructor gives one back, this one bridges the\n"
             "# gap between the two (see glider_plant.fmi_base).\n"
