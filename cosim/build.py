@@ -51,12 +51,24 @@ PACKAGE_NAMES = {
 
 
 def source_hash(c: Component) -> str:
-    """SHA-256 over the component's source files (names and contents)."""
-    h = hashlib.sha256()
+    """SHA-256 over the component's source files and the script shim that build writes."""
+    h = hashlib.sha256(shim_text(c).encode())
     for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()
+
+
+def shim_text(c: Component) -> str:
+    """The FMU's script: it only imports the slave class (see build_component)."""
+    return (
+        f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
+        f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n\n'
+        "# pythonfmu 0.7 releases one reference to this namespace per instantiation that\n"
+        "# it never owned; the slave's constructor gives one back, this one bridges the\n"
+        "# gap between the two (see glider_plant.fmi_base).\n"
+        "_NAMESPACE = globals()\n"
+    )
 
 
 def is_current(fmu: Path, c: Component) -> bool:
@@ -79,14 +91,7 @@ def build_component(c: Component, out: Path) -> Path:
         # the script at every instantiation (and leaks what it defines), so it defines
         # nothing itself. Its name is the model identifier, unique per FMU.
         script = stage / f"{c.name}.py"
-        script.write_text(
-            f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
-            f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n\n'
-            "# pythonfmu 0.7 releases one reference to this namespace per instantiation that\n"
-            "# it never owned; the slave's constructor gives one back, this one bridges the\n"
-            "# gap between the two (see glider_plant.fmi_base).\n"
-            "_NAMESPACE = globals()\n"
-        )
+        script.write_text(shim_text(c))
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
