@@ -6,13 +6,14 @@ import re
 
 import pytest
 
+from glider_cosim.analysis import analyze
 from glider_cosim.report import FIGURES, build_report
 
 pytestmark = pytest.mark.integration
 
 
 def test_report_is_written_with_figures_tables_and_findings(fmu_dir, tmp_path):
-    path = build_report(tmp_path, fmu_dir, analysis=None, progress=False)
+    path = build_report(tmp_path, fmu_dir, analysis=analyze, progress=False)
     text = path.read_text()
     for fig in FIGURES:
         assert (tmp_path / f"{fig.key}.png").stat().st_size > 10_000
@@ -26,3 +27,5 @@ def test_report_is_written_with_figures_tables_and_findings(fmu_dir, tmp_path):
     assert "## Where we agree with the paper, and where we do not" in text
     assert "**Disagreement**: the literal Sec. 5.3 protocol" in text
     assert "| passivity K_c = 10 (ours) | ok |" in text
+    assert "**Disagreement**: the paper's K_c = 2" in text
+    assert re.search(r"stable K_c range, full-state, continuous time: \(5\.2\d, unbounded\)", text)

@@ -216,3 +216,14 @@ def test_cli_run_repeatedly_exits_0(fmu_dir, tmp_path):
     for _ in range(5):
         p = subprocess.run([sys.executable, "-c", script], capture_output=True, timeout=300)
         assert p.returncode == 0, p.stderr
+
+
+def test_analyze_json_is_one_object_on_stdout():
+    p = cli("analyze", "--json")
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.strip().splitlines()
+    assert len(lines) == 1
+    data = json.loads(lines[0])
+    assert set(data["equilibrium"]) >= {"V", "theta_g", "alpha", "omega2"}
+    assert data["stable_K_c"]["continuous"][1] is None
+    assert data["stable_K_c"]["sampled"][0] > data["stable_K_c"]["continuous"][0]

@@ -1,0 +1,301 @@
+"""Linear analysis of the glider loops (``glider-cosim analyze``).
+
+Uses the pure models directly (no FMI): the equilibrium, the paper's time-scale
+constants (Sec. 2.2), open- and closed-loop eigenvalues of the full model with the
+passivity law (continuous time, full-state feedback), the paper's reduced-model test
+(Sec. 3.2: A22 and the Schur complement of the nondimensional Jacobian), the sampled-data
+loop at the communication step with the servo (the one-step map linearised by central
+differences, with and without observer and pre-filter), the observer's gain and error
+dynamics, and the stable ranges of K_c for each loop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from glider_controller.laws import passivity_law
+from glider_observer.filter import butterworth_coefficients
+from glider_observer.model import (
+    C_O,
+    DEFAULT_Q,
+    DEFAULT_R,
+    linearization,
+    observer_gain,
+    observer_step,
+)
+from glider_plant.model import derivatives, equilibrium, plant_step
+from glider_plant.params import GliderParams
+
+K_C_LIST = (1.0, 2.0, 3.0, 5.0, 6.0, 8.0, 10.0, 15.0, 20.0)
+_BIG = 1e3  # delta_max large enough that the law never saturates near the equilibrium
+_EPS = 1e-7
+
+
+def _jacobian(f: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, eps: float = _EPS):
+    """Central-difference Jacobian of ``f`` at ``x0``."""
+    n = len(x0)
+    J = np.empty((len(f(x0)), n))
+    for i in range(n):
+        d = np.zeros(n)
+        d[i] = eps * max(1.0, abs(x0[i]))
+        J[:, i] = (f(x0 + d) - f(x0 - d)) / (2 * d[i])
+    return J
+
+
+def time_scales(p: GliderParams) -> dict[str, float]:
+    """tau_s [s], eps1, eps2, mu of the nondimensional model (paper Sec. 2.2)."""
+    e = equilibrium(p)
+    tau_s = p.m / (e.K_De * e.V)
+    eps2 = -p.J2 / (p.K_q * e.V**2) / tau_s
+    eps1 = (p.K_q / p.K_M) / tau_s
+    return {"tau_s": tau_s, "eps1": eps1, "eps2": eps2, "mu": max(eps1, eps2)}
+
+
+def closed_loop_matrix(p: GliderParams, K_c: float | None) -> np.ndarray:
+    """Jacobian [1/s] of Eqs. (6)-(9) at the equilibrium, with the passivity law on the
+    true state (``K_c=None``: open loop, ``u_delta = 0``)."""
+    e = equilibrium(p)
+
+    def f(x):
+        u = 0.0 if K_c is None else p.K_udelta * passivity_law(x[0], x[1], K_c, p, e, _BIG)
+        return np.array(derivatives(0.0, tuple(x), u, p))
+
+    return _jacobian(f, np.array([e.V, e.theta_g, e.alpha, 0.0]))
+
+
+def reduced_model_test(p: GliderParams, K_c: float) -> dict[str, Any]:
+    """The paper's Sec. 3.2 test on the nondimensional closed-loop Jacobian.
+
+    States (Vbar, thbar | alphabar, omegabar), time t/tau_s. A22 (fast block) and the
+    Schur complement A11 - A12 A22^-1 A21 must both be Hurwitz; the test is conclusive
+    only for sufficiently small mu.
+    """
+    e = equilibrium(p)
+    ts = time_scales(p)
+    T = np.diag([1.0 / e.V, 1.0, 1.0, p.K_q / p.K_M])
+    A = ts["tau_s"] * T @ closed_loop_matrix(p, K_c) @ np.linalg.inv(T)
+    A11, A12, A21, A22 = A[:2, :2], A[:2, 2:], A[2:, :2], A[2:, 2:]
+    S = A11 - A12 @ np.linalg.solve(A22, A21)
+    ev22, evS = np.linalg.eigvals(A22), np.linalg.eigvals(S)
+    return {
+        "A22_eigenvalues": _cplx(ev22),
+        "schur_eigenvalues": _cplx(evS),
+        "A22_hurwitz": bool(np.all(ev22.real < 0)),
+        "schur_hurwitz": bool(np.all(evS.real < 0)),
+        "mu": ts["mu"],
+        "full_nondimensional_eigenvalues": _cplx(np.linalg.eigvals(A)),
+    }
+
+
+def _filter_step(hist: Sequence[float], x: float, coef: Sequence[float]):
+    a0, a1, a2, b1, b2 = coef
+    x1, x2, y1, y2 = hist
+    y = a0 * x + a1 * x1 + a2 * x2 - b1 * y1 - b2 * y2
+    return y, (x, x1, y, y1)
+
+
+def sampled_loop_map(
+    p: GliderParams,
+    K_c: float,
+    h: float = 0.02,
+    tau_servo: float = 0.01,
+    observer: bool = False,
+    R: float = DEFAULT_R,
+    Q: Sequence[float] = DEFAULT_Q,
+    f_cutoff: float = 10.0,
+) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
+    """One-step map of the sampled loop (the master's Gauss-Seidel semantics) and its
+    fixed point. State: (V, theta_g, alpha, omega2, delta) and, with the observer, the
+    estimate (4) and the pre-filter history (4)."""
+    e = equilibrium(p)
+    H = observer_gain(p, R, Q) if observer else None
+    coef = butterworth_coefficients(1.0 / h, f_cutoff) if observer else None
+
+    def step(s: np.ndarray) -> np.ndarray:
+        x = (s[0], s[1], s[2], s[3], 0.0, 0.0)
+        if observer:
+            xh = tuple(s[5:9])
+            theta_f, hist = _filter_step(s[9:13], s[1] + s[2], coef)
+            cmd = passivity_law(xh[0], xh[1], K_c, p, e, _BIG)
+            xh = observer_step(xh, theta_f, p.K_udelta * cmd, h, p, H)
+        else:
+            cmd = passivity_law(s[0], s[1], K_c, p, e, _BIG)
+        x, d = plant_step(x, s[4], cmd, h, p, tau_servo)
+        out = [x[0], x[1], x[2], x[3], d]
+        if observer:
+            out += [*xh, *hist]
+        return np.array(out)
+
+    th = e.theta_g + e.alpha
+    fixed = [e.V, e.theta_g, e.alpha, 0.0, 0.0]
+    if observer:
+        fixed += [e.V, e.theta_g, e.alpha, 0.0, th, th, th, th]
+    return step, np.array(fixed)
+
+
+def sampled_loop_eigenvalues(p: GliderParams, K_c: float, **kw: Any) -> np.ndarray:
+    """Eigenvalues (z-plane) of the linearised one-step map; stable iff all |z| < 1."""
+    step, x0 = sampled_loop_map(p, K_c, **kw)
+    return np.linalg.eigvals(_jacobian(step, x0, 1e-6))
+
+
+def observer_analysis(
+    p: GliderParams, R: float = DEFAULT_R, Q: Sequence[float] = DEFAULT_Q
+) -> dict[str, Any]:
+    """Observability of (A_o, C_o), the gain H_o and eig(A_o - H_o C_o)."""
+    A = np.array(linearization(p))
+    C = np.array([C_O])
+    obs = np.vstack([C @ np.linalg.matrix_power(A, k) for k in range(4)])
+    H = np.array(observer_gain(p, R, Q))
+    ev = np.linalg.eigvals(A - H[:, None] @ C)
+    return {
+        "observability_rank": int(np.linalg.matrix_rank(obs)),
+        "observable": bool(np.linalg.matrix_rank(obs) == 4),
+        "H_o": [float(v) for v in H],
+        "error_eigenvalues": _cplx(ev),
+        "R": R,
+        "Q": list(Q),
+    }
+
+
+def stable_kc_range(
+    is_stable: Callable[[float], bool], k_min: float = 0.1, k_max: float = 1000.0, n: int = 80
+) -> list[float | None]:
+    """[low, high] of the stable K_c interval that reaches the largest gains (a large
+    K_c means a weak law, stable when the open loop is); None = unbounded / none.
+    Grid on a log scale, edges refined by bisection."""
+    grid = np.geomspace(k_min, k_max, n)
+    ok = [is_stable(k) for k in grid]
+    if not ok[-1]:
+        return [None, None] if not any(ok) else [float(grid[ok.index(True)]), None]
+    i = len(ok) - 1
+    while i > 0 and ok[i - 1]:
+        i -= 1
+    if i == 0:
+        return [None, None]  # stable everywhere on the grid: [k_min, unbounded)
+    lo, hi = grid[i - 1], grid[i]
+    for _ in range(30):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (lo, mid) if is_stable(mid) else (mid, hi)
+    return [float(hi), None]
+
+
+def stable_kc_ranges(
+    p: GliderParams, h: float = 0.02, tau_servo: float = 0.01
+) -> dict[str, list[float | None]]:
+    """Stable K_c ranges of the continuous loop and of the sampled loops."""
+    return {
+        "continuous": stable_kc_range(
+            lambda k: bool(np.all(np.linalg.eigvals(closed_loop_matrix(p, k)).real < 0))
+        ),
+        "sampled": stable_kc_range(
+            lambda k: bool(
+                np.all(np.abs(sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo)) < 1)
+            )
+        ),  # fmt: skip
+        "sampled_with_observer": stable_kc_range(
+            lambda k: bool(
+                np.all(
+                    np.abs(sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo, observer=True))
+                    < 1
+                )
+            )
+        ),  # fmt: skip
+    }
+
+
+def _cplx(ev: np.ndarray) -> list[list[float]]:
+    return [[float(z.real), float(z.imag)] for z in sorted(ev, key=lambda z: (z.real, z.imag))]
+
+
+def analyze(
+    p: GliderParams | None = None,
+    K_c_list: Sequence[float] = K_C_LIST,
+    h: float = 0.02,
+    tau_servo: float = 0.01,
+) -> dict[str, Any]:
+    """Everything ``glider-cosim analyze`` reports, as a JSON-serialisable dict."""
+    p = p or GliderParams()
+    e = equilibrium(p)
+    per_kc = []
+    for k in K_c_list:
+        ev = np.linalg.eigvals(closed_loop_matrix(p, k))
+        zs = sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo)
+        zo = sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo, observer=True)
+        per_kc.append({
+            "K_c": k,
+            "continuous_eigenvalues": _cplx(ev),
+            "continuous_max_real": float(ev.real.max()),
+            "continuous_stable": bool(ev.real.max() < 0),
+            "reduced_model_test": reduced_model_test(p, k),
+            "sampled_spectral_radius": float(np.abs(zs).max()),
+            "sampled_with_observer_spectral_radius": float(np.abs(zo).max()),
+        })  # fmt: skip
+    sens = {}
+    for kf in (15.0, 29.5, 45.0):
+        pk = GliderParams(**{**p.as_dict(), "K_Fdelta": kf})
+        r = stable_kc_ranges(pk, h, tau_servo)
+        sens[f"{kf:g}"] = {"continuous": r["continuous"], "sampled": r["sampled"]}
+    ol = np.linalg.eigvals(closed_loop_matrix(p, None))
+    return {
+        "equilibrium": {"V": e.V, "theta_g": e.theta_g, "alpha": e.alpha, "omega2": e.omega2},
+        "time_scales": time_scales(p),
+        "open_loop_eigenvalues": _cplx(ol),
+        "closed_loop": per_kc,
+        "observer": observer_analysis(p),
+        "stable_K_c": stable_kc_ranges(p, h, tau_servo),
+        "K_Fdelta_sensitivity": sens,
+        "settings": {"h": h, "tau_servo": tau_servo, "K_Fdelta": p.K_Fdelta},
+    }
+
+
+def _fmt_range(r: Sequence[float | None]) -> str:
+    lo, hi = r
+    if lo is None and hi is None:
+        return "none found"
+    return f"K_c > {lo:.3f}" if hi is None else f"{lo:.3f} < K_c < {hi:.3f}"
+
+
+def format_report(a: dict[str, Any]) -> str:
+    """Human-readable summary of :func:`analyze`'s result."""
+    eq, ts = a["equilibrium"], a["time_scales"]
+    deg = 180.0 / math.pi
+    out = [
+        f"equilibrium: V = {eq['V']:.5f} m/s, theta_g = {eq['theta_g'] * deg:.3f} deg, "
+        f"alpha = {eq['alpha'] * deg:.3f} deg, omega2 = 0",
+        "time scales: " + ", ".join(f"{k} = {v:.4g}" for k, v in ts.items()),
+        "open-loop eigenvalues [1/s]: "
+        + ", ".join(f"{re:.4f}{im:+.4f}j" for re, im in a["open_loop_eigenvalues"]),
+        "",
+        f"{'K_c':>6} {'cont. max Re':>13} {'A22':>5} {'Schur':>6} {'|z| sampled':>12} "
+        f"{'|z| +observer':>14}",
+    ]
+    for c in a["closed_loop"]:
+        rt = c["reduced_model_test"]
+        out.append(
+            f"{c['K_c']:6g} {c['continuous_max_real']:13.4f} "
+            f"{'ok' if rt['A22_hurwitz'] else 'no':>5} {'ok' if rt['schur_hurwitz'] else 'no':>6} "
+            f"{c['sampled_spectral_radius']:12.5f} "
+            f"{c['sampled_with_observer_spectral_radius']:14.5f}"
+        )
+    o = a["observer"]
+    out += [
+        "",
+        f"observer: rank of the observability matrix {o['observability_rank']}, "
+        f"H_o = [{', '.join(f'{v:.4f}' for v in o['H_o'])}], "
+        "eig(A_o - H_o C_o) = "
+        + ", ".join(f"{re:.3f}{im:+.3f}j" for re, im in o["error_eigenvalues"]),
+        "",
+        "stable K_c: " + "; ".join(f"{k}: {_fmt_range(v)}" for k, v in a["stable_K_c"].items()),
+        "K_Fdelta sensitivity: "
+        + "; ".join(
+            f"K_Fdelta = {k}: continuous {_fmt_range(v['continuous'])}, sampled "
+            f"{_fmt_range(v['sampled'])}"
+            for k, v in a["K_Fdelta_sensitivity"].items()
+        ),
+    ]
+    return "\n".join(out)

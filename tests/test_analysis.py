@@ -1,0 +1,93 @@
+"""Linear analysis: equilibrium, eigenvalues, the paper's reduced-model test, sampled
+loops, observer, stable K_c ranges."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from glider_cosim.analysis import (
+    analyze,
+    closed_loop_matrix,
+    observer_analysis,
+    reduced_model_test,
+    sampled_loop_eigenvalues,
+    stable_kc_range,
+    time_scales,
+)
+from glider_plant.params import GliderParams
+
+P = GliderParams()
+
+
+@pytest.fixture(scope="module")
+def result():
+    return analyze()
+
+
+def test_json_object_with_the_contract_keys(result):
+    data = json.loads(json.dumps(result))
+    assert set(data["equilibrium"]) == {"V", "theta_g", "alpha", "omega2"}
+    assert data["equilibrium"]["V"] == pytest.approx(0.2371273, abs=1e-7)
+    for key in ("continuous", "sampled"):
+        lo, hi = data["stable_K_c"][key]
+        assert hi is None and lo > 0
+
+
+def test_open_loop_is_stable_with_a_slow_phugoid():
+    ev = np.linalg.eigvals(closed_loop_matrix(P, None))
+    assert np.all(ev.real < 0)
+    slow = ev[np.argmax(ev.real)]
+    assert slow.real == pytest.approx(-0.0916, abs=1e-3)
+    assert abs(slow.imag) == pytest.approx(0.2329, abs=1e-3)
+
+
+def test_continuous_stability_boundary(result):
+    lo, hi = result["stable_K_c"]["continuous"]
+    assert 5.1 < lo < 5.4 and hi is None
+    assert np.linalg.eigvals(closed_loop_matrix(P, 2.0)).real.max() > 0.5  # paper's K_c
+    assert np.linalg.eigvals(closed_loop_matrix(P, 10.0)).real.max() < -0.1
+
+
+def test_paper_reduced_model_test_passes_where_the_full_model_is_unstable():
+    """Sec. 3.2's test holds 'for sufficiently small mu'; here mu = 0.14 and the test
+    passes at K_c = 2 although the full linearisation is unstable."""
+    t = reduced_model_test(P, 2.0)
+    assert t["A22_hurwitz"] and t["schur_hurwitz"]
+    assert t["mu"] == pytest.approx(time_scales(P)["mu"]) and t["mu"] > 0.1
+    full = np.array([complex(*z) for z in t["full_nondimensional_eigenvalues"]])
+    assert full.real.max() > 0
+
+
+def test_sampled_loop_tends_to_the_continuous_loop_for_small_steps():
+    k = 10.0
+    cont = np.linalg.eigvals(closed_loop_matrix(P, k)).real.max()
+    z = sampled_loop_eigenvalues(P, k, h=0.001, tau_servo=0.0005)
+    rate = math.log(np.abs(z).max()) / 0.001
+    assert rate == pytest.approx(cont, abs=0.01)
+
+
+def test_sampled_loop_needs_a_larger_gain_than_the_continuous_one(result):
+    assert result["stable_K_c"]["sampled"][0] > result["stable_K_c"]["continuous"][0]
+    z = sampled_loop_eigenvalues(P, 10.0, observer=True)
+    assert np.abs(z).max() < 1.0
+
+
+def test_observer_is_observable_and_its_error_dynamics_stable():
+    o = observer_analysis(P)
+    assert o["observable"] and o["observability_rank"] == 4
+    assert max(re for re, _ in o["error_eigenvalues"]) < -0.5
+
+
+def test_stable_range_search_on_a_known_boundary():
+    assert stable_kc_range(lambda k: k > 3.0) == [pytest.approx(3.0, rel=1e-6), None]
+    assert stable_kc_range(lambda k: False) == [None, None]
+
+
+def test_k_fdelta_sensitivity_moves_the_boundary(result):
+    s = result["K_Fdelta_sensitivity"]
+    lows = [s[k]["continuous"][0] for k in ("15", "29.5", "45")]
+    assert lows[0] < lows[1] < lows[2]
