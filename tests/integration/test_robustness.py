@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
@@ -169,6 +170,12 @@ def test_repeated_use_in_one_process(fmu_dir):
     for _ in range(20):  # fresh instances each time, binaries shared
         r = simulate(sc, None, fmu_dir=fmu_dir, build=False, stop_time=0.2)
         assert r.status == "ok"
+    # another host in the same process: fmpy's own simulate_fmu on the plant
+    from fmpy import simulate_fmu
+
+    res = simulate_fmu(str(fmu_dir / "GliderPlant.fmu"), stop_time=1.0, output_interval=0.02,
+                       output=["theta_g"])  # fmt: skip
+    assert len(res) == 51 and np.isfinite(res["theta_g"]).all()
 
 
 def test_ctrl_c_keeps_what_was_computed(fmu_dir, tmp_path):
