@@ -67,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
 
+    from .sweep import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     return p
 
@@ -150,6 +153,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = 0
         elif args.command == "run":
             code = _run(args)
+        elif args.command == "sweep":
+            from .sweep import main as sweep_main
+
+            code = sweep_main(args)
         elif args.command == "report":
             code = _report(args)
         elif args.command == "analyze":

@@ -519,13 +519,17 @@ class CoSimulation:
         self._drive_done = False
         self._driven_last = dict.fromkeys(range(len(self._driven)))
 
-    def reset(self, parameters: dict[str, dict[str, Any]] | None = None) -> None:
+    def reset(
+        self, parameters: dict[str, dict[str, Any]] | None = None, replace: bool = False
+    ) -> None:
         """fmi2Reset every instance and initialise it again, for another run.
 
         pythonfmu's reset restores the defaults, so the system's parameters (updated
-        with ``parameters``, per instance) are set again. Value references, call plans
-        and loaded libraries are kept. Raises :class:`MasterError` if an instance is in
-        a fatal state (it cannot be reset: build a new :class:`CoSimulation`).
+        with ``parameters``, per instance, or replaced by them with ``replace``: then
+        every parameter not given returns to the FMU's default) are set again. Value
+        references, call plans and loaded libraries are kept. Raises
+        :class:`MasterError` if an instance is in a fatal state (it cannot be reset:
+        build a new :class:`CoSimulation`).
         """
         for inst in self.instances.values():
             if not inst.alive:
@@ -535,7 +539,11 @@ class CoSimulation:
                 raise SystemSpecError(f"reset: no instance '{inst}'")
             for name in params:
                 self._resolve(f"{inst}.{name}", ("parameter", "input"))
-            self.system.parameters.setdefault(inst, {}).update(params)
+        if replace:
+            self.system.parameters = {k: dict(v) for k, v in (parameters or {}).items()}
+        else:
+            for inst, params in (parameters or {}).items():
+                self.system.parameters.setdefault(inst, {}).update(params)
         for inst in self.instances.values():
             self._call(inst, "fmi2Reset", inst.slave.reset)
         self._setup_instances()

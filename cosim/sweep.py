@@ -1,0 +1,509 @@
+"""Parameter sweeps and Monte Carlo runs on Dask (``glider-cosim sweep``).
+
+Parameter specs (``--param INSTANCE.NAME=SPEC``, repeatable):
+
+- ``6,8,10,15``: a list of values (numbers or ``"X deg"``);
+- ``0.5:2.5:5``: ``num`` values from ``start`` to ``stop`` inclusive (linspace);
+- ``uniform(-20%,+20%)`` or ``uniform(LOW,HIGH)``: uniform random draws, relative to the
+  nominal value (the scenario's, else the FMU's default) or absolute;
+- ``normal(20%)`` or ``normal(SD)``: normal random draws around the nominal value.
+
+Lists and ranges form a full grid; random specs are drawn ``--samples`` times per grid
+point (numpy Generator seeded by ``--rng-seed``); ``--seeds N`` repeats every run with
+sensor-noise seeds 0..N-1 (``plant.noise_seed``). Every run has an id derived from its
+parameters and seed, so an interrupted sweep resumes where it stopped.
+
+Each Dask worker keeps one co-simulation per scenario and resets it between runs
+(pythonfmu's reset restores the defaults, so every run sets its full parameter set); an
+instance that failed is discarded and replaced. A failed run is recorded with its status
+and message; tasks of a worker that dies are retried elsewhere by Dask.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import itertools
+import json
+import math
+import re
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
+from .metrics import compute_metrics
+from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
+from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario
+
+METRIC_KEYS = (
+    "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
+    "max_abs_delta_cmd_rad", "final_error_rad", "estimation_rms_rad", "end_time_s",
+)  # fmt: skip
+METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_PCT = rf"({_NUM})(%?)"
+
+
+class SweepSpecError(ValueError):
+    """A ``--param`` spec or sweep option is malformed (the message names it)."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One swept parameter: a fixed list of values, or a random distribution."""
+
+    target: str  # instance.name
+    values: tuple[float, ...] = ()
+    dist: str = ""  # "uniform" | "normal"
+    args: tuple[tuple[float, bool], ...] = ()  # (value, is_percent)
+
+    @property
+    def random(self) -> bool:
+        return bool(self.dist)
+
+    def draw(self, nominal: float, rng: np.random.Generator) -> float:
+        def val(a: tuple[float, bool]) -> float:
+            x, pct = a
+            return nominal * (1 + x / 100) if pct else x
+
+        if self.dist == "uniform":
+            return float(rng.uniform(val(self.args[0]), val(self.args[1])))
+        sd = abs(nominal) * self.args[0][0] / 100 if self.args[0][1] else self.args[0][0]
+        return float(rng.normal(nominal, sd))
+
+
+def _value(text: str, where: str) -> float:
+    text = text.strip()
+    m = re.fullmatch(rf"({_NUM})\s*deg", text)
+    if m:
+        return math.radians(float(m.group(1)))
+    try:
+        return float(text)
+    except ValueError:
+        raise SweepSpecError(f"{where}: {text!r} is not a number (or 'X deg')") from None
+
+
+def parse_param(item: str) -> ParamSpec:
+    """Parse ``INSTANCE.NAME=SPEC`` (grammar in the module docstring)."""
+    where = f"--param {item!r}"
+    target, sep, spec = item.partition("=")
+    inst, dot, name = target.strip().partition(".")
+    if not sep or not dot or inst not in INSTANCES or not name:
+        raise SweepSpecError(
+            f"{where}: expected INSTANCE.NAME=SPEC with INSTANCE one of {', '.join(INSTANCES)}"
+        )
+    spec = spec.strip()
+    target = f"{inst}.{name}"
+    m = re.fullmatch(r"(uniform|normal)\(\s*(.*?)\s*\)", spec)
+    if m:
+        parts = [p.strip() for p in m.group(2).split(",")]
+        want = 2 if m.group(1) == "uniform" else 1
+        if len(parts) != want:
+            raise SweepSpecError(
+                f"{where}: {m.group(1)} takes {want} argument(s), e.g. "
+                + ("uniform(-20%,+20%)" if want == 2 else "normal(20%)")
+            )
+        args = []
+        for p in parts:
+            pm = re.fullmatch(_PCT, p)
+            if not pm:
+                raise SweepSpecError(f"{where}: {p!r} is not a number or a percentage")
+            args.append((float(pm.group(1)), pm.group(2) == "%"))
+        if m.group(1) == "normal" and args[0][0] < 0:
+            raise SweepSpecError(f"{where}: the standard deviation must be >= 0")
+        return ParamSpec(target, dist=m.group(1), args=tuple(args))
+    if ":" in spec:
+        parts = spec.split(":")
+        if len(parts) != 3:
+            raise SweepSpecError(f"{where}: a range is START:STOP:NUM, e.g. 2:20:10")
+        start, stop = _value(parts[0], where), _value(parts[1], where)
+        try:
+            num = int(parts[2])
+        except ValueError:
+            raise SweepSpecError(f"{where}: NUM {parts[2]!r} must be a whole number") from None
+        if num < 1:
+            raise SweepSpecError(f"{where}: NUM must be >= 1")
+        return ParamSpec(target, values=tuple(float(v) for v in np.linspace(start, stop, num)))
+    values = tuple(_value(v, where) for v in spec.split(",") if v.strip())
+    if not values:
+        raise SweepSpecError(f"{where}: no values")
+    return ParamSpec(target, values=values)
+
+
+def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop: float) -> str:
+    """Deterministic id of a run (resume key)."""
+    key = json.dumps([scenario.name, scenario.source, stop, seed, sorted(params.items())])
+    return hashlib.sha1(key.encode()).hexdigest()[:16]
+
+
+def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
+    """Nominal value of each target: the scenario's, else the FMU's default."""
+    from .monolithic import fmu_parameter_defaults
+
+    defaults = {}
+    out = {}
+    for t in targets:
+        inst, _, name = t.partition(".")
+        if name in scenario.parameters.get(inst, {}):
+            out[t] = float(scenario.parameters[inst][name])
+            continue
+        if inst not in defaults:
+            defaults[inst] = fmu_parameter_defaults(fmu_dir / f"{FMU_NAMES[inst]}.fmu")
+        if name not in defaults[inst]:
+            raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
+        out[t] = float(defaults[inst][name])
+    return out
+
+
+def expand(
+    specs: Sequence[ParamSpec],
+    scenario: Scenario,
+    fmu_dir: Path,
+    samples: int = 10,
+    seeds: Sequence[int] | None = None,
+    rng_seed: int = 0,
+    stop_time: float | None = None,
+) -> list[dict[str, Any]]:
+    """The list of runs: ``{"run_id", "params", "seed"}``."""
+    grid = [s for s in specs if not s.random]
+    rand = [s for s in specs if s.random]
+    nominal = nominal_values(scenario, fmu_dir, [s.target for s in rand])
+    rng = np.random.default_rng(rng_seed)
+    stop = stop_time or scenario.stop_time
+    runs = []
+    for combo in itertools.product(*(s.values for s in grid)):
+        base = {s.target: v for s, v in zip(grid, combo, strict=True)}
+        for _ in range(samples if rand else 1):
+            params = dict(base)
+            params.update({s.target: s.draw(nominal[s.target], rng) for s in rand})
+            for seed in seeds if seeds is not None else [None]:
+                runs.append({"run_id": run_id(params, seed, scenario, stop), "params": params,
+                             "seed": seed})  # fmt: skip
+    return runs
+
+
+# ----------------------------------------------------------------- worker side
+_SIMS: dict[tuple, CoSimulation] = {}
+
+
+def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    params = {k: dict(v) for k, v in scenario.parameters.items()}
+    for target, value in run["params"].items():
+        inst, _, name = target.partition(".")
+        params.setdefault(inst, {})[name] = int(value) if name in ("law", "noise_seed") else value
+    if run["seed"] is not None:
+        params.setdefault("plant", {})["noise_seed"] = int(run["seed"])
+    return params
+
+
+def run_one(
+    scenario: Scenario, run: dict[str, Any], fmu_dir: str, stop_time: float | None = None,
+    trajectories: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Run one sweep point in this process, reusing a cached co-simulation.
+
+    Returns the result row (parameters, seed, status, message, metrics).
+    """
+    key = (fmu_dir, scenario.source, scenario.name, scenario.feedback, scenario.observer,
+           bool(trajectories))  # fmt: skip
+    params = _full_parameters(scenario, run)
+    stop = stop_time or scenario.stop_time
+    row: dict[str, Any] = {"run_id": run["run_id"], "seed": run["seed"], **run["params"]}
+    rec: ArrayRecorder | CsvRecorder = ArrayRecorder()
+    sim = _SIMS.pop(key, None)
+    status, message = "ok", ""
+    try:
+        if sim is None:
+            system = system_for(scenario, Path(fmu_dir))
+            if not trajectories:  # only what the metrics need
+                system.record = [
+                    c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c
+                ]
+            sim = CoSimulation(system, step=scenario.step, coupling=scenario.coupling)
+            sim.system.parameters = params
+            sim.initialize()
+        else:
+            sim.reset(params, replace=True)  # the previous run's values must not linger
+        if trajectories:
+            rec = CsvRecorder(Path(trajectories) / f"{run['run_id']}.csv")
+        n = round(stop / sim.step_size)
+        rec.start(sim.columns)
+        rec.row(sim.communication_point())
+        for _ in range(n):
+            sim.do_step()
+            rec.row(sim.communication_point())
+    except FMUStopped as err:
+        status, message = "stopped", str(err)
+    except (FMUCallError, MasterError, ValueError) as err:
+        status, message = "error", str(err)
+    finally:
+        rec.close()
+    if sim is not None and status == "ok":
+        _SIMS[key] = sim  # reuse: reset next time
+    elif sim is not None:
+        sim.close()  # frees what is not fatal; a fatal instance is never called again
+    if isinstance(rec, CsvRecorder):
+        cols = sim.columns if sim is not None else []
+        data = np.loadtxt(rec.path, delimiter=",", skiprows=1, ndmin=2) if rec.n_rows else None
+    else:
+        cols, data = rec.columns, rec.array() if rec.rows else None
+    row.update(status=status, message=message)
+    if data is not None and len(data) and sim is not None:
+        m = compute_metrics(cols, data, scenario, sim)
+        if "observer.theta_g_hat" in cols:
+            err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
+            m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
+        row.update({k: m.get(k) for k in METRIC_KEYS})
+    return row
+
+
+def run_many(
+    scenario: Scenario, runs: Sequence[dict[str, Any]], fmu_dir: str,
+    stop_time: float | None = None, trajectories: str | None = None,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Several sweep points in one task (amortises the scheduling overhead)."""
+    return [run_one(scenario, r, fmu_dir, stop_time, trajectories) for r in runs]
+
+
+# ----------------------------------------------------------------- client side
+def _read_done(path: Path) -> set[str]:
+    if not path.exists():
+        return set()
+    with open(path, newline="") as f:
+        return {r["run_id"] for r in csv.DictReader(f) if r.get("run_id")}
+
+
+@dataclass
+class SweepResult:
+    """Summary of a sweep: counts and the results file."""
+
+    total: int
+    done: int
+    skipped: int
+    failed: int
+    seconds: float
+    path: Path
+
+    @property
+    def runs_per_s(self) -> float:
+        return self.done / self.seconds if self.seconds > 0 else 0.0
+
+
+def run_sweep(
+    scenario: Scenario,
+    runs: Sequence[dict[str, Any]],
+    out: Path,
+    client: Any,
+    fmu_dir: Path,
+    *,
+    stop_time: float | None = None,
+    trajectories: bool = False,
+    restart: bool = False,
+    progress: Callable[[int, int, int, float], None] | None = None,
+    chunk: int = 4,
+) -> SweepResult:
+    """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
+    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped)."""
+    from distributed import as_completed
+
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "sweep.csv"
+    if restart and path.exists():
+        path.unlink()
+    done_ids = _read_done(path)
+    todo = [r for r in runs if r["run_id"] not in done_ids]
+    traj = None
+    if trajectories:
+        traj = out / "trajectories"
+        traj.mkdir(exist_ok=True)
+    param_cols = sorted({k for r in runs for k in r["params"]})
+    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
+    new_file = not path.exists()
+    t0 = time.perf_counter()
+    failed = done = 0
+    with open(path, "a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
+        if new_file:
+            writer.writeheader()
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
+        chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
+        futures = {
+            client.submit(run_many, scenario, c, str(fmu_dir), stop_time,
+                          str(traj) if traj else None, pure=False, retries=3): c
+            for c in chunks
+        }  # fmt: skip
+        for fut in as_completed(list(futures)):
+            try:
+                result = fut.result()
+            except Exception as err:  # noqa: BLE001 - a task that failed on every retry
+                result = [{"run_id": r["run_id"], "seed": r["seed"], **r["params"],
+                           "status": "error", "message": f"task failed: {err!r}"}
+                          for r in futures[fut]]  # fmt: skip
+            for row in result:
+                writer.writerow(row)
+                done += 1
+                failed += row.get("status") != "ok"
+            f.flush()
+            if progress:
+                progress(done, len(todo), failed, time.perf_counter() - t0)
+    return SweepResult(len(runs), done, len(runs) - len(todo), failed,
+                       time.perf_counter() - t0, path)  # fmt: skip
+
+
+def write_plots(path: Path, out: Path) -> list[Path]:
+    """Plots that apply to the swept parameters (PNG beside the results)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return []
+
+    def num(r: dict, k: str) -> float:
+        try:
+            return float(r[k])
+        except (KeyError, TypeError, ValueError):
+            return math.nan
+
+    params = [k for k in rows[0] if "." in k]
+    files = []
+    if "controller.K_c" in params:
+        ok = [r for r in rows if r["status"] == "ok" and r["settling_time_s"] not in ("", None)]
+        fig, ax = plt.subplots(figsize=(6, 4))
+        sc = ax.scatter([num(r, "control_effort") for r in ok],
+                        [num(r, "settling_time_s") for r in ok],
+                        c=[num(r, "controller.K_c") for r in ok], cmap="viridis")  # fmt: skip
+        fig.colorbar(sc, label="K_c")
+        ax.set(xlabel="control effort [rad s]", ylabel="settling time [s]",
+               title="Settling time against control effort (Sec. 3.3 trade-off)")  # fmt: skip
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        files.append(out / "settling_vs_effort.png")
+        fig.savefig(files[-1], dpi=100)
+        plt.close(fig)
+    if len(params) >= 2:
+        a, b = params[:2]
+        good = [r["status"] == "ok" and r["settling_time_s"] not in ("", None) for r in rows]
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for flag, colour, label in ((True, "tab:green", "settles"),
+                                    (False, "tab:red", "does not settle / fails")):  # fmt: skip
+            pts = [(num(r, a), num(r, b)) for r, g in zip(rows, good, strict=True) if g == flag]
+            if pts:
+                ax.scatter(*zip(*pts, strict=True), c=colour, label=label, s=18)
+        ax.set(xlabel=a, ylabel=b, title="Stability boundary")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        files.append(out / "stability_boundary.png")
+        fig.savefig(files[-1], dpi=100)
+        plt.close(fig)
+    if "plant.noise_std" in params:
+        pts = [(num(r, "plant.noise_std"), num(r, "estimation_rms_rad")) for r in rows]
+        fig, ax = plt.subplots(figsize=(6, 4))
+        ax.scatter(*zip(*pts, strict=True), s=18)
+        ax.set(xlabel="sensor noise std [rad]", ylabel="estimation error RMS [rad]",
+               title="Estimation error against sensor noise")  # fmt: skip
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        files.append(out / "estimation_vs_noise.png")
+        fig.savefig(files[-1], dpi=100)
+        plt.close(fig)
+    return files
+
+
+def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
+    """A Dask client: an existing cluster, or a local one of worker processes."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler, timeout="20s")
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=50)  # fmt: skip
+    return Client(cluster)
+
+
+def add_parser(sub: Any) -> None:
+    """Add the ``sweep`` sub-command to the CLI's sub-parsers."""
+    s = sub.add_parser("sweep", help="parameter sweep / Monte Carlo on Dask",
+                       description=__doc__.split("\n\n")[1])  # fmt: skip
+    s.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
+    s.add_argument("--param", action="append", default=[], metavar="INSTANCE.NAME=SPEC",
+                   help="swept parameter (repeatable): 6,8,10 | 2:20:10 | uniform(-20%%,+20%%)"
+                   " | normal(20%%)")  # fmt: skip
+    s.add_argument("--samples", type=int, default=10, help="draws for random specs")
+    s.add_argument("--seeds", type=int, default=None, help="noise seeds 0..N-1 per run")
+    s.add_argument("--rng-seed", type=int, default=0, help="seed of the random draws")
+    s.add_argument("--workers", type=int, default=2, help="local worker processes")
+    s.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+    s.add_argument("--out", default="out/sweep", help="results folder")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
+    s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
+    s.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    s.add_argument("--restart", action="store_true", help="ignore results already in --out")
+    s.add_argument("--no-plots", action="store_true")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the ``sweep`` sub-command; 0 all ok, 1 some runs failed."""
+    from .build import build_all
+
+    if not args.param and args.seeds is None:
+        raise SweepSpecError("nothing to sweep: give --param INSTANCE.NAME=SPEC or --seeds N")
+    if args.samples < 1 or args.workers < 1 or (args.seeds is not None and args.seeds < 1):
+        raise SweepSpecError("--samples, --workers and --seeds must be >= 1")
+    if args.stop_time is not None and not args.stop_time > 0:
+        raise SweepSpecError(f"--stop-time {args.stop_time}: expected a number > 0")
+    if args.format == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise SweepSpecError("--format parquet needs pyarrow (pip install pyarrow)") from None
+    scenario = load_scenario(args.scenario)
+    fmu_dir = Path(args.fmu_dir).resolve()
+    build_all(fmu_dir, only_stale=True)
+    specs = [parse_param(p) for p in args.param]
+    seeds = list(range(args.seeds)) if args.seeds is not None else None
+    runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
+    out = Path(args.out)
+
+    def progress(done: int, total: int, failed: int, secs: float) -> None:
+        sys.stderr.write(f"\rsweep: {done}/{total} done, {failed} failed, "
+                         f"{done / max(secs, 1e-9):.1f} runs/s ")  # fmt: skip
+        if done == total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+    client = make_client(args.workers, args.scheduler)
+    try:
+        res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
+                        trajectories=args.trajectories, restart=args.restart,
+                        progress=progress)  # fmt: skip
+    finally:
+        client.close()
+        if not args.scheduler and client.cluster is not None:
+            client.cluster.close()
+    if args.format == "parquet":
+        import pyarrow.csv as pacsv
+        import pyarrow.parquet as pq
+
+        pq.write_table(pacsv.read_csv(res.path), out / "sweep.parquet")
+    if not args.no_plots:
+        write_plots(res.path, out)
+    print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
+          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; results in {res.path}")  # fmt: skip
+    return 1 if res.failed else 0
+
+
+__all__ = ["ScenarioError", "SweepSpecError", "expand", "main", "parse_param", "run_sweep"]
