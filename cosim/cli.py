@@ -59,6 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="override a parameter (repeatable): controller.K_c=6, plant.theta_g_0='-30 deg'",
     )
 
+    e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
+    e.add_argument("out", help="output .ssp file")
+    e.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
+    e.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
     rep.add_argument("--out", default="out/report", help="report folder (default: out/report)")
     rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
@@ -79,12 +84,22 @@ def _run(args: argparse.Namespace) -> int:
     from .runner import simulate
     from .scenario import load_scenario, parse_sets
 
-    scenario = load_scenario(args.scenario)
-    if args.set:
-        scenario = apply_overrides(scenario, parse_sets(args.set))
+    if args.scenario and str(args.scenario).endswith((".ssp", ".ssd")):
+        if args.set:
+            raise ScenarioError("--set does not apply to an SSP (edit its parameter values)")
+        from .ssp import load_ssp
+
+        load_ssp(args.scenario)  # checks the SSP before anything runs
+        scenario = args.scenario
+        name = Path(args.scenario).stem
+    else:
+        scenario = load_scenario(args.scenario)
+        if args.set:
+            scenario = apply_overrides(scenario, parse_sets(args.set))
+        name = scenario.name
     out = Path(args.out)
     if args.out == "out":
-        out = out / scenario.name
+        out = out / name
     result = simulate(
         scenario,
         out,
@@ -95,6 +110,7 @@ def _run(args: argparse.Namespace) -> int:
         plots=not args.no_plots,
     )
     m = result.metrics
+    scenario = result.scenario
     deg = 57.29577951308232
 
     def fmt(key: str, scale: float = 1.0, unit: str = "") -> str:
@@ -153,6 +169,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = 0
         elif args.command == "run":
             code = _run(args)
+        elif args.command == "export-ssp":
+            from .ssp import export_ssp
+
+            print(f"wrote {export_ssp(args.out, args.scenario, args.fmu_dir)}")
+            code = 0
         elif args.command == "sweep":
             from .sweep import main as sweep_main
 
@@ -164,7 +185,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             print("\n".join(shipped_scenarios()))
             code = 0
-    except (ScenarioError, SystemSpecError) as err:
+    except (ScenarioError, SystemSpecError, ValueError) as err:
         print(f"glider-cosim: error: {err}", file=sys.stderr)
         code = 2
     except MasterError as err:
@@ -182,3 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def console_main() -> None:
     """Console script: run :func:`main` and exit with its code."""
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    console_main()

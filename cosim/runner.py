@@ -159,12 +159,22 @@ def simulate(
     RunResult
         ``data`` has one row per communication point (the initial one included).
     """
+    ssp_system = None
+    if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
+        from .ssp import load_ssp
+
+        ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
+        scenario = Scenario(name=Path(scenario).stem, source=str(scenario), step=ssp_step,
+                            stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     fmu_dir = Path(fmu_dir)
-    if build:
-        build_all(fmu_dir, only_stale=True)
-    system = system_for(scenario, fmu_dir)
+    if ssp_system is not None:
+        system = ssp_system
+    else:
+        if build:
+            build_all(fmu_dir, only_stale=True)
+        system = system_for(scenario, fmu_dir)
     sim = CoSimulation(
         system,
         step=step if step is not None else scenario.step,
