@@ -67,6 +67,34 @@ def monolithic_step_times(fmu_dir: Path, out: Path) -> list[float]:
     return times[1:]
 
 
+LIBCOSIM_TIMING = """
+import json, statistics, sys, time
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimObserver import CosimObserver
+log_output_level(CosimLogLevel.ERROR)
+ex = CosimExecution.from_ssp_file(sys.argv[1])
+ex.add_observer(CosimObserver.create_last_value())  # recording on
+ex.step()  # initialisation
+times = []
+for _ in range(int(sys.argv[2])):
+    t0 = time.perf_counter()
+    ex.step()
+    times.append(time.perf_counter() - t0)
+print(json.dumps(statistics.median(times)))
+"""
+
+
+def libcosim_step_seconds(fmu_dir: Path, out: Path) -> float:
+    """Median seconds per macro step of libcosimpy on the exported default SSP."""
+    from glider_cosim.ssp import export_ssp
+
+    ssp = export_ssp(out / "default.ssp", None, fmu_dir)
+    p = subprocess.run([sys.executable, "-c", LIBCOSIM_TIMING, str(ssp), "2999"],
+                       check=True, capture_output=True, text=True)  # fmt: skip
+    return float(p.stdout.strip().splitlines()[-1])
+
+
 def cold_run_seconds(fmu_dir: Path, out: Path) -> float:
     t0 = time.perf_counter()
     subprocess.run(
@@ -92,11 +120,13 @@ def main() -> None:
             statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
         )
         cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
+        libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
     result = {
         "us_per_macro_step": round(cosim * 1e6, 1),
         "monolithic_us_per_macro_step": round(mono * 1e6, 1),
         "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
-        "ratio_to_libcosim": None,
+        "ratio_to_libcosim": round(cosim / libcosim, 3),
+        "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
         "cold_run_s": round(cold, 2),
         "scenario": "default (60 s, 3 FMUs, 50 Hz, both loops recording the same CSV)",
         "cpus": os.cpu_count(),
