@@ -64,6 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
     e.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
 
+    sub.add_parser("host-env", help="environment a C/C++ host needs for our FMUs")
+
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
     rep.add_argument("--out", default="out/report", help="report folder (default: out/report)")
     rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
@@ -169,6 +171,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = 0
         elif args.command == "run":
             code = _run(args)
+        elif args.command == "host-env":
+            from .hostenv import main as host_env_main
+
+            code = host_env_main()
         elif args.command == "export-ssp":
             from .ssp import export_ssp
 
