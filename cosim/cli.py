@@ -66,6 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("host-env", help="environment a C/C++ host needs for our FMUs")
 
+    xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
+    xf.add_argument("out", help="output .fmu file")
+    xf.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
+    xf.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
     rep.add_argument("--out", default="out/report", help="report folder (default: out/report)")
     rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
@@ -171,6 +176,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = 0
         elif args.command == "run":
             code = _run(args)
+        elif args.command == "export-fmu":
+            from .onefmu import export_one_fmu
+
+            print(f"wrote {export_one_fmu(args.out, args.scenario, args.fmu_dir)}")
+            code = 0
         elif args.command == "host-env":
             from .hostenv import main as host_env_main
 
