@@ -8,7 +8,6 @@ The last line with --json is one JSON object (figures quoted in README).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -16,6 +15,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _common import emit
 
 from glider_cosim.build import build_all
 from glider_cosim.master import CoSimulation
@@ -131,10 +132,7 @@ def main() -> None:
         "scenario": "default (60 s, 3 FMUs, 50 Hz, both loops recording the same CSV)",
         "cpus": os.cpu_count(),
     }
-    if not args.json:
-        for k, v in result.items():
-            print(f"{k}: {v}")
-    print(json.dumps(result))
+    emit(result, args.json)
 
 
 if __name__ == "__main__":

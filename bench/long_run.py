@@ -7,11 +7,12 @@ Usage: python bench/long_run.py [--hours 1] [--json]
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import tempfile
 import time
 from pathlib import Path
+
+from _common import emit
 
 from glider_cosim.runner import simulate
 
@@ -43,10 +44,7 @@ def main() -> None:
         "peak_rss_after_long_run_mib": round(rss[1], 1),
         "note": "peak RSS includes reading the CSV back into the returned array",
     }
-    if not args.json:
-        for k, v in result.items():
-            print(f"{k}: {v}")
-    print(json.dumps(result))
+    emit(result, args.json)
 
 
 if __name__ == "__main__":

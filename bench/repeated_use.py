@@ -7,9 +7,10 @@ Usage: python bench/repeated_use.py [--cycles 1000] [--json]
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
+
+from _common import emit
 
 from glider_cosim.build import build_all
 from glider_cosim.master import CoSimulation
@@ -70,10 +71,7 @@ def main() -> None:
         "rss_marks_mib": marks,
         "ms_per_cycle": round((time.perf_counter() - t0) / max(n, 1) * 1e3, 1),
     }
-    if not args.json:
-        for k, v in result.items():
-            print(f"{k}: {v}")
-    print(json.dumps(result))
+    emit(result, args.json)
 
 
 if __name__ == "__main__":

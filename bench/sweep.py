@@ -7,10 +7,11 @@ Usage: python bench/sweep.py [--runs 24] [--json]
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import tempfile
 from pathlib import Path
+
+from _common import emit
 
 from glider_cosim.build import build_all
 from glider_cosim.scenario import load_scenario
@@ -56,10 +57,7 @@ def main() -> None:
         "scaling_efficiency": round(r2 / (2 * r1), 3),
         "cpus": os.cpu_count(),
     }
-    if not args.json:
-        for k, v in result.items():
-            print(f"{k}: {v}")
-    print(json.dumps(result))
+    emit(result, args.json)
 
 
 if __name__ == "__main__":
