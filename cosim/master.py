@@ -37,7 +37,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from fmpy import calloc as fmpy_calloc
 from fmpy import extract, read_model_description
+from fmpy import free as fmpy_free
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
@@ -469,8 +471,8 @@ class CoSimulation:
 
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(ctypes.CDLL(None).calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(ctypes.CDLL(None).free)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy_calloc)  # void* restype
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy_free)
         self._keep_callbacks.append(cb)
         return cb
 
