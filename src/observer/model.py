@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from glider_plant.model import Equilibrium, State4, check_state, derivatives, equilibrium
+from glider_plant.model import Equilibrium, State4, check_state, constants, equilibrium, rhs
 from glider_plant.params import GliderParams, ParameterError
 
 C_O = (0.0, 1.0, 1.0, 0.0)
@@ -116,8 +116,10 @@ def observer_step(
     dt = h / n
     h0, h1, h2, h3 = H
 
+    consts = constants(p)
+
     def f(x: State4) -> State4:
-        d = derivatives(0.0, x, u_delta, p)
+        d = rhs(x[0], x[1], x[2], x[3], u_delta, consts)
         e = theta - x[1] - x[2]
         return (d[0] + h0 * e, d[1] + h1 * e, d[2] + h2 * e, d[3] + h3 * e)
 

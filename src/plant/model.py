@@ -96,22 +96,37 @@ def derivatives(
     tuple of 4 floats
         ``(dV/dt, dtheta_g/dt, dalpha/dt, domega2/dt)``.
     """
-    V, th, al, w = x
+    return rhs(x[0], x[1], x[2], x[3], u_delta, constants(p), F_x, F_z, M_y)
+
+
+Constants = tuple[float, float, float, float, float, float, float, float, float, float, float]
+
+
+def constants(p: GliderParams) -> Constants:
+    """The constants :func:`rhs` needs, looked up once (the hot path avoids attribute access)."""
+    return (p.m, p.J2, p.K_L0, p.K_L, p.K_D0, p.K_D, p.K_q, p.K_M0, p.K_M, p.K_Fdelta,
+            p.m0 * p.g)  # fmt: skip
+
+
+def rhs(
+    V: float, th: float, al: float, w: float, u_delta: float, c: Constants,
+    F_x: float = 0.0, F_z: float = 0.0, M_y: float = 0.0,
+) -> State4:  # fmt: skip
+    """Eqs. (6)-(9) on scalars with :func:`constants`; :func:`derivatives` documents it."""
+    m, J2, K_L0, K_L, K_D0, K_D, K_q, K_M0, K_M, K_Fdelta, m0g = c
     V2 = V * V
     s_th = math.sin(th)
     c_th = math.cos(th)
-    lift = (p.K_L0 + p.K_L * al) * V2
-    drag = (p.K_D0 + p.K_D * al * al) * V2
-    f_delta = p.K_Fdelta * V2 * u_delta
-    m0g = p.m0 * p.g
+    lift = (K_L0 + K_L * al) * V2
+    drag = (K_D0 + K_D * al * al) * V2
+    f_delta = K_Fdelta * V2 * u_delta
     # disturbance force along the velocity and along its upward normal
     f_v = F_x * c_th - F_z * s_th
     f_n = -F_x * s_th - F_z * c_th
-    dV = (-m0g * s_th - drag + f_delta * math.sin(al) + f_v) / p.m
-    dth = (-m0g * c_th + lift + f_delta * math.cos(al) + f_n) / (p.m * V)
-    dal = w - dth
-    dw = ((p.K_M0 + p.K_M * al + p.K_q * w - p.K_M * u_delta) * V2 + M_y) / p.J2
-    return (dV, dth, dal, dw)
+    dV = (-m0g * s_th - drag + f_delta * math.sin(al) + f_v) / m
+    dth = (-m0g * c_th + lift + f_delta * math.cos(al) + f_n) / (m * V)
+    dw = ((K_M0 + K_M * al + K_q * w - K_M * u_delta) * V2 + M_y) / J2
+    return (dV, dth, w - dth, dw)
 
 
 def servo_response(delta0: float, command: float, tau: float, dt: float) -> float:
@@ -192,6 +207,7 @@ def plant_step(
     dt = h / n
     F_x, F_z, M_y = disturbance
     ku = p.K_udelta
+    consts = constants(p)
     V, th, al, w, px, pz = x
     for i in range(n):
         s0 = i * dt
@@ -203,23 +219,23 @@ def plant_step(
         u0 = ku * (delta_cmd + d0 * e0)
         uh = ku * (delta_cmd + d0 * eh)
         u1 = ku * (delta_cmd + d0 * e1)
-        k1 = derivatives(0.0, (V, th, al, w), u0, p, F_x, F_z, M_y)
+        k1 = rhs(V, th, al, w, u0, consts, F_x, F_z, M_y)
         x2 = (
             V + 0.5 * dt * k1[0],
             th + 0.5 * dt * k1[1],
             al + 0.5 * dt * k1[2],
             w + 0.5 * dt * k1[3],
         )
-        k2 = derivatives(0.0, x2, uh, p, F_x, F_z, M_y)
+        k2 = rhs(x2[0], x2[1], x2[2], x2[3], uh, consts, F_x, F_z, M_y)
         x3 = (
             V + 0.5 * dt * k2[0],
             th + 0.5 * dt * k2[1],
             al + 0.5 * dt * k2[2],
             w + 0.5 * dt * k2[3],
         )
-        k3 = derivatives(0.0, x3, uh, p, F_x, F_z, M_y)
+        k3 = rhs(x3[0], x3[1], x3[2], x3[3], uh, consts, F_x, F_z, M_y)
         x4 = (V + dt * k3[0], th + dt * k3[1], al + dt * k3[2], w + dt * k3[3])
-        k4 = derivatives(0.0, x4, u1, p, F_x, F_z, M_y)
+        k4 = rhs(x4[0], x4[1], x4[2], x4[3], u1, consts, F_x, F_z, M_y)
         # kinematics: dx = V cos(theta_g), dz = -V sin(theta_g)
         kx = (
             V * math.cos(th)
