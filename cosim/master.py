@@ -32,6 +32,7 @@ import operator
 import shutil
 import signal
 import threading
+import weakref
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -228,6 +229,18 @@ def _extracted(fmu: Path) -> str:
 def _remove_extracted() -> None:
     for folder in _EXTRACTED.values():
         shutil.rmtree(folder, ignore_errors=True)
+
+
+_LIVE: weakref.WeakSet[CoSimulation] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_live() -> None:
+    """Free the FMU instances of co-simulations nobody closed, while Python still runs
+    (registered last, so it runs before the folders are removed)."""
+    for sim in list(_LIVE):
+        with contextlib.suppress(Exception):
+            sim.close()
 
 
 class Instance:
@@ -493,6 +506,7 @@ class CoSimulation:
         """Instantiate, set parameters, initialise every instance."""
         if not self._loaded:
             self.load()
+        _LIVE.add(self)
         for inst in self.instances.values():
             cb = self._make_callbacks(inst)
             try:
