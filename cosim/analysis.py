@@ -81,7 +81,15 @@ def reduced_model_test(p: GliderParams, K_c: float) -> dict[str, Any]:
     A11, A12, A21, A22 = A[:2, :2], A[:2, 2:], A[2:, :2], A[2:, 2:]
     S = A11 - A12 @ np.linalg.solve(A22, A21)
     ev22, evS = np.linalg.eigvals(A22), np.linalg.eigvals(S)
+    m0g = p.m0 * p.g
+    k = m0g / (e.K_De * e.V**2)
     return {
+        "schur_matrix": S.tolist(),
+        # the paper's dominant-term approximation of that matrix (Sec. 3.2)
+        "paper_dominant_terms": [
+            [-2.0, -k * math.cos(e.theta_g)],
+            [k * math.cos(e.theta_g), k * math.sin(e.theta_g)],
+        ],
         "A22_eigenvalues": _cplx(ev22),
         "schur_eigenvalues": _cplx(evS),
         "A22_hurwitz": bool(np.all(ev22.real < 0)),

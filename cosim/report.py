@@ -359,6 +359,19 @@ def _agreement_section(results, an, study) -> list[str]:
                 f"{lo:.2f} with the Sec. 3.3 constants and K_Fdelta = 29.5 (the time-scale "
                 "separation 'sufficiently small mu' of Sec. 3.2 does not hold here)."
             )
+    if an is not None:
+        rt = next((c["reduced_model_test"] for c in an["closed_loop"] if c["K_c"] == 2.0), None)
+        if rt is not None:
+            (b1, b2), (b3, b4) = rt["schur_matrix"]
+            (p1, p2), (p3, p4) = rt["paper_dominant_terms"]
+            lines.append(
+                f"- **Disagreement**: at K_c = 2 the Schur complement of Sec. 3.2 is "
+                f"[[{b1:.2f}, {b2:.2f}], [{b3:.2f}, {b4:.2f}]]; the paper's dominant-term "
+                f"approximation gives [[{p1:.2f}, {p2:.2f}], [{p3:.2f}, {p4:.2f}]]: b2 and b3 "
+                "have the opposite signs and b4 is two orders of magnitude larger, so the "
+                "argument built on those signs does not apply to these constants (the "
+                "matrix is Hurwitz all the same, while the full model is not)."
+            )
     fig2 = dict((run.label, r) for run, r in results["fig2"])
     k2 = fig2["K_c = 2 (paper)"]
     final2 = k2.metrics.get("final_error_rad")

@@ -91,3 +91,12 @@ def test_k_fdelta_sensitivity_moves_the_boundary(result):
     s = result["K_Fdelta_sensitivity"]
     lows = [s[k]["continuous"][0] for k in ("15", "29.5", "45")]
     assert lows[0] < lows[1] < lows[2]
+
+
+def test_paper_dominant_terms_differ_from_the_schur_complement():
+    t = reduced_model_test(P, 2.0)
+    (b1, b2), (b3, b4) = t["schur_matrix"]
+    (p1, p2), (p3, p4) = t["paper_dominant_terms"]
+    assert p2 < 0 < p3 and b2 > 0 > b3  # opposite signs to the paper's argument
+    assert abs(b4) > 100 * abs(p4)
+    assert p4 == pytest.approx(-1.0, abs=1e-9)

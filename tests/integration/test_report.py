@@ -28,4 +28,5 @@ def test_report_is_written_with_figures_tables_and_findings(fmu_dir, tmp_path):
     assert "**Disagreement**: the literal Sec. 5.3 protocol" in text
     assert "| passivity K_c = 10 (ours) | ok |" in text
     assert "**Disagreement**: the paper's K_c = 2" in text
+    assert "the Schur complement of Sec. 3.2 is [[-1.26, 10.19]" in text
     assert re.search(r"stable K_c range, full-state, continuous time: \(5\.2\d, unbounded\)", text)
