@@ -1,91 +1,177 @@
-"""One-FMU export of the closed loop (``glider-cosim export-fmu``): plant, observer and
-controller combined into a single FMI 2.0 co-simulation FMU with fmu-manipulation-toolbox's
-``fmucontainer``, for tools that take one FMU.
+"""One-FMU export of the closed loop (``glider-cosim export-fmu``).
 
-The container steps the three FMUs at 0.02 s (sequentially, plant, observer, controller)
-and exposes the contract's outputs as ``plant.theta_g`` and so on, the disturbance
-inputs ``plant.F_x``, ``plant.F_z``, ``plant.M_y``, and the scenario's parameter values as
-start values.
+Plant, observer and controller become a single FMI 2.0 co-simulation FMU, for tools
+that take one FMU, built with fmu-manipulation-toolbox's FMU container
+(``fmu_manipulation_toolbox.container.FMUContainer``, the library behind its
+``fmucontainer`` command). The container embeds the three FMUs unchanged and steps
+them at the scenario's step (0.02 s) whatever communication step its host uses.
+
+Its scheduling is the container's default (parallel, one thread): at every internal
+step all embedded FMUs step, then the container copies every linked output to its
+inputs. Each link therefore carries the value of the previous internal step, exactly
+as our master's ``coupling="jacobi"`` and libcosim's fixed-step algorithm do: the
+container's glide angle equals our Jacobi run bit for bit, and differs from our
+default Gauss-Seidel run by one sample of extra delay through the controller (0.47 deg
+at most over the default scenario). The container's ``sequential`` mode (each FMU
+stepped in turn with the outputs just computed, plant first) is neither scheme: the
+observer integrates over ``[t_k, t_k + h]`` with the pitch measured at ``t_k + h``
+(0.43 deg from our Gauss-Seidel run, 0.89 deg from our Jacobi run), so it is not used.
+
+The container FMU exposes
+
+- outputs: every output of every instance, named ``plant.theta_g``,
+  ``observer.V_hat``, ``controller.delta_cmd`` and so on;
+- inputs: the disturbances ``plant.F_x``, ``plant.F_z``, ``plant.M_y`` (N, N, N m);
+- the scenario's parameter values as start values of the embedded FMUs, and its stop
+  time as the default experiment.
+
+pythonfmu FMUs need a Python interpreter in the host process: a C/C++ host of the
+container needs the environment of ``glider-cosim host-env``.
 """
 
 from __future__ import annotations
 
-import json
+import logging
 import shutil
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from fmpy import read_model_description
+if TYPE_CHECKING:
+    from .scenario import Scenario
 
-from .runner import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
-from .scenario import Scenario, load_scenario
-
-
-class ExportError(RuntimeError):
-    """fmucontainer failed (its last message is included)."""
+#: model identifier (and file stem inside the build folder) of the container
+CONTAINER_NAME = "GliderLoop"
 
 
-def container_description(scenario: Scenario, fmu_dir: Path) -> dict:
-    """fmucontainer's JSON description of the closed loop."""
-    insts = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if scenario.observer or i != "observer"}
-    links = []
-    for src, dst in default_connections(scenario.feedback, scenario.observer):
-        (si, sv), (di, dv) = src.split(".", 1), dst.split(".", 1)
-        links.append([insts[si], sv, insts[di], dv])
-    outputs = []
-    for inst, fname in insts.items():
-        md = read_model_description(str(fmu_dir / fname))
-        outputs += [[fname, v.name, f"{inst}.{v.name}"] for v in md.modelVariables
-                    if v.causality == "output"]  # fmt: skip
-    starts = [[insts[i], k, v] for i, ps in scenario.parameters.items() for k, v in ps.items()]
-    inputs = [[ref, insts["plant"], ref.split(".", 1)[1]] for ref in DISTURBANCE_INPUTS]
-    return {
-        "name": "GliderLoop.fmu",
-        "step_size": scenario.step,
-        "sequential": True,
-        "fmu": list(insts.values()),
-        "input": inputs,
-        "output": outputs,
-        "link": links,
-        "start": starts,
-    }
+class OneFMUError(ValueError):
+    """The scenario cannot be exported as one FMU, or the container build failed.
+
+    The message is one line naming the scenario key or the container's complaint.
+    """
+
+
+class _Collect(logging.Handler):
+    """Keeps the container builder's warnings and errors (instead of printing them)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(" ".join(record.getMessage().split()))
 
 
 def export_one_fmu(
-    out_path: str | Path, scenario: Scenario | str | None = None, fmu_dir: str | Path = "fmus"
+    out_path: str | Path,
+    scenario: Scenario | str | Path | None = None,
+    fmu_dir: str | Path = "fmus",
 ) -> Path:
-    """Build the closed loop as one FMU at ``out_path`` and return its path."""
-    from .build import build_all
+    """Build the scenario's closed loop as one co-simulation FMU.
 
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    if scenario.events or scenario.disturbances or scenario.fmus:
-        raise ExportError(f"{scenario.source}: events, disturbances and swapped FMUs cannot "
-                          "be exported into one FMU")  # fmt: skip
-    fmus = build_all(fmu_dir, only_stale=True)
+    Parameters
+    ----------
+    out_path : path
+        The ``.fmu`` file to write (its folder is created).
+    scenario : Scenario, path, shipped name or None
+        The scenario (``None``: the default): its instances and connections
+        (``feedback``, ``with_observer``), parameter values, constant inputs, step and
+        stop time. Events, disturbances and swapped FMUs are refused.
+    fmu_dir : path
+        Where our FMUs are (built there first if missing or stale).
+
+    Returns
+    -------
+    Path
+        ``out_path``.
+
+    Raises
+    ------
+    OneFMUError
+        The scenario has events, disturbances or swapped FMUs, a parameter the FMUs lack,
+        or the container builder failed.
+    """
+    from fmpy import read_model_description
+    from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
+
+    from .build import build_all
+    from .runner import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
+    from .scenario import Scenario, load_scenario
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    for key, present in (("event", sc.events), ("disturbance", sc.disturbances), ("fmus", sc.fmus)):
+        if present:
+            raise OneFMUError(
+                f"{sc.source}: key '{key}': events, disturbances and swapped FMUs cannot be "
+                "exported into one FMU"
+            )
+    built = build_all(fmu_dir, only_stale=True)
+    files = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if sc.observer or i != "observer"}
     out = Path(out_path)
-    with tempfile.TemporaryDirectory(prefix="glider_container_") as tmp:
-        work = Path(tmp)
-        for f in fmus.values():
-            shutil.copy2(f, work / f.name)
-        spec = container_description(scenario, work)
-        (work / "GliderLoop.json").write_text(json.dumps(spec, indent=1))
-        exe = Path(sys.executable).with_name("fmucontainer")
-        cmd = [
-            str(exe) if exe.exists() else "fmucontainer",
-            "-container",
-            f"GliderLoop.json:{scenario.step}",
-            "-fmu-directory",
-            str(work),
-            "-sequential",
-        ]
-        p = subprocess.run(cmd, cwd=work, capture_output=True, text=True)  # fmt: skip
-        built = work / "GliderLoop.fmu"
-        if p.returncode != 0 or not built.exists():
-            last = (p.stderr or p.stdout).strip().splitlines()[-1:] or ["no output"]
-            raise ExportError(f"fmucontainer failed: {last[0]}")
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(built, out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    log = logging.getLogger("fmu_manipulation_toolbox")
+    handler = _Collect()
+    old_level, old_propagate = log.level, log.propagate
+    log.addHandler(handler)
+    log.setLevel(logging.WARNING)
+    log.propagate = False
+    try:
+        with tempfile.TemporaryDirectory(prefix="glider_container_") as tmp:
+            work = Path(tmp)
+            for inst, fname in files.items():
+                shutil.copy2(built[FMU_NAMES[inst]], work / fname)
+            container = FMUContainer(CONTAINER_NAME, work, fmi_version=2)
+            container.stop_time = float(sc.stop_time)
+            for fname in files.values():
+                container.get_fmu(fname)
+            for src, dst in default_connections(sc.feedback, sc.observer):
+                (si, sv), (di, dv) = src.split(".", 1), dst.split(".", 1)
+                container.add_link(files[si], sv, files[di], dv)
+            for ref in DISTURBANCE_INPUTS:
+                container.add_input(ref, files["plant"], ref.split(".", 1)[1])
+            for inst, fname in files.items():
+                md = read_model_description(str(work / fname))
+                for v in md.modelVariables:
+                    if v.causality == "output":
+                        container.add_output(fname, v.name, f"{inst}.{v.name}")
+            values = {i: dict(p) for i, p in sc.parameters.items()}
+            for ref, value in sc.inputs.items():
+                inst, _, name = ref.partition(".")
+                values.setdefault(inst, {})[name] = value
+            for inst, params in values.items():
+                if inst not in files:
+                    raise OneFMUError(f"{sc.source}: key '{inst}': the loop has no instance {inst}")
+                for name, value in params.items():
+                    try:
+                        container.add_start_value(files[inst], name, _text(value))
+                    except FMUContainerError as err:
+                        raise OneFMUError(
+                            f"{sc.source}: key '{inst}.{name}': {_reason(err)}"
+                        ) from None
+            container.add_implicit_rule(
+                auto_input=False, auto_output=False, auto_link=False, auto_parameter=False
+            )
+            container.make_fmu(f"{CONTAINER_NAME}.fmu", step_size=float(sc.step))
+            shutil.copyfile(work / f"{CONTAINER_NAME}.fmu", out)
+    except FMUContainerError as err:
+        raise OneFMUError(f"{out}: the FMU container could not be built: {_reason(err)}") from None
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(old_level)
+        log.propagate = old_propagate
+    if not out.is_file():
+        last = (handler.messages or ["no message"])[-1]
+        raise OneFMUError(f"{out}: the FMU container was not written ({last})")
     return out
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def _reason(err: Exception) -> str:
+    return " ".join(str(getattr(err, "reason", err)).split())

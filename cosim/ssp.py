@@ -1,27 +1,60 @@
-"""SSP 1.0 export and import of the glider system (``glider-cosim export-ssp``,
-``glider-cosim run FILE.ssp``), and a libcosim run of an SSP for comparison.
+"""SSP 1.0 export and import of the glider system, and libcosim runs of an SSP.
 
-The archive holds ``SystemStructure.ssd`` (components with their connectors, the
-connections, inline parameter values, the default experiment with the 0.02 s step as an
-``osp:FixedStepAlgorithm`` annotation, which libcosim reads) and the FMUs under
-``resources/``.
+``export_ssp`` writes an ``.ssp`` archive: ``SystemStructure.ssd`` (one ``ssd:Component``
+per instance with its input and output ``ssd:Connector`` elements, the loop's
+``ssd:Connection`` elements, the scenario's parameter values inline as
+``ssv:ParameterSet``, ``ssd:DefaultExperiment`` with the stop time) and the FMUs under
+``resources/``. The communication step is the annotation libcosim reads (its
+``ssp_parser`` looks for it in the default experiment's annotations, nowhere else)::
+
+    <ssd:DefaultExperiment startTime="0.0" stopTime="60.0">
+      <ssd:Annotations>
+        <ssc:Annotation type="com.opensimulationplatform">
+          <osp:Algorithm><osp:FixedStepAlgorithm baseStepSize="0.02"/></osp:Algorithm>
+        </ssc:Annotation>
+      </ssd:Annotations>
+    </ssd:DefaultExperiment>
+
+(``osp`` = ``http://opensimulationplatform.com/SSP/OSPAnnotations``; libcosim matches the
+prefixes ``ssd:``, ``ssc:``, ``ssv:``, ``osp:`` literally, so they are fixed here).
+
+``load_ssp`` reads an ``.ssp`` archive, a ``.ssd`` file or a folder holding
+``SystemStructure.ssd`` into our master's :class:`~glider_cosim.master.System`. Every
+component, connector, connection and parameter is checked against the FMUs' model
+descriptions before any FMU is instantiated; anything malformed or unsupported raises
+:class:`SSPError` with one line naming the element. Unconnected Real inputs (our
+``plant.F_x``, ``F_z``, ``M_y``) are driven with constants at their start value, or at
+the value a parameter binding gives them, as libcosim leaves them.
+
+``simulate_libcosim`` runs an SSP in libcosim (libcosimpy) and records variables at every
+communication point. An FMU exception during libcosim's initialisation aborts the whole
+process, so :func:`simulate_libcosim_isolated` runs it in a subprocess.
 """
 
 from __future__ import annotations
 
+import atexit
+import json
 import math
 import shutil
+import subprocess
+import sys
 import tempfile
+import time
 import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from xml.etree import ElementTree as ET
 
-from fmpy import read_model_description
+import numpy as np
 
 from .master import System
-from .runner import FMU_NAMES, default_connections
-from .scenario import Scenario, load_scenario
+
+if TYPE_CHECKING:
+    from .runner import RunResult
+    from .scenario import Scenario
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -29,238 +62,718 @@ NS = {
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
 }
-for _p, _u in NS.items():
-    ET.register_namespace(_p, _u)
-_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean"}
+for _prefix, _uri in NS.items():
+    ET.register_namespace(_prefix, _uri)
+
+OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
+FMU_MIME = "application/x-fmu-sharedlibrary"
+SSD_NAME = "SystemStructure.ssd"
+_VALUE_TYPES = ("Real", "Integer", "Boolean")
 
 
 class SSPError(ValueError):
-    """A malformed or incompatible SSP; the message names the element."""
+    """A malformed or unsupported SSP, or one that does not fit its FMUs.
+
+    The message is one line: the SSP file, the element, what is wrong.
+    """
 
 
 def _q(prefix: str, tag: str) -> str:
     return f"{{{NS[prefix]}}}{tag}"
 
 
-def export_ssp(
-    out_path: str | Path, scenario: Scenario | str | None = None, fmu_dir: str | Path = "fmus"
-) -> Path:
-    """Write the scenario's system as an SSP 1.0 archive (``.ssp``) and return its path."""
-    from .build import build_all
+def _local(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1]
 
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    if scenario.events or scenario.disturbances or scenario.fmus:
+
+def _format_value(value: Any, type_: str) -> str:
+    if type_ == "Real":
+        return repr(float(value))
+    if type_ == "Boolean":
+        return "true" if bool(value) else "false"
+    return str(int(value))
+
+
+# --------------------------------------------------------------------------- export
+def export_ssp(
+    out_path: str | Path,
+    scenario: Scenario | str | Path | None = None,
+    fmu_dir: str | Path = "fmus",
+) -> Path:
+    """Write a scenario's system as an SSP 1.0 archive.
+
+    Parameters
+    ----------
+    out_path : path
+        The ``.ssp`` file to write (its folder is created).
+    scenario : Scenario, path, shipped name or None
+        The scenario (``None``: the default). Its FMUs (swapped ones included),
+        connections (``feedback``, ``with_observer``), per-instance parameters, constant
+        inputs, step and stop time are exported; events and disturbances have no SSP 1.0
+        equivalent and are refused.
+    fmu_dir : path
+        Where our FMUs are (built there first if missing or stale).
+
+    Returns
+    -------
+    Path
+        ``out_path``.
+
+    Raises
+    ------
+    SSPError
+        The scenario cannot be expressed in SSP 1.0, or names a variable the FMUs lack.
+    """
+    from fmpy import read_model_description
+
+    from .build import build_all
+    from .runner import FMU_NAMES, default_connections
+    from .scenario import Scenario, load_scenario
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if sc.events or sc.disturbances:
+        key = "event" if sc.events else "disturbance"
         raise SSPError(
-            f"{scenario.source}: events, disturbances and swapped FMUs have no SSP 1.0 "
-            "equivalent; export a scenario without them"
+            f"{sc.source}: key '{key}': events and disturbances have no SSP 1.0 equivalent; "
+            "export a scenario without them"
         )
-    fmus = build_all(fmu_dir, only_stale=True)
-    insts = {i: n for i, n in FMU_NAMES.items() if scenario.observer or i != "observer"}
-    conns = default_connections(scenario.feedback, scenario.observer)
-    root = ET.Element(_q("ssd", "SystemStructureDescription"),
-                      {"version": "1.0", "name": f"glider-cosim-{scenario.name}"})  # fmt: skip
+    insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
+    built = build_all(fmu_dir, only_stale=True) if set(insts) - set(sc.fmus) else {}
+    fmus: dict[str, Path] = {}
+    for inst in insts:
+        fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]
+    resources = {inst: f"resources/{fmu.name}" for inst, fmu in fmus.items()}
+    if len(set(resources.values())) != len(resources):
+        raise SSPError(f"{sc.source}: key 'fmus': two instances use FMU files of the same name")
+    conns = default_connections(sc.feedback, sc.observer)
+
+    root = ET.Element(
+        _q("ssd", "SystemStructureDescription"),
+        {"version": "1.0", "name": f"glider-cosim-{sc.name}"},
+    )
     system = ET.SubElement(root, _q("ssd", "System"), {"name": "glider"})
     elements = ET.SubElement(system, _q("ssd", "Elements"))
-    for inst, name in insts.items():
-        md = read_model_description(str(fmus[name]))
-        comp = ET.SubElement(elements, _q("ssd", "Component"), {
-            "name": inst, "source": f"resources/{name}.fmu",
-            "type": "application/x-fmu-sharedlibrary"})  # fmt: skip
-        cons = ET.SubElement(comp, _q("ssd", "Connectors"))
+    for inst in insts:
+        md = read_model_description(str(fmus[inst]))
+        variables = {v.name: v for v in md.modelVariables}
+        comp = ET.SubElement(
+            elements,
+            _q("ssd", "Component"),
+            {"name": inst, "source": resources[inst], "type": FMU_MIME},
+        )
+        connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
         for v in md.modelVariables:
-            if v.causality in ("input", "output") and v.type in _TYPES:
-                c = ET.SubElement(cons, _q("ssd", "Connector"),
-                                  {"name": v.name, "kind": v.causality})  # fmt: skip
+            if v.causality in ("input", "output") and v.type in _VALUE_TYPES:
+                c = ET.SubElement(
+                    connectors, _q("ssd", "Connector"), {"name": v.name, "kind": v.causality}
+                )
                 ET.SubElement(c, _q("ssc", v.type))
-        params = scenario.parameters.get(inst, {})
-        if params:
-            types = {v.name: v.type for v in md.modelVariables}
-            pb = ET.SubElement(ET.SubElement(comp, _q("ssd", "ParameterBindings")),
-                               _q("ssd", "ParameterBinding"))  # fmt: skip
-            pv = ET.SubElement(pb, _q("ssd", "ParameterValues"))
-            ps = ET.SubElement(pv, _q("ssv", "ParameterSet"),
-                               {"version": "1.0", "name": f"{inst}-parameters"})  # fmt: skip
-            plist = ET.SubElement(ps, _q("ssv", "Parameters"))
-            for k, val in params.items():
-                t = types.get(k, "Real")
-                p = ET.SubElement(plist, _q("ssv", "Parameter"), {"name": k})
-                text = repr(float(val)) if t == "Real" else (
-                    str(bool(val)).lower() if t == "Boolean" else str(int(val)))  # fmt: skip
-                ET.SubElement(p, _q("ssv", t), {"value": text})
-    cn = ET.SubElement(system, _q("ssd", "Connections"))
+        values = dict(sc.parameters.get(inst, {}))
+        for ref, value in sc.inputs.items():  # constant inputs: their start values
+            if ref.startswith(f"{inst}."):
+                values[ref.split(".", 1)[1]] = value
+        if not values:
+            continue
+        bindings = ET.SubElement(comp, _q("ssd", "ParameterBindings"))
+        binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
+        pvalues = ET.SubElement(binding, _q("ssd", "ParameterValues"))
+        pset = ET.SubElement(
+            pvalues, _q("ssv", "ParameterSet"), {"version": "1.0", "name": f"{inst}-parameters"}
+        )
+        params = ET.SubElement(pset, _q("ssv", "Parameters"))
+        for name, value in values.items():
+            v = variables.get(name)
+            if v is None or v.causality not in ("parameter", "input"):
+                raise SSPError(
+                    f"{sc.source}: key '{inst}.{name}': {fmus[inst].name} has no parameter or "
+                    f"input '{name}'"
+                )
+            if v.type not in _VALUE_TYPES:
+                raise SSPError(f"{sc.source}: key '{inst}.{name}': type {v.type} is not supported")
+            p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": name})
+            ET.SubElement(p, _q("ssv", v.type), {"value": _format_value(value, v.type)})
+    connections = ET.SubElement(system, _q("ssd", "Connections"))
     for src, dst in conns:
-        (se, sc), (de, dc) = src.split(".", 1), dst.split(".", 1)
-        attrs = {"startElement": se, "startConnector": sc, "endElement": de, "endConnector": dc}
-        ET.SubElement(cn, _q("ssd", "Connection"), attrs)
-    de = ET.SubElement(root, _q("ssd", "DefaultExperiment"),
-                       {"startTime": "0.0", "stopTime": repr(scenario.stop_time)})  # fmt: skip
-    ann = ET.SubElement(ET.SubElement(de, _q("ssd", "Annotations")), _q("ssc", "Annotation"),
-                        {"type": "com.opensimulationplatform"})  # fmt: skip
-    alg = ET.SubElement(ann, _q("osp", "Algorithm"))
-    ET.SubElement(alg, _q("osp", "FixedStepAlgorithm"), {"baseStepSize": repr(scenario.step)})
+        (se, sc_), (de, dc) = src.split(".", 1), dst.split(".", 1)
+        ET.SubElement(
+            connections,
+            _q("ssd", "Connection"),
+            {"startElement": se, "startConnector": sc_, "endElement": de, "endConnector": dc},
+        )
+    experiment = ET.SubElement(
+        root,
+        _q("ssd", "DefaultExperiment"),
+        {"startTime": "0.0", "stopTime": repr(float(sc.stop_time))},
+    )
+    annotation = ET.SubElement(
+        ET.SubElement(experiment, _q("ssd", "Annotations")),
+        _q("ssc", "Annotation"),
+        {"type": OSP_ANNOTATION_TYPE},
+    )
+    ET.SubElement(
+        ET.SubElement(annotation, _q("osp", "Algorithm")),
+        _q("osp", "FixedStepAlgorithm"),
+        {"baseStepSize": repr(float(sc.step))},
+    )
+    ET.indent(root)
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    ET.indent(root)
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr("SystemStructure.ssd", ET.tostring(root, xml_declaration=True,
-                                                      encoding="UTF-8"))  # fmt: skip
-        for name in insts.values():
-            z.write(fmus[name], f"resources/{name}.fmu")
+        z.writestr(SSD_NAME, ET.tostring(root, xml_declaration=True, encoding="UTF-8"))
+        for inst in insts:
+            z.write(fmus[inst], resources[inst])
     return out
 
 
-def _unpack(path: Path) -> tuple[Path, Path]:
-    """(folder, ssd file) of an .ssp archive, an .ssd file or a folder."""
+# --------------------------------------------------------------------------- import
+_UNPACKED: dict[tuple[str, int, int], Path] = {}
+
+
+@atexit.register
+def _remove_unpacked() -> None:
+    for folder in _UNPACKED.values():
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _locate(path: Path) -> tuple[Path, Path]:
+    """(folder the sources are relative to, the .ssd file) of an archive, .ssd or folder.
+
+    An archive is unpacked once per process and file version (the master keeps FMU
+    binaries loaded, so the same archive must keep giving the same FMU paths); the
+    folders are removed at exit.
+    """
+    if not path.exists():
+        raise SSPError(f"{path}: SSP file does not exist")
     if path.is_dir():
-        return path, path / "SystemStructure.ssd"
-    if path.suffix == ".ssd":
+        return path, path / SSD_NAME
+    if path.suffix.lower() == ".ssd":
         return path.parent, path
+    st = path.stat()
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _UNPACKED:
+        folder = Path(tempfile.mkdtemp(prefix="glider_ssp_"))
+        try:
+            with zipfile.ZipFile(path) as z:
+                for name in z.namelist():
+                    target = (folder / name).resolve()
+                    if not target.is_relative_to(folder.resolve()):
+                        raise SSPError(f"{path}: archive member '{name}' points outside it")
+                z.extractall(folder)
+        except (OSError, zipfile.BadZipFile) as err:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise SSPError(f"{path}: not a readable SSP archive ({err})") from None
+        except SSPError:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        _UNPACKED[key] = folder
+    return _UNPACKED[key], _UNPACKED[key] / SSD_NAME
+
+
+def _parse_value(text: str, tag: str, where: str) -> float | int | bool:
     try:
-        tmp = Path(tempfile.mkdtemp(prefix="glider_ssp_"))
-        with zipfile.ZipFile(path) as z:
-            z.extractall(tmp)
-    except (OSError, zipfile.BadZipFile) as err:
-        raise SSPError(f"{path}: not a readable SSP archive ({err})") from None
-    return tmp, tmp / "SystemStructure.ssd"
+        if tag == "Real":
+            value = float(text)
+            if not math.isfinite(value):
+                raise ValueError
+            return value
+        if tag == "Integer":
+            return int(text)
+        if text in ("true", "1"):
+            return True
+        if text in ("false", "0"):
+            return False
+        raise ValueError
+    except ValueError:
+        raise SSPError(f"{where}: value {text!r} is not a valid {tag}") from None
+
+
+@dataclass
+class _Component:
+    name: str
+    source: str
+    fmu: Path
+    variables: dict[str, Any]
+    connectors: dict[str, str]
+
+
+def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
+    from fmpy import read_model_description
+
+    name, source = el.get("name"), el.get("source")
+    if not name:
+        raise SSPError(f"{where}: an ssd:Component has no name attribute")
+    cwhere = f"{where}: component '{name}'"
+    if "." in name:
+        raise SSPError(f"{cwhere}: names with '.' are not supported (instance.variable)")
+    if not source:
+        raise SSPError(f"{cwhere}: no source attribute")
+    if el.get("type", FMU_MIME) != FMU_MIME:
+        raise SSPError(f"{cwhere}: type {el.get('type')!r} is not supported: expected {FMU_MIME}")
+    if el.get("implementation", "CoSimulation") not in ("CoSimulation", "any"):
+        raise SSPError(
+            f"{cwhere}: implementation {el.get('implementation')!r} is not supported: "
+            "expected CoSimulation"
+        )
+    rel = source[len("file:") :] if source.startswith("file:") else source
+    fmu = folder / rel
+    if not fmu.is_file():
+        raise SSPError(f"{cwhere}: FMU '{source}' is missing")
+    try:
+        md = read_model_description(str(fmu))
+    except Exception as err:  # fmpy raises plain Exception for bad archives
+        msg = " ".join(str(err).split())
+        raise SSPError(f"{cwhere}: '{source}' is not a readable FMU ({msg})") from None
+    if md.fmiVersion != "2.0" or md.coSimulation is None:
+        raise SSPError(f"{cwhere}: '{source}' is not an FMI 2.0 co-simulation FMU")
+    variables = {v.name: v for v in md.modelVariables}
+    connectors: dict[str, str] = {}
+    for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
+        cname, kind = c.get("name"), c.get("kind")
+        v = variables.get(cname)
+        if v is None:
+            raise SSPError(f"{cwhere}: connector '{cname}' is not a variable of {source}")
+        if kind in ("input", "output", "parameter") and v.causality != kind:
+            raise SSPError(
+                f"{cwhere}: connector '{cname}' is declared {kind} but is {v.causality} in {source}"
+            )
+        types = [_local(t.tag) for t in c if _local(t.tag) in (*_VALUE_TYPES, "String")]
+        if types and types[0] != v.type:
+            raise SSPError(
+                f"{cwhere}: connector '{cname}' is declared {types[0]} but is {v.type} in {source}"
+            )
+        connectors[cname] = kind or v.causality
+    return _Component(name, source, fmu, variables, connectors)
+
+
+def _read_parameters(
+    el: ET.Element, comp: _Component, folder: Path, where: str
+) -> dict[str, float | int | bool]:
+    cwhere = f"{where}: component '{comp.name}'"
+    values: dict[str, float | int | bool] = {}
+    for binding in el.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+        if binding.find("ssd:ParameterMapping", NS) is not None:
+            raise SSPError(f"{cwhere}: ssd:ParameterMapping is not supported")
+        prefix = binding.get("prefix", "")
+        source = binding.get("source")
+        if source is not None:
+            ssv = folder / (source[len("file:") :] if source.startswith("file:") else source)
+            if not ssv.is_file():
+                raise SSPError(f"{cwhere}: parameter values '{source}' are missing")
+            try:
+                pset = ET.parse(ssv).getroot()
+            except ET.ParseError as err:
+                raise SSPError(f"{cwhere}: '{source}' is not valid XML ({err})") from None
+        else:
+            pset = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
+            if pset is None:
+                raise SSPError(f"{cwhere}: a ssd:ParameterBinding has no source nor values")
+        if pset.tag != _q("ssv", "ParameterSet"):
+            raise SSPError(f"{cwhere}: parameter values are not an ssv:ParameterSet")
+        for p in pset.iterfind("ssv:Parameters/ssv:Parameter", NS):
+            name = prefix + (p.get("name") or "")
+            pwhere = f"{cwhere}: parameter '{name}'"
+            v = comp.variables.get(name)
+            if v is None:
+                raise SSPError(f"{pwhere} is not a variable of {comp.source}")
+            if v.causality not in ("parameter", "input"):
+                raise SSPError(f"{pwhere} has causality {v.causality}: expected parameter or input")
+            typed = [t for t in p if _local(t.tag) != "Annotations"]
+            if not typed:
+                raise SSPError(f"{pwhere} has no value")
+            tag = _local(typed[0].tag)
+            if tag not in _VALUE_TYPES:
+                raise SSPError(f"{pwhere}: ssv:{tag} values are not supported")
+            if tag != v.type:
+                raise SSPError(f"{pwhere} is given as {tag} but is {v.type} in {comp.source}")
+            text = typed[0].get("value")
+            if text is None:
+                raise SSPError(f"{pwhere} has no value attribute")
+            values[name] = _parse_value(text.strip(), tag, pwhere)
+    return values
+
+
+def _read_step(root: ET.Element, where: str) -> float:
+    algs = [
+        alg
+        for ann in root.iterfind("ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation", NS)
+        if ann.get("type") == OSP_ANNOTATION_TYPE
+        for alg in ann.iterfind("osp:Algorithm/osp:FixedStepAlgorithm", NS)
+    ]
+    if not algs:
+        raise SSPError(
+            f"{where}: no osp:FixedStepAlgorithm baseStepSize in ssd:DefaultExperiment's "
+            f"annotations (type '{OSP_ANNOTATION_TYPE}'): the communication step is missing"
+        )
+    text = algs[0].get("baseStepSize")
+    try:
+        step = float(text) if text is not None else math.nan
+    except ValueError:
+        step = math.nan
+    if not (math.isfinite(step) and step > 0):
+        raise SSPError(
+            f"{where}: osp:FixedStepAlgorithm baseStepSize = {text!r} is invalid: expected a "
+            "number > 0 (s)"
+        )
+    return step
+
+
+def _read_stop_time(root: ET.Element, where: str) -> float:
+    exp = root.find("ssd:DefaultExperiment", NS)
+    if exp is None:
+        raise SSPError(f"{where}: no ssd:DefaultExperiment (its stopTime is the run's end)")
+    start, stop = exp.get("startTime", "0"), exp.get("stopTime")
+    try:
+        start_f = float(start)
+    except ValueError:
+        start_f = math.nan
+    if start_f != 0.0:
+        raise SSPError(f"{where}: ssd:DefaultExperiment startTime = {start!r}: only 0 is supported")
+    try:
+        stop_f = float(stop) if stop is not None else math.nan
+    except ValueError:
+        stop_f = math.nan
+    if not (math.isfinite(stop_f) and stop_f > 0):
+        raise SSPError(
+            f"{where}: ssd:DefaultExperiment stopTime = {stop!r} is invalid: expected a "
+            "number > 0 (s)"
+        )
+    return stop_f
 
 
 def load_ssp(path: str | Path) -> tuple[System, float, float]:
-    """Read an SSP into our master's :class:`System`; returns (system, step, stop_time).
+    """Read an SSP into our master's :class:`~glider_cosim.master.System`.
 
-    Every component, connector, connection and parameter is checked against the FMUs'
-    model descriptions before any FMU is instantiated.
+    Parameters
+    ----------
+    path : path
+        An ``.ssp`` archive (unpacked to a temporary folder, removed at exit), a
+        ``.ssd`` file, or a folder holding ``SystemStructure.ssd``.
+
+    Returns
+    -------
+    (System, float, float)
+        The system (FMU paths, parameter values, connections, unconnected Real inputs
+        driven at their start or bound value, every output recorded), the communication
+        step from ``osp:FixedStepAlgorithm baseStepSize`` (s) and
+        ``ssd:DefaultExperiment stopTime`` (s).
+
+    Raises
+    ------
+    SSPError
+        Missing or unreadable file or FMU, unknown component, connector or variable,
+        connection that does not go from an output to an input of the same type,
+        unsupported SSP feature, missing or non-positive step or stop time. Only model
+        descriptions are read: no FMU is loaded or instantiated.
     """
     path = Path(path)
-    if not path.exists():
-        raise SSPError(f"{path}: SSP file does not exist")
-    folder, ssd = _unpack(path)
-    if not ssd.exists():
-        raise SSPError(f"{path}: SystemStructure.ssd is missing")
+    where = str(path)
+    folder, ssd = _locate(path)
+    if not ssd.is_file():
+        raise SSPError(f"{where}: {SSD_NAME} is missing")
     try:
         root = ET.parse(ssd).getroot()
     except ET.ParseError as err:
-        raise SSPError(f"{path}: SystemStructure.ssd is not valid XML ({err})") from None
+        raise SSPError(f"{where}: {ssd.name} is not valid XML ({err})") from None
+    if root.tag != _q("ssd", "SystemStructureDescription"):
+        raise SSPError(
+            f"{where}: the root element is not an SSP 1.0 ssd:SystemStructureDescription"
+        )
     system = root.find("ssd:System", NS)
     if system is None:
-        raise SSPError(f"{path}: no ssd:System element")
-    fmus: dict[str, Path] = {}
-    variables: dict[str, dict[str, Any]] = {}
-    parameters: dict[str, dict[str, Any]] = {}
-    for comp in system.iterfind("ssd:Elements/ssd:Component", NS):
-        name, source = comp.get("name"), comp.get("source")
-        if not name or not source:
-            raise SSPError(f"{path}: a ssd:Component lacks its name or source attribute")
-        fmu = folder / source
-        if not fmu.exists():
-            raise SSPError(f"{path}: component '{name}': FMU '{source}' is missing")
-        fmus[name] = fmu
-        md = read_model_description(str(fmu))
-        variables[name] = {v.name: v for v in md.modelVariables}
-        for c in comp.iterfind("ssd:Connectors/ssd:Connector", NS):
-            v = variables[name].get(c.get("name"))
-            if v is None:
-                raise SSPError(f"{path}: component '{name}': connector '{c.get('name')}' is not "
-                               f"a variable of {source}")  # fmt: skip
-            if c.get("kind") in ("input", "output") and v.causality != c.get("kind"):
-                raise SSPError(f"{path}: component '{name}': connector '{v.name}' is declared "
-                               f"{c.get('kind')} but is {v.causality} in {source}")  # fmt: skip
-        for p in comp.iterfind(".//ssv:Parameter", NS):
-            pname = p.get("name")
-            if pname not in variables[name]:
-                raise SSPError(f"{path}: component '{name}': parameter '{pname}' is not a "
-                               f"variable of {source}")  # fmt: skip
-            val = next(iter(p), None)
-            if val is None or val.get("value") is None:
-                raise SSPError(f"{path}: component '{name}': parameter '{pname}' has no value")
-            tag = val.tag.split("}")[-1]
-            text = val.get("value")
-            try:
-                if tag == "Real":
-                    value: Any = float(text)
-                else:
-                    value = text.lower() == "true" if tag == "Boolean" else int(text)
-            except ValueError:
-                raise SSPError(f"{path}: component '{name}': parameter '{pname}' value "
-                               f"{text!r} is not a {tag}") from None  # fmt: skip
-            parameters.setdefault(name, {})[pname] = value
-    if not fmus:
-        raise SSPError(f"{path}: the system has no components")
-    conns = []
+        raise SSPError(f"{where}: no ssd:System element")
+    if system.find("ssd:Elements/ssd:System", NS) is not None:
+        raise SSPError(f"{where}: nested ssd:System elements (sub-systems) are not supported")
+    if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None:
+        raise SSPError(f"{where}: ssd:SignalDictionaryReference is not supported")
+    step = _read_step(root, where)
+    stop_time = _read_stop_time(root, where)
+
+    comps: dict[str, _Component] = {}
+    values: dict[str, dict[str, float | int | bool]] = {}
+    for el in system.iterfind("ssd:Elements/ssd:Component", NS):
+        comp = _read_component(el, folder, where)
+        if comp.name in comps:
+            raise SSPError(f"{where}: component '{comp.name}' is defined twice")
+        comps[comp.name] = comp
+        values[comp.name] = _read_parameters(el, comp, folder, where)
+    if not comps:
+        raise SSPError(f"{where}: the system has no ssd:Component")
+
+    connections: list[tuple[str, str]] = []
+    sources: dict[str, str] = {}
     for c in system.iterfind("ssd:Connections/ssd:Connection", NS):
-        se, sc = c.get("startElement"), c.get("startConnector")
+        se, sc_ = c.get("startElement"), c.get("startConnector")
         de, dc = c.get("endElement"), c.get("endConnector")
-        for el, con in ((se, sc), (de, dc)):
-            if el not in fmus:
-                raise SSPError(f"{path}: connection {se}.{sc} -> {de}.{dc}: unknown element "
-                               f"'{el}'")  # fmt: skip
-            if con not in variables[el]:
-                raise SSPError(f"{path}: connection {se}.{sc} -> {de}.{dc}: '{el}' has no "
-                               f"variable '{con}'")  # fmt: skip
-        conns.append((f"{se}.{sc}", f"{de}.{dc}"))
-    step = None
-    for alg in root.iter(_q("osp", "FixedStepAlgorithm")):
-        step = alg.get("baseStepSize")
-    exp = root.find("ssd:DefaultExperiment", NS)
-    stop = exp.get("stopTime") if exp is not None else None
-    try:
-        step_f = float(step) if step is not None else math.nan
-        stop_f = float(stop) if stop is not None else math.nan
-    except ValueError:
-        raise SSPError(
-            f"{path}: osp:FixedStepAlgorithm baseStepSize {step!r} or DefaultExperiment "
-            f"stopTime {stop!r} is not a number"
-        ) from None
-    if not (math.isfinite(step_f) and step_f > 0):
-        raise SSPError(f"{path}: osp:FixedStepAlgorithm baseStepSize = {step!r}: expected a "
-                       "number > 0 (the communication step)")  # fmt: skip
-    if not (math.isfinite(stop_f) and stop_f > 0):
-        raise SSPError(f"{path}: ssd:DefaultExperiment stopTime = {stop!r}: expected > 0")
-    connected = {d for _, d in conns}
-    driven = {}
-    for inst, vs in variables.items():
-        for v in vs.values():
-            ref = f"{inst}.{v.name}"
-            if v.causality == "input" and ref not in connected and v.type == "Real":
-                driven[ref] = float(v.start or 0.0)
-    return (System(fmus=fmus, connections=conns, parameters=parameters, driven=driven),
-            step_f, stop_f)  # fmt: skip
+        cwhere = f"{where}: connection {se}.{sc_} -> {de}.{dc}"
+        if se is None or de is None:
+            raise SSPError(f"{cwhere}: connectors of the system itself are not supported")
+        ends = []
+        for element, connector, causality in ((se, sc_, "output"), (de, dc, "input")):
+            comp = comps.get(element)
+            if comp is None:
+                raise SSPError(f"{cwhere}: unknown element '{element}'")
+            v = comp.variables.get(connector)
+            if v is None:
+                raise SSPError(
+                    f"{cwhere}: '{element}' ({comp.source}) has no variable '{connector}'"
+                )
+            if connector not in comp.connectors:
+                raise SSPError(
+                    f"{cwhere}: component '{element}' declares no connector '{connector}'"
+                )
+            if v.causality != causality:
+                raise SSPError(
+                    f"{cwhere}: {element}.{connector} is {v.causality}: expected {causality}"
+                )
+            ends.append(v)
+        if ends[0].type != ends[1].type:
+            raise SSPError(f"{cwhere}: type mismatch ({ends[0].type} -> {ends[1].type})")
+        if any(_local(t.tag) != "Annotations" for t in c):
+            raise SSPError(f"{cwhere}: transformations (ssc:...Transformation) are not supported")
+        src, dst = f"{se}.{sc_}", f"{de}.{dc}"
+        if dst in sources:
+            raise SSPError(f"{cwhere}: input {dst} is already connected to {sources[dst]}")
+        sources[dst] = src
+        connections.append((src, dst))
+
+    parameters: dict[str, dict[str, Any]] = {}
+    driven: dict[str, float] = {}
+    for name, comp in comps.items():
+        for vname, v in comp.variables.items():
+            ref = f"{name}.{vname}"
+            if v.causality != "input" or ref in sources:
+                continue
+            if v.type != "Real":
+                raise SSPError(
+                    f"{where}: component '{name}': {v.type} input '{vname}' is unconnected: "
+                    "only Real inputs can be driven by constants"
+                )
+            bound = values[name].pop(vname, None)
+            start = bound if bound is not None else (v.start if v.start is not None else 0.0)
+            driven[ref] = float(start)
+        if values[name]:
+            parameters[name] = values[name]
+    system_ = System(
+        fmus={n: c.fmu for n, c in comps.items()},
+        connections=connections,
+        parameters=parameters,
+        driven=driven,
+    )
+    return system_, step, stop_time
+
+
+def run_ssp(
+    path: str | Path,
+    out: str | Path | None = None,
+    coupling: str = "gauss-seidel",
+    *,
+    stop_time: float | None = None,
+    plots: bool = True,
+) -> RunResult:
+    """Run an SSP with our master (``glider-cosim run FILE.ssp``).
+
+    Parameters
+    ----------
+    path : path
+        ``.ssp`` archive, ``.ssd`` file or folder holding ``SystemStructure.ssd``.
+    out : path, optional
+        Results folder (``results.csv``, ``metrics.json``, plots); None keeps the rows in
+        memory.
+    coupling : str
+        ``"gauss-seidel"`` or ``"jacobi"`` (SSP 1.0 has no coupling scheme; libcosim's
+        fixed-step algorithm is ``"jacobi"``).
+    stop_time : float, optional
+        Overrides ``ssd:DefaultExperiment stopTime`` (s).
+    plots : bool
+        Write PNG plots (with ``out``).
+
+    Returns
+    -------
+    glider_cosim.runner.RunResult
+        As :func:`glider_cosim.runner.simulate`, with the step and stop time of the SSP.
+
+    Raises
+    ------
+    SSPError
+        The SSP is malformed (checked before any FMU is instantiated).
+    """
+    from .runner import simulate
+
+    p = Path(path)
+    if p.is_dir():
+        p = p / SSD_NAME
+    load_ssp(p)  # every check before any FMU runs
+    return simulate(p, out, coupling=coupling, stop_time=stop_time, plots=plots, build=False)
+
+
+# --------------------------------------------------------------------------- libcosim
+@dataclass
+class LibcosimRun:
+    """Rows of a libcosim run: ``columns`` (``time`` first), ``data`` (one row per
+    communication point, t0 included) and the wall time per macro step (s)."""
+
+    columns: list[str]
+    data: np.ndarray
+    seconds_per_step: float
+
+    def column(self, name: str) -> np.ndarray:
+        """One column by name."""
+        return self.data[:, self.columns.index(name)]
+
+
+class LibcosimError(RuntimeError):
+    """libcosim failed to load or run an SSP (its process died or a step failed)."""
 
 
 def simulate_libcosim(
-    path: str | Path, variables: list[str], stop_time: float
-) -> list[list[float]]:
-    """Run an SSP in libcosim (libcosimpy) and return rows ``[t, *variables]`` at every
-    step, the initial point included. Run it in a subprocess: an FMU exception during
-    libcosim's initialisation aborts the process."""
+    path: str | Path, variables: Sequence[str], stop_time: float | None = None
+) -> LibcosimRun:
+    """Run an SSP in libcosim (libcosimpy, fixed-step algorithm) in this process.
+
+    Real variables are recorded with libcosim's time-series observer at every
+    communication point, the initial one included. An FMU exception during libcosim's
+    initialisation aborts the process (uncatchable): use
+    :func:`simulate_libcosim_isolated` unless the SSP is known to be good.
+
+    Parameters
+    ----------
+    path : path
+        ``.ssp`` archive, ``.ssd`` file or folder (checked with :func:`load_ssp` first).
+    variables : sequence of str
+        ``instance.variable`` names of Real variables to record.
+    stop_time : float, optional
+        End of the run (s); default the SSP's stop time.
+
+    Returns
+    -------
+    LibcosimRun
+        The rows and the wall time per macro step.
+
+    Raises
+    ------
+    SSPError
+        The SSP is malformed or a variable is unknown.
+    LibcosimError
+        libcosim could not create the execution or a step failed.
+    """
+    from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
+    system, step, stop = load_ssp(path)
+    stop = stop if stop_time is None else float(stop_time)
+    n = round(stop / step)
     log_output_level(CosimLogLevel.ERROR)
-
-    ex = CosimExecution.from_ssp_file(str(path))
-    obs = CosimObserver.create_last_value()
-    ex.add_observer(obs)
+    try:
+        ex = CosimExecution.from_ssp_file(str(path))
+    except AssertionError:  # libcosimpy asserts on a null execution
+        raise LibcosimError(f"{path}: libcosim could not create an execution from it") from None
+    observer = CosimObserver.create_time_series()
+    ex.add_observer(observer)
     refs = []
-    for var in variables:
-        inst, name = var.split(".", 1)
+    for name in variables:
+        inst, _, var = name.partition(".")
+        if inst not in system.fmus:
+            raise SSPError(f"{path}: variable '{name}': no component '{inst}'")
         idx = ex.slave_index_from_instance_name(inst)
-        vr = next(v.reference for v in ex.slave_variables(idx) if v.name.decode() == name)
+        vr = next((v.reference for v in ex.slave_variables(idx) if v.name.decode() == var), None)
+        if vr is None:
+            raise SSPError(f"{path}: variable '{name}': '{inst}' has no variable '{var}'")
+        observer.start_time_series(idx, vr, CosimVariableType.REAL)
         refs.append((idx, vr))
-    _, step, _ = load_ssp(path)
-    n = round(stop_time / step)
-    rows = []
-    for k in range(n + 1):
-        if k:
-            ex.step()
-        rows.append([k * step, *(obs.last_real_values(i, [vr])[0] for i, vr in refs)])
-    return rows
+    t0 = time.perf_counter()
+    if not ex.step(n):
+        raise LibcosimError(f"{path}: libcosim's step failed before t = {stop:g} s")
+    seconds = (time.perf_counter() - t0) / max(n, 1)
+    columns = ["time", *variables]
+    data = np.empty((n + 1, len(columns)))
+    data[:, 0] = np.arange(n + 1) * step
+    for j, (idx, vr) in enumerate(refs, start=1):
+        # libcosimpy 0.0.6 returns at most (last step - from_step) samples per call: the
+        # last one comes with a second call
+        steps: list[int] = []
+        for _ in range(3):
+            if len(steps) == n + 1:
+                break
+            times, got, values = observer.time_series_real_samples(
+                idx, vr, len(steps), n + 1 - len(steps)
+            )
+            for k, t_ns, value in zip(got, times, values):
+                data[k, 0], data[k, j] = t_ns * 1e-9, value
+            steps += list(got)
+        if steps != list(range(n + 1)):
+            raise LibcosimError(f"{path}: libcosim recorded {len(steps)} of {n + 1} samples")
+    return LibcosimRun(columns, data, seconds)
 
 
-def cleanup(system: System) -> None:
-    """Remove the folder an SSP archive was unpacked to."""
-    folders = {Path(p).parent.parent for p in system.fmus.values()}
-    for f in folders:
-        if f.name.startswith("glider_ssp_"):
-            shutil.rmtree(f, ignore_errors=True)
+def simulate_libcosim_isolated(
+    path: str | Path,
+    variables: Sequence[str],
+    stop_time: float | None = None,
+    timeout: float = 600.0,
+) -> LibcosimRun:
+    """:func:`simulate_libcosim` in a subprocess (libcosim may abort or crash its process).
+
+    Parameters
+    ----------
+    path, variables, stop_time
+        As :func:`simulate_libcosim`.
+    timeout : float
+        Seconds before the subprocess is killed.
+
+    Returns
+    -------
+    LibcosimRun
+        The rows and the wall time per macro step.
+
+    Raises
+    ------
+    SSPError
+        The SSP is malformed (checked in this process first).
+    LibcosimError
+        The subprocess failed, died or timed out (its last message is included).
+    """
+    load_ssp(path)
+    args = [str(path), json.dumps(list(variables)), json.dumps(stop_time)]
+    try:
+        p = subprocess.run(
+            [sys.executable, "-m", "glider_cosim.ssp", *args],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired:
+        raise LibcosimError(f"{path}: libcosim did not finish within {timeout:g} s") from None
+    lines = p.stdout.strip().splitlines()
+    if p.returncode != 0 or not lines:
+        last = (p.stderr.strip().splitlines() or [f"exit code {p.returncode}"])[-1]
+        raise LibcosimError(f"{path}: libcosim failed (exit code {p.returncode}): {last}")
+    result = json.loads(lines[-1])
+    return LibcosimRun(result["columns"], np.array(result["data"]), result["seconds_per_step"])
+
+
+def _main(argv: Sequence[str]) -> int:
+    """Subprocess entry of :func:`simulate_libcosim_isolated` (JSON on stdout)."""
+    path, variables, stop_time = argv[0], json.loads(argv[1]), json.loads(argv[2])
+    try:
+        run = simulate_libcosim(path, variables, stop_time)
+    except (SSPError, LibcosimError) as err:
+        print(err, file=sys.stderr)
+        return 1
+    out = {
+        "columns": run.columns,
+        "data": run.data.tolist(),
+        "seconds_per_step": run.seconds_per_step,
+    }
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - run by simulate_libcosim_isolated
+    import os
+
+    code = _main(sys.argv[1:])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # skip exit-time finalisers of libcosim and pythonfmu (see README)
