@@ -1,4 +1,11 @@
-"""Build the three FMUs with pythonfmu (``glider-cosim build``)."""
+"""Build the three FMUs (``glider-cosim build``).
+
+pythonfmu packages each slave (script, variables, modelDescription, resources); its
+prebuilt binary is then replaced by our FMI runtime (:mod:`glider_fmi.compile`),
+compiled here once per build, and the FMU records the Python that runtime starts in
+hosts without one. FMUs carry a linux64 binary only: pythonfmu's win64 binary is left
+out (see the README, "FMI runtime").
+"""
 
 from __future__ import annotations
 
@@ -10,8 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import glider_controller
+import glider_fmi
 import glider_observer
 import glider_plant
+from glider_fmi import compile as runtime
 
 #: resource file in each FMU holding the hash of the sources it was built from
 HASH_FILE = "resources/glider_cosim_source.sha256"
@@ -39,20 +48,26 @@ def _pkg(module) -> Path:
 
 
 COMPONENTS: tuple[Component, ...] = (
-    Component("GliderPlant", (_pkg(glider_plant),)),
-    Component("GliderObserver", (_pkg(glider_observer), _pkg(glider_plant))),
-    Component("GliderController", (_pkg(glider_controller), _pkg(glider_plant))),
+    Component("GliderPlant", (_pkg(glider_plant), _pkg(glider_fmi))),
+    Component("GliderObserver", (_pkg(glider_observer), _pkg(glider_plant), _pkg(glider_fmi))),
+    Component("GliderController", (_pkg(glider_controller), _pkg(glider_plant), _pkg(glider_fmi))),
 )
 PACKAGE_NAMES = {
     _pkg(glider_plant): "glider_plant",
     _pkg(glider_observer): "glider_observer",
     _pkg(glider_controller): "glider_controller",
+    _pkg(glider_fmi): "glider_fmi",
 }
+#: the FMU's binary for this platform (the only one it carries)
+BINARY_DIR = "binaries/linux64"
 
 
 def source_hash(c: Component) -> str:
-    """SHA-256 over the component's source files and the script shim that build writes."""
+    """SHA-256 over the component's sources, the script shim, the runtime (source and
+    flags) and the Python configuration it records."""
     h = hashlib.sha256(shim_text(c).encode())
+    h.update(runtime.runtime_fingerprint().encode())
+    h.update(runtime.python_config().encode())
     for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -63,11 +78,7 @@ def shim_text(c: Component) -> str:
     """The FMU's script: it only imports the slave class (see build_component)."""
     return (
         f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
-        f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n\n'
-        "# pythonfmu 0.7 releases one reference to this namespace per instantiation that\n"
-        "# it never owned; the slave's constructor gives one back, this one bridges the\n"
-        "# gap between the two (see glider_plant.fmi_base).\n"
-        "_NAMESPACE = globals()\n"
+        f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n'
     )
 
 
@@ -80,32 +91,52 @@ def is_current(fmu: Path, c: Component) -> bool:
         return False
 
 
-def build_component(c: Component, out: Path) -> Path:
-    """Build one FMU into ``out`` and return its path."""
+def _replace_binaries(fmu: Path, c: Component, binary: Path) -> None:
+    """Swap pythonfmu's binaries in ``fmu`` for our runtime (linux64 only)."""
+    tmp = fmu.with_name(fmu.name + ".part")
+    try:
+        with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
+            for item in src.infolist():
+                if not item.filename.startswith("binaries/"):
+                    dst.writestr(item, src.read(item))
+            dst.write(binary, f"{BINARY_DIR}/{c.name}.so")
+        tmp.replace(fmu)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def build_component(c: Component, out: Path, binary: Path) -> Path:
+    """Build one FMU into ``out`` with the compiled runtime ``binary``; return its path."""
     from pythonfmu.builder import FmuBuilder
 
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_") as tmp:
         stage = Path(tmp)
-        # The FMU's script is a shim that imports the slave class: pythonfmu re-executes
-        # the script at every instantiation (and leaks what it defines), so it defines
-        # nothing itself. Its name is the model identifier, unique per FMU.
+        # The FMU's script is a shim that imports the slave class; its name is the model
+        # identifier, unique per FMU. The runtime imports it once per process.
         script = stage / f"{c.name}.py"
         script.write_text(shim_text(c))
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
-            shutil.copytree(pkg, dst, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.so")
+            shutil.copytree(pkg, dst, ignore=ignore)
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")
         project.append(stage / "glider_cosim_source.sha256")
-        fmu = FmuBuilder.build_FMU(
-            script,
-            dest=out,
-            project_files=project,
-            canGetAndSetFMUstate=True,
+        (stage / runtime.PYTHON_CONFIG_FILE).write_text(runtime.python_config())
+        project.append(stage / runtime.PYTHON_CONFIG_FILE)
+        fmu = Path(
+            FmuBuilder.build_FMU(
+                script,
+                dest=out,
+                project_files=project,
+                canGetAndSetFMUstate=True,
+                canSerializeFMUstate=True,
+            )
         )
-    return Path(fmu)
+    _replace_binaries(fmu, c, binary)
+    return fmu
 
 
 def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, Path]:
@@ -124,10 +155,12 @@ def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, P
         Model identifier -> path of the ``.fmu``.
     """
     out = Path(out)
-    result = {}
-    for c in COMPONENTS:
-        fmu = out / f"{c.name}.fmu"
-        if not (only_stale and is_current(fmu, c)):
-            fmu = build_component(c, out)
-        result[c.name] = fmu
+    todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
+    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
+    if todo:
+        with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
+            binary = Path(tmp) / "glider_fmi_runtime.so"
+            runtime.compile_runtime(binary)
+            for c in todo:
+                result[c.name] = build_component(c, out, binary)
     return result

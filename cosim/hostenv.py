@@ -1,12 +1,13 @@
-"""``glider-cosim host-env``: the environment a C or C++ FMI host needs to load our FMUs.
+"""``glider-cosim host-env``: the environment a C or C++ FMI host on another machine needs.
 
-pythonfmu's FMU binaries do not link libpython: they call the Python C API of whatever
-interpreter the host process has. A Python host (fmpy, libcosimpy) has one, with its own
-``sys.path``. A C or C++ host (a hand-written host, OMSimulator, Simulink, Dymola) has
-none: ``dlopen`` of the FMU binary fails with ``undefined symbol: _Py_NoneStruct`` (or
-another C-API symbol) unless libpython is preloaded, and the embedded interpreter must
-then find the packages the FMUs import (numpy, scipy; the FMUs carry our own packages in
-their ``resources/``).
+On the machine that built them, our FMUs need no setup: their runtime
+(:mod:`glider_fmi.compile`) uses the host's Python if it has one and otherwise loads and
+starts the Python recorded at build time (``resources/glider_fmi_python.cfg``). On
+another machine, with another Python installation, either point the runtime at a
+configuration written there (``glider-cosim host-env --config > py.cfg`` and
+``GLIDER_FMI_PYTHON_CONFIG=$PWD/py.cfg``), or set the environment this module prints: with
+libpython preloaded the runtime finds Python in the process and starts it with these
+variables.
 
 :func:`host_env` returns, for the running interpreter:
 
@@ -18,9 +19,11 @@ their ``resources/``).
     this interpreter (its pure and platform library folders, a virtual environment's
     included), then any ``PYTHONPATH`` already set;
 ``PYTHONHOME``
-    only if needed: when this interpreter's base prefix differs from the prefix compiled
-    into libpython (a relocated install: an embedded interpreter would look for its
-    standard library in the wrong place), or when the variable is already set.
+    where it is needed: when this interpreter's base prefix differs from the prefix
+    compiled into libpython (a relocated install), when the first ``python3`` on
+    ``PATH`` is another installation (an embedded interpreter derives its prefix from
+    it, e.g. ``/usr`` from Debian's, and then misses the standard library:
+    ``No module named 'math'``), or when the variable is already set.
 """
 
 from __future__ import annotations
@@ -29,10 +32,13 @@ import argparse
 import importlib.util
 import os
 import shlex
+import shutil
 import sys
 import sysconfig
 from collections.abc import Sequence
 from pathlib import Path
+
+from glider_fmi import compile as runtime
 
 #: packages the FMUs import from the host's environment
 FMU_IMPORTS = ("numpy", "scipy")
@@ -55,18 +61,10 @@ def libpython() -> Path:
     HostEnvError
         The interpreter was built without ``--enable-shared`` (no shared library).
     """
-    libdir = sysconfig.get_config_var("LIBDIR") or ""
-    names = [sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")]
-    for name in names:
-        if name and (name.endswith((".so", ".dylib")) or ".so." in name):
-            for folder in (libdir, sysconfig.get_config_var("LIBPL") or ""):
-                p = Path(folder) / name
-                if p.is_file():
-                    return p
-    raise HostEnvError(
-        f"libpython: no shared library {names[0] or names[1]!r} in {libdir!r}: this Python "
-        "was built without --enable-shared, and a C host cannot load pythonfmu FMUs with it"
-    )
+    try:
+        return runtime.libpython()
+    except runtime.RuntimeBuildError as err:
+        raise HostEnvError(str(err)) from None
 
 
 def _package_root(module: str) -> str:
@@ -79,8 +77,13 @@ def _package_root(module: str) -> str:
 
 def _python_home_needed() -> bool:
     compiled = sysconfig.get_config_var("prefix") or ""
-    return "PYTHONHOME" in os.environ or (
-        os.path.realpath(compiled) != os.path.realpath(sys.base_prefix)
+    first = shutil.which("python3")
+    first_prefix = Path(os.path.realpath(first)).parent.parent if first else None
+    base = Path(os.path.realpath(sys.base_prefix))
+    return (
+        "PYTHONHOME" in os.environ
+        or Path(os.path.realpath(compiled)) != base
+        or first_prefix != base
     )
 
 
@@ -130,10 +133,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     parser = argparse.ArgumentParser(
         prog="glider-cosim host-env",
-        description="Print the environment a C/C++ FMI host needs for our FMUs, e.g. "
-        'eval "$(glider-cosim host-env)".',
+        description="Print the environment a C/C++ FMI host on another machine needs for "
+        'our FMUs, e.g. eval "$(glider-cosim host-env)". On the machine that built the FMUs '
+        "no setup is needed.",
     )
-    parser.parse_args(list(argv) if argv is not None else [])
+    parser.add_argument(
+        "--config",
+        action="store_true",
+        help="print instead the FMU runtime's Python configuration for this interpreter "
+        f"(save it and point ${runtime.PYTHON_CONFIG_ENV} at the file)",
+    )
+    args = parser.parse_args(list(argv) if argv is not None else [])
+    if args.config:
+        print(runtime.python_config(), end="")
+        return 0
     try:
         env = host_env()
     except HostEnvError as err:

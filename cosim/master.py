@@ -17,8 +17,9 @@ Coupling schemes (what happens at every communication point ``t_k``):
 
 Failures: an FMU call that returns fmi2Discard stops the run cleanly
 (:class:`FMUStopped`); fmi2Error/fmi2Fatal raise :class:`FMUCallError`. Either way the
-rows recorded so far are kept (the recorder streams them) and every instance that is
-not in a fatal state is terminated and freed; a fatal instance is never called again.
+rows recorded so far are kept (the recorder streams them); an instance that stopped or is
+fine is terminated and freed, one in the error state is only freed (FMI allows nothing
+else), and a fatal instance is never called again.
 """
 
 from __future__ import annotations
@@ -77,6 +78,11 @@ class FMUCallError(MasterError, RuntimeError):
         errors = [m for m in self.log if m.startswith(("[fmi2Error]", "[fmi2Discard]"))]
         detail = (errors[0] if errors else self.log[-1]) if self.log else "no log message"
         detail = " ".join(detail.split())
+        # the FMU's message often starts with the call's name, which is said already
+        status_tag, _, text = detail.partition("] ")
+        base = call.partition("(")[0]
+        if text.startswith(f"{base}: "):
+            detail = f"{status_tag}] {text[len(base) + 2 :]}"
         super().__init__(
             f"{instance}: {call} at t = {time:.6g} s returned {_STATUS.get(status, status)}: "
             f"{detail}"
@@ -280,6 +286,7 @@ class Instance:
         self.log: list[str] = []
         self.alive = False  # instantiated and not fatal
         self.fatal = False
+        self.failed = False  # returned fmi2Error: only getters, reset and free are allowed
 
     def var(self, name: str, causality: Iterable[str] | None = None):
         v = self.vars.get(name)
@@ -562,6 +569,7 @@ class CoSimulation:
                 self.system.parameters.setdefault(inst, {}).update(params)
         for inst in self.instances.values():
             self._call(inst, "fmi2Reset", inst.slave.reset)
+            inst.failed = False
         self._setup_instances()
 
     # ---------------------------------------------------------------- stepping
@@ -575,6 +583,8 @@ class CoSimulation:
         if status >= 4:
             inst.fatal = True
             inst.alive = False
+        elif status == 3:
+            inst.failed = True
         cls = FMUStopped if status == 2 else FMUCallError
         raise cls(inst.name, call, t, status, inst.log)
 
@@ -723,8 +733,9 @@ class CoSimulation:
             if inst.alive:
                 inst.alive = False
                 slave = inst.slave
-                with contextlib.suppress(FMICallException):
-                    slave.terminate()
+                if not inst.failed:
+                    with contextlib.suppress(FMICallException):
+                        slave.terminate()
                 # free the instance but keep the library loaded (see _extracted)
                 with contextlib.suppress(FMICallException):
                     slave.fmi2FreeInstance(slave.component)

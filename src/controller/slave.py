@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 
 from glider_controller.laws import Law, PIController, passivity_law
-from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_fmi.slave_base import GliderSlave, Var
+from glider_plant.fmi_vars import model_constant_vars
 from glider_plant.model import equilibrium, saturate
 from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 

@@ -5,9 +5,10 @@ Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_obser
 
 from __future__ import annotations
 
+from glider_fmi.slave_base import GliderSlave, Var
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
-from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_plant.fmi_vars import model_constant_vars
 from glider_plant.model import StallError, equilibrium
 from glider_plant.params import POSITIVE, GliderParams, Range
 

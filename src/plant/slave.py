@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import math
 
-from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
+from glider_fmi.slave_base import GliderSlave, Var
+from glider_plant.fmi_vars import model_constant_vars
 from glider_plant.model import PitchSensor, StallError, plant_step, saturate
 from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 

@@ -1,14 +1,17 @@
-"""A C host loads our pythonfmu FMU with the environment from ``glider-cosim host-env``.
+"""A C host without Python runs our three FMUs as a closed loop, with no setup at all.
 
 tests/integration/c_host/host.c is compiled here with gcc against the FMI 2.0 headers
-fmpy ships; it dlopens GliderPlant's binary, instantiates it with a logger callback,
-initialises it, steps it 60 s at 0.02 s with the tail command and the disturbances at 0,
-and prints the glide angle. Without the environment the binary cannot even be loaded
-(pythonfmu binaries use the host process's Python C API)."""
+fmpy ships. It reads a plan (FMUs, parameters, connections, recorded outputs), dlopens
+the FMUs' binaries and steps them with Jacobi coupling, printing every communication
+point. Run under ``env -i PATH=/usr/bin:/bin`` (Debian's ``/usr/bin/python3`` first on
+PATH, no LD_PRELOAD, PYTHONPATH or PYTHONHOME), the FMUs' runtime loads and starts the
+Python recorded at build time; the result must equal our master's Jacobi run bit for bit.
+"""
 
 from __future__ import annotations
 
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -16,17 +19,20 @@ import zipfile
 from pathlib import Path
 
 import fmpy
+import numpy as np
 import pytest
 from fmpy import read_model_description
 
 from glider_cosim.hostenv import host_env, libpython
-from glider_cosim.master import CoSimulation, System
-from glider_cosim.runner import ArrayRecorder
+from glider_cosim.master import CoSimulation
+from glider_cosim.runner import ArrayRecorder, system_for
+from glider_cosim.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
 HOST_C = Path(__file__).parent / "c_host" / "host.c"
-INPUTS = ("delta_cmd", "F_x", "F_z", "M_y")
-HOST_VARS = ("LD_PRELOAD", "PYTHONPATH", "PYTHONHOME")
+EMPTY_ENV = {"PATH": "/usr/bin:/bin"}
+STOP = 10.0
+RECORD = ["plant.theta_g", "plant.V", "plant.delta", "observer.theta_g_hat", "controller.delta_cmd"]
 
 
 @pytest.fixture(scope="module")
@@ -48,39 +54,112 @@ def host(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def plant(fmu_dir, tmp_path_factory) -> tuple[Path, list[str]]:
-    """The unzipped GliderPlant.fmu and the host's arguments after the folder."""
-    fmu = fmu_dir / "GliderPlant.fmu"
-    folder = tmp_path_factory.mktemp("plant_fmu")
-    with zipfile.ZipFile(fmu) as z:
-        z.extractall(folder)
-    md = read_model_description(str(fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    args = [md.coSimulation.modelIdentifier, md.guid, "60", "0.02", str(vr["theta_g"])]
-    args += [f"{vr[name]}=0" for name in INPUTS]
-    return folder, args
+def loop(fmu_dir, tmp_path_factory):
+    """The default scenario's system, its FMUs unzipped, and a plan for the C host."""
+    sc = load_scenario("default")
+    system = system_for(sc, fmu_dir)
+    root = tmp_path_factory.mktemp("loop")
+    lines, mds = [], {}
+    for inst, fmu in system.fmus.items():
+        folder = root / inst
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(folder)
+        md = mds[inst] = read_model_description(str(fmu))
+        lines.append(f"fmu {inst} {folder} {md.coSimulation.modelIdentifier} {md.guid}")
+    vars_ = {i: {v.name: v for v in md.modelVariables} for i, md in mds.items()}
+    for inst, params in system.parameters.items():
+        for name, value in params.items():
+            v = vars_[inst][name]
+            kind = {"Real": "real", "Integer": "integer"}[v.type]
+            lines.append(f"{kind} {inst} {v.valueReference} {float(value)!r}")
+    for src, dst in system.connections:
+        (si, sn), (di, dn) = src.split("."), dst.split(".")
+        sv, dv = vars_[si][sn].valueReference, vars_[di][dn].valueReference
+        lines.append(f"connect {si} {sv} {di} {dv}")
+    for ref in RECORD:
+        i, n = ref.split(".")
+        lines.append(f"record {i} {vars_[i][n].valueReference}")
+    lines.append(f"run {sc.step!r} {STOP!r}")
+    plan = root / "plan.txt"
+    plan.write_text("\n".join(lines) + "\n")
+    return system, plan
 
 
-def master_theta_g(fmu: Path) -> float:
-    """theta_g(60 s) of the plant alone under our master (same inputs)."""
-    system = System(
-        fmus={"plant": fmu},
-        connections=[],
-        driven={f"plant.{name}": 0.0 for name in INPUTS},
-        record=["plant.theta_g"],
-    )
-    sim = CoSimulation(system)
+def master_jacobi(system) -> np.ndarray:
+    system.record = list(RECORD)
+    sim = CoSimulation(system, step=0.02, coupling="jacobi")
     rec = ArrayRecorder()
     try:
-        sim.run(60.0, rec)
+        sim.run(STOP, rec)
     finally:
         sim.close()
-    data = rec.array()
-    assert data[-1, 0] == pytest.approx(60.0)
-    return float(data[-1, 1])
+    assert rec.columns == ["time", *RECORD]
+    return rec.array()
 
 
-def test_host_env_names_libpython_and_the_packages():
+def run_host(host: Path, plan: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    return subprocess.run([str(host), str(plan)], env=env, capture_output=True, text=True,
+                          timeout=180)  # fmt: skip
+
+
+def test_c_host_in_an_empty_environment_equals_our_master_bit_for_bit(host, loop):
+    system, plan = loop
+    p = run_host(host, plan, EMPTY_ENV)
+    assert p.returncode == 0, p.stderr[-3000:]
+    c_rows = np.array([[float(x) for x in line.split(",")] for line in p.stdout.splitlines()])
+    ours = master_jacobi(system)
+    assert c_rows.shape == ours.shape == (round(STOP / 0.02) + 1, 1 + len(RECORD))
+    assert np.array_equal(c_rows, ours)  # bit for bit
+    # it really is the closed loop: the glide angle moves from -35 deg towards -22.6 deg
+    assert c_rows[0, 1] == pytest.approx(np.radians(-35.0))
+    assert np.radians(-30.0) < c_rows[-1, 1] < np.radians(-18.0)
+
+
+def test_c_host_with_another_python_configuration_gets_one_line_not_a_crash(host, loop, tmp_path):
+    _, plan = loop
+    bad = tmp_path / "py.cfg"
+    bad.write_text("libpython=/nonexistent/libpython3.11.so\nhome=/nonexistent\n")
+    p = run_host(host, plan, EMPTY_ENV | {"GLIDER_FMI_PYTHON_CONFIG": str(bad)})
+    assert p.returncode == 4, p.stderr  # fmi2Instantiate returned NULL, no signal
+    assert "status 4 logStatusFatal: fmi2Instantiate: Python is not available: cannot load " \
+           "/nonexistent/libpython3.11.so" in p.stderr  # fmt: skip
+    assert "GLIDER_FMI_PYTHON_CONFIG" in p.stderr
+
+
+def test_c_host_with_a_written_configuration_runs(host, loop, tmp_path):
+    """What another machine does: write the configuration there and point at it."""
+    _, plan = loop
+    cfg = tmp_path / "py.cfg"
+    out = subprocess.run([sys.executable, "-m", "glider_cosim.hostenv", "--config"],
+                         capture_output=True, text=True, timeout=60, check=True).stdout  # fmt: skip
+    cfg.write_text(out)
+    p = run_host(host, plan, EMPTY_ENV | {"GLIDER_FMI_PYTHON_CONFIG": str(cfg)})
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert len(p.stdout.splitlines()) == round(STOP / 0.02) + 1
+
+
+def host_env_under(path: str) -> dict[str, str]:
+    """What ``glider-cosim host-env`` prints when PATH is ``path``."""
+    p = subprocess.run([sys.executable, "-m", "glider_cosim.hostenv"], env={"PATH": path},
+                       capture_output=True, text=True, timeout=60, check=True)  # fmt: skip
+    env = {}
+    for line in p.stdout.splitlines():
+        name, _, value = line.removeprefix("export ").partition("=")
+        env[name] = shlex.split(value)[0]
+    return env
+
+
+def test_c_host_with_the_host_env_environment_runs(host, loop):
+    """host-env's LD_PRELOAD/PYTHONPATH/PYTHONHOME: the runtime starts the preloaded Python."""
+    _, plan = loop
+    env = host_env_under(EMPTY_ENV["PATH"])
+    assert set(env) >= {"LD_PRELOAD", "PYTHONPATH"}
+    p = run_host(host, plan, EMPTY_ENV | env)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert len(p.stdout.splitlines()) == round(STOP / 0.02) + 1
+
+
+def test_host_env_names_libpython_the_packages_and_pythonhome():
     env = host_env()
     assert Path(env["LD_PRELOAD"].split()[0]) == libpython()
     assert libpython().name.startswith("libpython3")
@@ -97,24 +176,9 @@ def test_host_env_names_libpython_and_the_packages():
         timeout=60,
     )
     assert p.returncode == 0 and p.stdout.strip() == env["LD_PRELOAD"]
-
-
-def test_c_host_runs_the_plant_like_our_master(host, plant, fmu_dir):
-    folder, args = plant
-    env = {k: v for k, v in os.environ.items() if k not in HOST_VARS} | host_env()
-    p = subprocess.run([str(host), str(folder), *args], env=env, capture_output=True,
-                       text=True, timeout=120)  # fmt: skip
-    assert p.returncode == 0, p.stderr[-2000:]
-    theta_g_c = float(p.stdout.strip())
-    theta_g_ours = master_theta_g(fmu_dir / "GliderPlant.fmu")
-    assert abs(theta_g_c - theta_g_ours) < 1e-9
-    assert -0.5 < theta_g_c < -0.3  # near the steady glide (-0.394 rad) after 60 s
-
-
-def test_c_host_without_host_env_cannot_load_the_fmu(host, plant):
-    folder, args = plant
-    env = {k: v for k, v in os.environ.items() if k not in HOST_VARS}
-    p = subprocess.run([str(host), str(folder), *args], env=env, capture_output=True,
-                       text=True, timeout=120)  # fmt: skip
-    assert p.returncode == 3, p.stderr  # dlopen failed
-    assert "undefined symbol" in p.stderr and "_Py" in p.stderr
+    # with another python3 first on PATH, PYTHONHOME is needed and given
+    first = shutil.which("python3", path=EMPTY_ENV["PATH"])
+    other = first and Path(os.path.realpath(first)).parent.parent != Path(sys.base_prefix).resolve()
+    assert host_env_under(EMPTY_ENV["PATH"]).get("PYTHONHOME") == (
+        sys.base_prefix if other else None
+    )

@@ -172,8 +172,8 @@ def test_fmu_error_is_reported_with_instance_call_and_time(fmu_dir, tmp_path):
     assert p.returncode == 1
     assert p.stderr.count("\n") == 1
     assert (
-        "controller: fmi2ExitInitializationMode at t = 0 s returned fmi2Fatal: "
-        "[fmi2Error] controller: K_c = -1.0 is invalid"
+        "controller: fmi2ExitInitializationMode at t = 0 s returned fmi2Error: "
+        "[fmi2Error] K_c = -1.0 is invalid: expected a finite value in (0, inf)"
     ) in p.stderr
 
 

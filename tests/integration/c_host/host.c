@@ -1,15 +1,22 @@
 /* A minimal FMI 2.0 co-simulation host in C, for tests/integration/test_c_host.py.
  *
- * Loads the binary of an unzipped FMU with dlopen, instantiates it with a logger
- * callback, sets it up and initialises it, then steps it from t = 0 with step h,
- * holding a list of Real inputs at given values, and prints one Real output at the end
- * with 17 significant digits.
+ * Reads a plan (one directive per line), loads the binaries of unzipped FMUs with
+ * dlopen, instantiates them with a logger callback, sets parameters, initialises them
+ * and steps them as a closed loop with Jacobi coupling (at every communication point all
+ * connected outputs are read, then all inputs set, then every instance steps), printing
+ * the recorded outputs at every point as CSV with 17 significant digits. It then
+ * terminates and frees the instances and returns from main (a normal exit).
  *
- * usage: host FMU_DIR MODEL_IDENTIFIER GUID STOP_TIME STEP OUT_VR [IN_VR=VALUE ...]
+ *   fmu NAME DIR MODEL_IDENTIFIER GUID     an instance of the FMU unzipped in DIR
+ *   real NAME VR VALUE                     a Real set before initialisation
+ *   integer NAME VR VALUE                  an Integer set before initialisation
+ *   connect SRC VR DST VR                  SRC's output to DST's input (Real)
+ *   record NAME VR                         a Real printed at every point
+ *   run STEP STOP                          communication step and stop time (s)
  *
- * Compiled against the FMI 2.0 headers fmpy ships (fmpy/c-code/fmi2Functions.h).
- * Exit codes: 0 ok, 2 usage, 3 dlopen/dlsym, 4 instantiate, 5 initialisation, 6 step,
- * 7 get.
+ * usage: host PLAN.  Compiled against the FMI 2.0 headers fmpy ships.
+ * Exit codes: 0 ok, 2 usage or plan, 3 dlopen/dlsym, 4 instantiate, 5 initialisation,
+ * 6 step, 7 get/set.
  */
 #include <dlfcn.h>
 #include <math.h>
@@ -17,15 +24,44 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "fmi2Functions.h"
 
-#define MAX_INPUTS 16
+#define MAX 32
+
+typedef struct {
+    char name[4096];
+    void *lib;
+    fmi2Component c;
+    fmi2InstantiateTYPE *instantiate;
+    fmi2SetupExperimentTYPE *setup;
+    fmi2EnterInitializationModeTYPE *enter;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2SetRealTYPE *set_real;
+    fmi2SetIntegerTYPE *set_integer;
+    fmi2GetRealTYPE *get_real;
+    fmi2DoStepTYPE *do_step;
+    fmi2TerminateTYPE *terminate;
+    fmi2FreeInstanceTYPE *free_instance;
+} Fmu;
+
+typedef struct {
+    int fmu;
+    fmi2ValueReference vr;
+    double value;
+    int integer;
+} Ref;
+
+static Fmu fmus[MAX];
+static int n_fmus;
+static Ref params[MAX * 4], records[MAX];
+static int n_params, n_records;
+static Ref conn_src[MAX], conn_dst[MAX];
+static int n_conns;
 
 static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
                    fmi2String category, fmi2String message, ...) {
-    char text[2048];
+    char text[4096];
     va_list args;
     (void)env;
     va_start(args, message);
@@ -35,92 +71,136 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
             category ? category : "", text);
 }
 
-static void *load(void *lib, const char *name) {
+static int find(const char *name) {
+    for (int i = 0; i < n_fmus; ++i)
+        if (!strcmp(fmus[i].name, name)) return i;
+    fprintf(stderr, "plan: no fmu %s\n", name);
+    exit(2);
+}
+
+static void *sym(void *lib, const char *name) {
     void *f = dlsym(lib, name);
     if (!f) {
         fprintf(stderr, "dlsym %s failed: %s\n", name, dlerror());
+        exit(3);
     }
     return f;
 }
 
-int main(int argc, char **argv) {
-    if (argc < 7) {
-        fprintf(stderr, "usage: host FMU_DIR MODEL_IDENTIFIER GUID STOP_TIME STEP OUT_VR "
-                        "[IN_VR=VALUE ...]\n");
-        return 2;
-    }
-    const char *dir = argv[1], *model = argv[2], *guid = argv[3];
-    const double stop = atof(argv[4]), h = atof(argv[5]);
-    const fmi2ValueReference out_vr = (fmi2ValueReference)strtoul(argv[6], NULL, 10);
-    fmi2ValueReference in_vr[MAX_INPUTS];
-    fmi2Real in_value[MAX_INPUTS];
-    size_t n_in = 0;
-    for (int i = 7; i < argc && n_in < MAX_INPUTS; ++i, ++n_in) {
-        char *eq = strchr(argv[i], '=');
-        if (!eq) {
-            fprintf(stderr, "bad input %s: expected VR=VALUE\n", argv[i]);
-            return 2;
-        }
-        in_vr[n_in] = (fmi2ValueReference)strtoul(argv[i], NULL, 10);
-        in_value[n_in] = atof(eq + 1);
-    }
-
-    char path[4096], uri[4200];
+static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
+    char path[12288], uri[12288];
     snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, model);
-    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
+    f->lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!f->lib) {
         fprintf(stderr, "dlopen failed: %s\n", dlerror());
         return 3;
     }
-    fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)load(lib, "fmi2Instantiate");
-    fmi2SetupExperimentTYPE *setup = (fmi2SetupExperimentTYPE *)load(lib, "fmi2SetupExperiment");
-    fmi2EnterInitializationModeTYPE *enter =
-        (fmi2EnterInitializationModeTYPE *)load(lib, "fmi2EnterInitializationMode");
-    fmi2ExitInitializationModeTYPE *exit_init =
-        (fmi2ExitInitializationModeTYPE *)load(lib, "fmi2ExitInitializationMode");
-    fmi2SetRealTYPE *set_real = (fmi2SetRealTYPE *)load(lib, "fmi2SetReal");
-    fmi2GetRealTYPE *get_real = (fmi2GetRealTYPE *)load(lib, "fmi2GetReal");
-    fmi2DoStepTYPE *do_step = (fmi2DoStepTYPE *)load(lib, "fmi2DoStep");
-    fmi2TerminateTYPE *terminate = (fmi2TerminateTYPE *)load(lib, "fmi2Terminate");
-    fmi2FreeInstanceTYPE *free_instance = (fmi2FreeInstanceTYPE *)load(lib, "fmi2FreeInstance");
-    if (!instantiate || !setup || !enter || !exit_init || !set_real || !get_real || !do_step ||
-        !terminate || !free_instance) {
-        return 3;
-    }
-
+    f->instantiate = (fmi2InstantiateTYPE *)sym(f->lib, "fmi2Instantiate");
+    f->setup = (fmi2SetupExperimentTYPE *)sym(f->lib, "fmi2SetupExperiment");
+    f->enter = (fmi2EnterInitializationModeTYPE *)sym(f->lib, "fmi2EnterInitializationMode");
+    f->exit_init = (fmi2ExitInitializationModeTYPE *)sym(f->lib, "fmi2ExitInitializationMode");
+    f->set_real = (fmi2SetRealTYPE *)sym(f->lib, "fmi2SetReal");
+    f->set_integer = (fmi2SetIntegerTYPE *)sym(f->lib, "fmi2SetInteger");
+    f->get_real = (fmi2GetRealTYPE *)sym(f->lib, "fmi2GetReal");
+    f->do_step = (fmi2DoStepTYPE *)sym(f->lib, "fmi2DoStep");
+    f->terminate = (fmi2TerminateTYPE *)sym(f->lib, "fmi2Terminate");
+    f->free_instance = (fmi2FreeInstanceTYPE *)sym(f->lib, "fmi2FreeInstance");
+    static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
     snprintf(uri, sizeof uri, "file://%s/resources", dir);
-    const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
-    fmi2Component c = instantiate("plant", fmi2CoSimulation, guid, uri, &callbacks, fmi2False,
-                                  fmi2True);
-    if (!c) {
-        fprintf(stderr, "fmi2Instantiate failed\n");
+    f->c = f->instantiate(f->name, fmi2CoSimulation, guid, uri, &callbacks, fmi2False,
+                          fmi2False);
+    if (!f->c) {
+        fprintf(stderr, "fmi2Instantiate of %s failed\n", f->name);
         return 4;
     }
-    if (setup(c, fmi2False, 0.0, 0.0, fmi2True, stop) > fmi2Warning ||
-        set_real(c, in_vr, n_in, in_value) > fmi2Warning || enter(c) > fmi2Warning ||
-        exit_init(c) > fmi2Warning) {
-        fprintf(stderr, "initialisation failed\n");
-        return 5;
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 2) {
+        fprintf(stderr, "usage: host PLAN\n");
+        return 2;
     }
-    const long n = lround(stop / h);
-    for (long k = 0; k < n; ++k) {
-        if (set_real(c, in_vr, n_in, in_value) > fmi2Warning ||
-            do_step(c, (double)k * h, h, fmi2True) > fmi2Warning) {
-            fprintf(stderr, "step %ld at t = %g failed\n", k, (double)k * h);
-            return 6;
+    FILE *plan = fopen(argv[1], "r");
+    if (!plan) {
+        fprintf(stderr, "cannot read %s\n", argv[1]);
+        return 2;
+    }
+    char line[8192], a[4096], b[4096], c[4096], d[4096], e[4096];
+    double h = 0.0, stop = 0.0;
+    while (fgets(line, sizeof line, plan)) {
+        int n = sscanf(line, "%4095s %4095s %4095s %4095s %4095s", a, b, c, d, e);
+        if (n <= 0) continue;
+        if (!strcmp(a, "fmu") && n == 5 && n_fmus < MAX) {
+            Fmu *f = &fmus[n_fmus++];
+            snprintf(f->name, sizeof f->name, "%s", b);
+            int rc = load(f, c, d, e);
+            if (rc) return rc;
+        } else if ((!strcmp(a, "real") || !strcmp(a, "integer")) && n == 4 &&
+                   n_params < MAX * 4) {
+            params[n_params++] = (Ref){find(b), (fmi2ValueReference)strtoul(c, NULL, 10),
+                                       strtod(d, NULL), a[0] == 'i'};
+        } else if (!strcmp(a, "connect") && n == 5 && n_conns < MAX) {
+            conn_src[n_conns] = (Ref){find(b), (fmi2ValueReference)strtoul(c, NULL, 10), 0, 0};
+            conn_dst[n_conns++] = (Ref){find(d), (fmi2ValueReference)strtoul(e, NULL, 10), 0, 0};
+        } else if (!strcmp(a, "record") && n == 3 && n_records < MAX) {
+            records[n_records++] = (Ref){find(b), (fmi2ValueReference)strtoul(c, NULL, 10), 0, 0};
+        } else if (!strcmp(a, "run") && n == 3) {
+            h = strtod(b, NULL);
+            stop = strtod(c, NULL);
+        } else {
+            fprintf(stderr, "plan: bad line %s", line);
+            return 2;
         }
     }
-    fmi2Real value = 0.0;
-    if (get_real(c, &out_vr, 1, &value) > fmi2Warning) {
-        fprintf(stderr, "fmi2GetReal failed\n");
-        return 7;
+    fclose(plan);
+    if (!(h > 0.0) || !(stop > 0.0)) {
+        fprintf(stderr, "plan: no run line\n");
+        return 2;
     }
-    printf("%.17g\n", value);
-    terminate(c);
-    free_instance(c);
-    fflush(stdout);
-    fflush(stderr);
-    /* Leave without exit-time finalisers: pythonfmu's binary can abort in them (see the
-     * README's "Reliability"); the library is never unloaded either. */
-    _exit(0);
+    for (int i = 0; i < n_fmus; ++i)
+        if (fmus[i].setup(fmus[i].c, fmi2False, 0.0, 0.0, fmi2True, stop) > fmi2Warning) return 5;
+    for (int i = 0; i < n_params; ++i) {
+        Fmu *f = &fmus[params[i].fmu];
+        fmi2Integer iv = (fmi2Integer)params[i].value;
+        fmi2Status st = params[i].integer ? f->set_integer(f->c, &params[i].vr, 1, &iv)
+                                          : f->set_real(f->c, &params[i].vr, 1, &params[i].value);
+        if (st > fmi2Warning) return 5;
+    }
+    for (int i = 0; i < n_fmus; ++i)
+        if (fmus[i].enter(fmus[i].c) > fmi2Warning || fmus[i].exit_init(fmus[i].c) > fmi2Warning)
+            return 5;
+    const long steps = lround(stop / h);
+    for (long k = 0;; ++k) {
+        double t = (double)k * h;
+        double v[MAX];
+        for (int i = 0; i < n_conns; ++i) {
+            Fmu *f = &fmus[conn_src[i].fmu];
+            if (f->get_real(f->c, &conn_src[i].vr, 1, &v[i]) > fmi2Warning) return 7;
+        }
+        printf("%.17g", t);
+        for (int i = 0; i < n_records; ++i) {
+            Fmu *f = &fmus[records[i].fmu];
+            double r;
+            if (f->get_real(f->c, &records[i].vr, 1, &r) > fmi2Warning) return 7;
+            printf(",%.17g", r);
+        }
+        printf("\n");
+        if (k == steps) break;
+        for (int i = 0; i < n_conns; ++i) {
+            Fmu *f = &fmus[conn_dst[i].fmu];
+            if (f->set_real(f->c, &conn_dst[i].vr, 1, &v[i]) > fmi2Warning) return 7;
+        }
+        for (int i = 0; i < n_fmus; ++i) {
+            if (fmus[i].do_step(fmus[i].c, t, h, fmi2True) > fmi2Warning) {
+                fprintf(stderr, "%s: step %ld at t = %g failed\n", fmus[i].name, k, t);
+                return 6;
+            }
+        }
+    }
+    for (int i = 0; i < n_fmus; ++i) {
+        fmus[i].terminate(fmus[i].c);
+        fmus[i].free_instance(fmus[i].c);
+    }
+    return 0;
 }

@@ -1,12 +1,14 @@
-"""Shared FMI plumbing for the three pythonfmu slaves (bundled in every FMU, same code).
+"""Shared FMI plumbing for the glider slaves (bundled in every FMU, same code).
 
 A slave declares its variables as a table of :class:`Var`; this base registers them,
 writes a complete modelDescription (units with a ``deg`` display unit for angles,
 valid variabilities, ModelStructure with output dependencies and InitialUnknowns),
-checks the FMI call sequence and saves/restores the internal state with the FMU state.
+validates parameters and inputs, and saves, restores and serializes the internal state
+with the FMU state.
 
-pythonfmu maps every Python exception to ``fmi2Fatal`` (message in the log when the
-instance logs); a clean stop (stall) is ``do_step`` returning False, i.e. ``fmi2Discard``.
+The slaves run inside our FMI runtime (``runtime.c``), which owns the FMI state machine:
+a Python exception raised here becomes ``fmi2Error`` with its message passed to the
+host's logger; a clean stop (stall) is ``do_step`` returning False, i.e. ``fmi2Discard``.
 """
 
 from __future__ import annotations
@@ -14,17 +16,24 @@ from __future__ import annotations
 import copy
 import math
 import operator
-import sys
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real
 
-from .params import MODEL_CONSTANTS, ParameterError, Range
+from . import state_codec
 
 DEG = 180.0 / math.pi
+
+
+class ValidRange(Protocol):
+    """What a variable's valid range offers (e.g. ``glider_plant.params.Range``)."""
+
+    def contains(self, value: float) -> bool: ...
+
+    def describe(self) -> str: ...
 
 
 class Var(NamedTuple):
@@ -37,11 +46,14 @@ class Var(NamedTuple):
     start: float = 0.0
     type: str = "Real"  # "Real" | "Integer" | "Boolean"
     tunable: bool = False
-    valid: Range | None = None  # checked before the first step (parameters, inputs)
+    valid: ValidRange | None = None  # checked before the first step (parameters, inputs)
 
 
-class FmiUsageError(RuntimeError):
-    """An illegal FMI call sequence (e.g. doStep before initialisation)."""
+class RefusedValueError(ValueError):
+    """A parameter or input value the slave refuses (the message names variable, value and
+    the valid range); the runtime reports it as fmi2Error with the message alone."""
+
+    fmi_message_only = True
 
 
 # SI base-unit exponents of every unit the slaves use, and display units.
@@ -65,17 +77,6 @@ _UNITS: dict[str, dict[str, str]] = {
 _DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad.s": ("deg.s", DEG)}
 
 
-def model_constant_vars() -> tuple[Var, ...]:
-    """The glider's model constants as fixed parameters (single source: MODEL_CONSTANTS)."""
-    return tuple(
-        Var(s.name, "parameter", s.unit, s.description, s.default, valid=s.valid)
-        for s in MODEL_CONSTANTS
-    )
-
-
-_SCRIPT_DICT_REFS: list[dict[str, Any]] = []
-
-
 class GliderSlave(Fmi2Slave):
     """Base of the glider slaves: declare :attr:`VARIABLES`, implement :meth:`initialize`
     and :meth:`step`; list :attr:`FEEDTHROUGH` (output -> inputs it depends on directly).
@@ -87,19 +88,19 @@ class GliderSlave(Fmi2Slave):
     COMPUTED: tuple[str, ...] = ()
     #: attributes (besides the variables) saved with the FMU state
     INTERNAL_STATE: tuple[str, ...] = ()
+    #: module prefixes whose objects may appear in a serialized FMU state
+    STATE_MODULES: tuple[str, ...] = ("glider_",)
+
+    log_categories = {
+        **Fmi2Slave.log_categories,
+        "logFmiCalls": "Every FMI call (only when named in fmi2SetDebugLogging).",
+    }
 
     author = "glider-cosim"
     license = "MIT"
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        # pythonfmu 0.7's binary (findClass) releases, at every fmi2Instantiate, a
-        # reference to the FMU script module's __dict__ that it never owned; our script
-        # is a one-line shim, so that dict would soon be freed while in use. Hold one
-        # reference per instantiation to balance it (harmless if the bug is fixed).
-        script_module = sys.modules.get(self.modelName or "")
-        if script_module is not None:
-            _SCRIPT_DICT_REFS.append(vars(script_module))
         self._initialized = False
         self._time = 0.0
         self._discarded = False
@@ -186,9 +187,9 @@ class GliderSlave(Fmi2Slave):
 
     # ----------------------------------------------------------- validation
     def fail(self, message: str) -> None:
-        """Log ``message`` as an error and raise; pythonfmu reports it as fmi2Fatal."""
-        self.log(f"{self.instance_name}: {message}", Fmi2Status.error)
-        raise ParameterError(message)
+        """Refuse a value: raise :class:`RefusedValueError`, which the runtime reports as
+        fmi2Error with ``message`` passed to the host's logger."""
+        raise RefusedValueError(message)
 
     def validate_parameters(self) -> None:
         """Check every variable that declares a valid range (names value and range)."""
@@ -271,17 +272,12 @@ class GliderSlave(Fmi2Slave):
         self.validate_parameters()
         try:
             self.initialize()
-        except ParameterError as err:  # consistency checks of the models
-            self.fail(str(err))
+        except ValueError as err:  # the models' consistency checks (ParameterError)
+            raise RefusedValueError(str(err)) from err
         self._initialized = True
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        if not self._initialized:
-            self.fail("doStep called before the instance was initialised")
-        if self._discarded:
-            self.fail("doStep called after the instance stopped (fmi2Discard)")
-        if not step_size > 0.0:
-            self.fail(f"communication step = {step_size!r} is invalid: expected > 0 s")
+        # the runtime refuses steps before initialisation, after a discard and of size <= 0
         if abs(current_time - self._time) > 1e-9 * max(1.0, abs(self._time)):
             self.fail(
                 f"doStep at t = {current_time!r} s is invalid: expected the current time "
@@ -316,3 +312,19 @@ class GliderSlave(Fmi2Slave):
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
         for name, value in state.items():
             setattr(self, name, copy.deepcopy(value))
+
+    def _fmu_state_to_bytes(self, state: dict[str, Any]) -> bytes:
+        return state_codec.dumps(state, self.STATE_MODULES)
+
+    def _fmu_state_from_bytes(self, data: bytes) -> dict[str, Any]:
+        state = state_codec.loads(data, self.STATE_MODULES)
+        expected = {v.name for v in self.VARIABLES}
+        expected.update(("_initialized", "_time", "_discarded", *self.INTERNAL_STATE))
+        if set(state) != expected:
+            missing = sorted(expected - set(state))[:5]
+            extra = sorted(set(state) - expected)[:5]
+            raise state_codec.StateCodecError(
+                f"the state is not one of {type(self).__name__}: missing {missing}, "
+                f"unexpected {extra}"
+            )
+        return state

@@ -1,0 +1,167 @@
+"""Compile the FMI runtime and record the Python it starts in hosts without one.
+
+The runtime (``runtime.c``, next to this module) is compiled with the system C compiler
+against this interpreter's ``Python.h`` in limited-API mode (``Py_LIMITED_API`` 3.11)
+and the FMI 2.0 headers fmpy ships. It links no libpython: every Python function is
+resolved when the first FMU is instantiated, so one binary serves hosts on Python 3.11
+and later, and hosts without Python, where it loads and starts the libpython recorded
+by :func:`python_config`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+RUNTIME_SOURCE = Path(__file__).with_name("runtime.c")
+#: file in the FMU's resources/ naming the Python to start in a host without one
+PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"
+#: environment variable naming another such file (another Python installation)
+PYTHON_CONFIG_ENV = "GLIDER_FMI_PYTHON_CONFIG"
+CFLAGS = ("-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
+LIBS = ("-ldl", "-lpthread", "-lm")
+#: packages the slaves import from the Python environment (not bundled in the FMUs)
+PYTHON_PACKAGES = ("numpy", "scipy", "pythonfmu")
+
+
+class RuntimeBuildError(OSError):
+    """The runtime cannot be compiled here (no compiler, no Python.h, a compiler error)."""
+
+
+def find_compiler() -> str:
+    """The C compiler: ``$CC``, else ``cc``, ``gcc`` or ``clang`` on ``PATH``.
+
+    Raises
+    ------
+    RuntimeBuildError
+        None of them is installed.
+    """
+    candidates = [os.environ.get("CC", "").strip(), "cc", "gcc", "clang"]
+    for cc in filter(None, candidates):
+        found = shutil.which(cc.split()[0])
+        if found:
+            return found
+    raise RuntimeBuildError(
+        "no C compiler found (tried $CC, cc, gcc, clang): the FMUs' runtime is compiled at "
+        "build time; install one, e.g. 'apt-get install gcc'"
+    )
+
+
+def _include_dirs() -> list[str]:
+    py_include = sysconfig.get_paths()["include"]
+    if not (Path(py_include) / "Python.h").is_file():
+        raise RuntimeBuildError(
+            f"Python.h not found in {py_include}: install this Python's development "
+            "headers (e.g. 'apt-get install python3-dev')"
+        )
+    spec = importlib.util.find_spec("fmpy")
+    if spec is None or spec.origin is None:
+        raise RuntimeBuildError("fmpy is not installed: its FMI 2.0 headers are needed")
+    fmi_include = Path(spec.origin).parent / "c-code"
+    if not (fmi_include / "fmi2Functions.h").is_file():
+        raise RuntimeBuildError(f"fmi2Functions.h not found in {fmi_include}")
+    return [py_include, str(fmi_include)]
+
+
+def compile_command(output: Path) -> list[str]:
+    """The compiler command line that builds the runtime into ``output``."""
+    includes = [f"-I{d}" for d in _include_dirs()]
+    return [find_compiler(), *CFLAGS, *includes, str(RUNTIME_SOURCE), "-o", str(output), *LIBS]
+
+
+def runtime_fingerprint() -> str:
+    """SHA-256 over the runtime's source and its compile flags (FMU staleness)."""
+    h = hashlib.sha256(RUNTIME_SOURCE.read_bytes())
+    h.update(" ".join((*CFLAGS, *LIBS)).encode())
+    return h.hexdigest()
+
+
+def compile_runtime(output: Path | str) -> str:
+    """Compile the runtime into ``output`` (a shared library).
+
+    Returns
+    -------
+    str
+        What the compiler printed (empty when it built warning-free).
+
+    Raises
+    ------
+    RuntimeBuildError
+        No compiler, no headers, or the compiler failed (its first lines quoted).
+    """
+    output = Path(output)
+    cmd = compile_command(output)
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    except (OSError, subprocess.TimeoutExpired) as err:
+        raise RuntimeBuildError(f"compiling the FMI runtime with {cmd[0]} failed: {err}") from None
+    if proc.returncode != 0 or not output.is_file():
+        first = " ".join((proc.stderr or proc.stdout).strip().splitlines()[:3])
+        raise RuntimeBuildError(
+            f"compiling the FMI runtime with {cmd[0]} failed (exit {proc.returncode}): {first}"
+        )
+    return (proc.stderr + proc.stdout).strip()
+
+
+def libpython() -> Path:
+    """Path of the running interpreter's shared libpython.
+
+    Raises
+    ------
+    RuntimeBuildError
+        The interpreter was built without ``--enable-shared`` (no shared library).
+    """
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    names = [sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")]
+    for name in names:
+        if name and (name.endswith((".so", ".dylib")) or ".so." in name):
+            for folder in (libdir, sysconfig.get_config_var("LIBPL") or ""):
+                p = Path(folder) / name
+                if p.is_file():
+                    return p
+    raise RuntimeBuildError(
+        f"libpython: no shared library {names[0] or names[1]!r} in {libdir!r}: this Python "
+        "was built without --enable-shared, so a host without Python cannot start it"
+    )
+
+
+def site_dirs() -> list[str]:
+    """Folders a started interpreter adds with ``site.addsitedir``: those holding the
+    packages the slaves import, then this interpreter's site-packages."""
+    dirs = []
+    for name in PYTHON_PACKAGES:
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.origin:
+            dirs.append(str(Path(spec.origin).resolve().parent.parent))
+    scheme = sysconfig.get_paths()
+    dirs += [scheme["purelib"], scheme["platlib"]]
+    dirs += [p for p in sys.path if p.endswith(("site-packages", "dist-packages"))]
+    return [d for d in dict.fromkeys(dirs) if Path(d).is_dir()]
+
+
+def python_config() -> str:
+    """The runtime's Python configuration for this interpreter (key=value lines).
+
+    ``libpython`` is loaded and started by the runtime in a host without Python, with
+    ``PYTHONHOME`` = ``home`` (unless the host sets one); each ``site`` folder is then
+    added with ``site.addsitedir``; ``executable`` becomes ``sys.executable``. Without a
+    shared libpython the file says so and such hosts get a one-line error.
+    """
+    lines = [
+        "# Python the glider-cosim FMI runtime starts in a host without Python",
+        f"# (override: ${PYTHON_CONFIG_ENV}=FILE in this format; glider-cosim host-env --config)",
+    ]
+    try:
+        lines.append(f"libpython={libpython()}")
+    except RuntimeBuildError as err:
+        lines.append(f"# {err}")
+    lines.append(f"home={sys.base_prefix}")
+    lines.append(f"executable={sys.executable}")
+    lines += [f"site={d}" for d in site_dirs()]
+    return "\n".join(lines) + "\n"
