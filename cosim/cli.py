@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -218,17 +217,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def console_main() -> None:
-    """Console script: run :func:`main`, flush, and exit with its code.
-
-    The process leaves with ``os._exit`` once everything is written: after FMUs ran, a
-    rare abort ("corrupted double-linked list") can still come from native libraries'
-    exit-time finalisers (seen in OpenBLAS's and libgfortran's, about 1 exit in 100-400);
-    nothing is lost by skipping them.
-    """
-    code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)
+    """Console script: run :func:`main` and exit with its code (a normal interpreter exit)."""
+    sys.exit(main())
 
 
 if __name__ == "__main__":

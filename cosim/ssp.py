@@ -771,9 +771,4 @@ def _main(argv: Sequence[str]) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover - run by simulate_libcosim_isolated
-    import os
-
-    code = _main(sys.argv[1:])
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(code)  # skip exit-time finalisers of libcosim and pythonfmu (see README)
+    sys.exit(_main(sys.argv[1:]))

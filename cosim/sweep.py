@@ -22,14 +22,11 @@ and message; tasks of a worker that dies are retried elsewhere by Dask.
 from __future__ import annotations
 
 import argparse
-import atexit
-import contextlib
 import csv
 import hashlib
 import itertools
 import json
 import math
-import os
 import re
 import sys
 import time
@@ -194,34 +191,6 @@ def expand(
 
 # ----------------------------------------------------------------- worker side
 _SIMS: dict[tuple, CoSimulation] = {}
-_WORKER_EXIT_SET = False
-
-
-def _leave_worker_quietly() -> None:
-    """In a Dask worker process: at exit, free the cached instances, then leave with
-    ``os._exit(0)``. Worker processes ran FMUs many times and were seen to abort in native
-    exit handlers ("corrupted double-linked list") after the cluster closed; their exit
-    status is not used, and nothing of the sweep is lost (rows are written by the client)."""
-    global _WORKER_EXIT_SET
-    if _WORKER_EXIT_SET:
-        return
-    _WORKER_EXIT_SET = True
-    try:
-        from distributed import get_worker
-
-        get_worker()
-    except (ImportError, ValueError):
-        return  # not in a Dask worker
-
-    def leave() -> None:
-        for sim in list(_SIMS.values()):
-            with contextlib.suppress(Exception):
-                sim.close()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(0)
-
-    atexit.register(leave)
 
 
 def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -242,7 +211,6 @@ def run_one(
 
     Returns the result row (parameters, seed, status, message, metrics).
     """
-    _leave_worker_quietly()
     key = (fmu_dir, scenario.source, scenario.name, scenario.feedback, scenario.observer,
            bool(trajectories))  # fmt: skip
     params = _full_parameters(scenario, run)

@@ -29,26 +29,3 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
     return {
         p.stem: Path(FmuBuilder.build_FMU(p, dest=out)) for p in sorted(src.glob("MasterTest*.py"))
     }
-
-
-def pytest_sessionfinish(session, exitstatus):
-    session.config._glider_exitstatus = int(exitstatus)
-
-
-@pytest.hookimpl(trylast=True)
-def pytest_unconfigure(config):
-    """Leave without the C-level exit handlers once pytest is done.
-
-    A process that loaded pythonfmu binaries next to numpy's OpenBLAS can abort in
-    OpenBLAS's thread shutdown at exit (seen once in about 20 runs of the FMU tests,
-    'corrupted double-linked list' from blas_thread_shutdown_ under gdb); the CLI leaves
-    the same way. The exit status is pytest's own.
-    """
-    import os
-    import sys
-
-    status = getattr(config, "_glider_exitstatus", None)
-    if status is not None and os.environ.get("GLIDER_COSIM_NORMAL_EXIT") != "1":
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(status)
