@@ -13,8 +13,10 @@ import hashlib
 import shutil
 import tempfile
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import glider_controller
 import glider_fmi
@@ -91,7 +93,7 @@ def is_current(fmu: Path, c: Component) -> bool:
         return False
 
 
-def _replace_binaries(fmu: Path, c: Component, binary: Path) -> None:
+def _replace_binaries(fmu: Path, model_identifier: str, binary: Path) -> None:
     """Swap pythonfmu's binaries in ``fmu`` for our runtime (linux64 only)."""
     tmp = fmu.with_name(fmu.name + ".part")
     try:
@@ -99,17 +101,73 @@ def _replace_binaries(fmu: Path, c: Component, binary: Path) -> None:
             for item in src.infolist():
                 if not item.filename.startswith("binaries/"):
                     dst.writestr(item, src.read(item))
-            dst.write(binary, f"{BINARY_DIR}/{c.name}.so")
+            dst.write(binary, f"{BINARY_DIR}/{model_identifier}.so")
         tmp.replace(fmu)
     finally:
         tmp.unlink(missing_ok=True)
 
 
-def build_component(c: Component, out: Path, binary: Path) -> Path:
-    """Build one FMU into ``out`` with the compiled runtime ``binary``; return its path."""
+def package_slave(
+    script: Path,
+    out: Path,
+    binary: Path,
+    project_files: Sequence[Path] = (),
+    **options: Any,
+) -> Path:
+    """Package a pythonfmu slave script as an FMU that runs on our FMI runtime.
+
+    Parameters
+    ----------
+    script : Path
+        The pythonfmu script; its slave class must be named like the script (the model
+        identifier).
+    out : Path
+        Folder the ``.fmu`` is written to.
+    binary : Path
+        The compiled runtime (:func:`glider_fmi.compile.compile_runtime`).
+    project_files : sequence of Path
+        Further files and package folders for ``resources/``.
+    **options
+        pythonfmu's capability flags, e.g. ``canGetAndSetFMUstate=True``.
+
+    Returns
+    -------
+    Path
+        The ``.fmu``.
+    """
     from pythonfmu.builder import FmuBuilder
 
     out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="glider_fmi_cfg_") as tmp:
+        config = Path(tmp) / runtime.PYTHON_CONFIG_FILE
+        config.write_text(runtime.python_config())
+        fmu = Path(
+            FmuBuilder.build_FMU(
+                script, dest=out, project_files=[*project_files, config], **options
+            )
+        )
+    _replace_binaries(fmu, fmu.stem, binary)
+    return fmu
+
+
+def build_slave_fmu(
+    script: Path | str, out: Path | str, project_files: Sequence[Path] = ()
+) -> Path:
+    """Compile the runtime and package one pythonfmu script with it (tests, users' slaves).
+
+    Returns
+    -------
+    Path
+        The ``.fmu`` in ``out``.
+    """
+    with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
+        binary = Path(tmp) / "glider_fmi_runtime.so"
+        runtime.compile_runtime(binary)
+        return package_slave(Path(script), Path(out), binary, project_files)
+
+
+def build_component(c: Component, out: Path, binary: Path) -> Path:
+    """Build one FMU into ``out`` with the compiled runtime ``binary``; return its path."""
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_") as tmp:
         stage = Path(tmp)
         # The FMU's script is a shim that imports the slave class; its name is the model
@@ -124,19 +182,9 @@ def build_component(c: Component, out: Path, binary: Path) -> Path:
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")
         project.append(stage / "glider_cosim_source.sha256")
-        (stage / runtime.PYTHON_CONFIG_FILE).write_text(runtime.python_config())
-        project.append(stage / runtime.PYTHON_CONFIG_FILE)
-        fmu = Path(
-            FmuBuilder.build_FMU(
-                script,
-                dest=out,
-                project_files=project,
-                canGetAndSetFMUstate=True,
-                canSerializeFMUstate=True,
-            )
+        return package_slave(
+            script, out, binary, project, canGetAndSetFMUstate=True, canSerializeFMUstate=True
         )
-    _replace_binaries(fmu, c, binary)
-    return fmu
 
 
 def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, Path]:

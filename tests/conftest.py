@@ -21,11 +21,20 @@ def fmu_dir(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
-    """Small FMUs written for the master's tests (integrator, gain, delay)."""
-    from pythonfmu.builder import FmuBuilder
+    """Small FMUs written for the tests (integrator, gain, delay, runtime probe), on our
+    FMI runtime like ours."""
+    import tempfile
+
+    from glider_cosim.build import package_slave
+    from glider_fmi.compile import compile_runtime
 
     out = tmp_path_factory.mktemp("test_fmus")
     src = HERE / "integration" / "fmus_src"
-    return {
-        p.stem: Path(FmuBuilder.build_FMU(p, dest=out)) for p in sorted(src.glob("MasterTest*.py"))
-    }
+    with tempfile.TemporaryDirectory() as tmp:
+        binary = Path(tmp) / "runtime.so"
+        compile_runtime(binary)
+        return {
+            p.stem: package_slave(p, out, binary)
+            for p in sorted(src.glob("*Test*.py"))
+            if not p.stem.startswith("Swap")
+        }

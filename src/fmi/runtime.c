@@ -283,13 +283,18 @@ static fmi2Status fail_msg(Ctx *x, const char *fmt, ...) {
     return fmi2Error;
 }
 
+/* Errors are always passed on. Warnings and discards too, unless their category was
+ * switched off (fmi2SetDebugLogging(false, [it]) or another list given with true). Debug
+ * messages (fmi2OK) only with logging on and their category, or logAll, enabled;
+ * logFmiCalls only when named. */
 static int should_log(const Instance *inst, fmi2Status status, int category) {
-    if (status >= fmi2Error) return 1; /* errors are always passed on */
+    if (status >= fmi2Error) return 1;
     uint64_t bit = category >= 0 ? (uint64_t)1 << category : 0;
     if (inst->cat_off & bit) return 0;
     if (status == fmi2Warning || status == fmi2Discard) return 1;
-    uint64_t all = inst->cat_all >= 0 ? (uint64_t)1 << inst->cat_all : 0;
-    return inst->logging_on && ((inst->cat_on & bit) || (inst->cat_on & all));
+    uint64_t all = inst->cat_all >= 0 && category != inst->cat_calls ? (uint64_t)1 << inst->cat_all
+                                                                      : 0;
+    return inst->logging_on && (inst->cat_on & (bit | all)) != 0;
 }
 
 /* The logger takes a printf format: pass the text with every '%' doubled. */
@@ -347,7 +352,7 @@ static fmi2Status py_error(Ctx *x) {
     XDECREF(plain);
     pPyErr_Clear();
     fmi2Status st = message_only ? FAIL(x, "%s", text) : FAIL(x, "%s: %s", tname, text);
-    if (x->inst && x->inst->logging_on && tb) {
+    if (x->inst && x->inst->logging_on && tb && !message_only) {
         PyObject *mod = pPyImport_ImportModule("traceback");
         PyObject *fmt = mod ? pPyObject_GetAttrString(mod, "format_exception") : NULL;
         PyObject *lines = fmt ? pPyObject_CallFunctionObjArgs(fmt, type, value, tb, NULL) : NULL;
@@ -1030,10 +1035,11 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
         }
         bits |= (uint64_t)1 << ci;
     }
-    if (loggingOn) {
+    if (loggingOn) { /* only these categories (all of them if logAll is named) */
+        uint64_t all = inst->cat_all >= 0 ? (uint64_t)1 << inst->cat_all : 0;
         inst->logging_on = 1;
         inst->cat_on = bits;
-        inst->cat_off &= ~bits;
+        inst->cat_off = bits & all ? 0 : ~bits;
     } else {
         inst->cat_on &= ~bits;
         inst->cat_off |= bits;

@@ -26,12 +26,13 @@ DISTURBANCES = ("plant.F_x", "plant.F_z", "plant.M_y")
 
 @pytest.fixture(scope="module")
 def foreign(tmp_path_factory) -> dict[str, Path]:
-    """The two foreign FMUs (module names unique: one interpreter per process)."""
-    from pythonfmu.builder import FmuBuilder
+    """The two foreign FMUs (module names unique: one interpreter per process), packaged
+    with our runtime: pythonfmu's own binary would abort the test process at exit."""
+    from glider_cosim.build import build_slave_fmu
 
     out = tmp_path_factory.mktemp("swap_fmus")
     return {
-        name: Path(FmuBuilder.build_FMU(SRC / f"{name}.py", dest=out))
+        name: build_slave_fmu(SRC / f"{name}.py", out)
         for name in ("SwapTestPlant", "SwapTestController")
     }
 
