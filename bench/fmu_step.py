@@ -1,9 +1,16 @@
-"""Benchmark: microseconds per fmi2DoStep of each FMU alone under fmpy (50 Hz).
+"""Benchmark: microseconds per fmi2DoStep of each FMU, and our runtime's overhead per call.
 
 Usage: python bench/fmu_step.py [--json] [--steps N]
 Each FMU is stepped N times with inputs held (plant: tail 2 deg; observer: pitch at
-equilibrium; controller: passivity law); the median per call is reported, with the
-model-code time of the same step (no FMI) for comparison.
+equilibrium; controller: passivity law); reported per FMU:
+
+- ``us_per_doStep``: median fmi2DoStep under fmpy (ctypes), and ``model_us_per_step``
+  the model code of the same step (no FMI);
+- ``runtime``: fmi2DoStep, fmi2GetReal (the outputs the loop reads) and fmi2SetReal (its
+  inputs) called from C (``bench/fmi_call_timer.c``, compiled here; no Python in the
+  host, so the runtime starts it), against the slave's own ``do_step``, ``get_real`` and
+  ``set_real`` called directly in Python: ``overhead_us`` is the difference, what the
+  runtime adds per call (target <= 0.5 us).
 """
 
 from __future__ import annotations
@@ -11,10 +18,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import statistics
+import subprocess
+import tempfile
 import time
 from pathlib import Path
 
+import fmpy
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
@@ -60,6 +71,98 @@ def fmu_us(fmu: Path, inputs: dict[str, float], steps: int) -> float:
     return statistics.median(times) * 1e6
 
 
+HERE = Path(__file__).parent
+READ = {
+    "GliderPlant": ("theta_meas", "V", "theta_g"),
+    "GliderObserver": ("V_hat", "theta_g_hat"),
+    "GliderController": ("delta_cmd",),
+}
+
+
+def _slave(name: str):
+    """The slave class of an FMU, instantiated in this process (no FMI)."""
+    from glider_controller.slave import GliderController
+    from glider_observer.slave import GliderObserver
+    from glider_plant.slave import GliderPlant
+
+    cls = {"GliderPlant": GliderPlant, "GliderObserver": GliderObserver,
+           "GliderController": GliderController}[name]  # fmt: skip
+    return cls(instance_name="bench", resources=None)
+
+
+def direct_ns(name: str, inputs: dict[str, float], n: int) -> dict[str, float]:
+    """ns per call of the slave's do_step, get_real and set_real, called in Python."""
+    s = _slave(name)
+    vr = {v.name: vr for vr, v in s.vars.items()}
+    set_vrs, set_vals = [vr[k] for k in inputs], list(inputs.values())
+    get_vrs = [vr[k] for k in READ[name]]
+    s.setup_experiment(0.0, None, None)
+    s.set_real(set_vrs, set_vals)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    h, k = 0.02, 0
+    do_step, get_real, set_real = s.do_step, s.get_real, s.set_real
+    for k in range(200):
+        do_step(k * h, h)
+    clock = time.perf_counter
+    t0 = clock()
+    for k in range(201, 201 + n):
+        do_step((k - 1) * h, h)
+    t1 = clock()
+    for _ in range(n):
+        get_real(get_vrs)
+    t2 = clock()
+    for _ in range(n):
+        set_real(set_vrs, set_vals)
+    t3 = clock()
+    return {"doStep_ns": (t1 - t0) / n * 1e9, "getReal_ns": (t2 - t1) / n * 1e9,
+            "setReal_ns": (t3 - t2) / n * 1e9}  # fmt: skip
+
+
+def runtime_ns(timer: Path, fmu: Path, inputs: dict[str, float], n: int) -> dict[str, float]:
+    """ns per call of the same calls through the FMU's runtime, from a C host."""
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    get_arg = ",".join(str(vr[k]) for k in READ[md.modelName])
+    set_arg = ",".join(f"{vr[k]}={v!r}" for k, v in inputs.items())
+    p = subprocess.run([str(timer), _extracted(fmu), md.coSimulation.modelIdentifier, str(n),
+                        get_arg, set_arg], capture_output=True, text=True, timeout=600,
+                       env={"PATH": "/usr/bin:/bin"})  # fmt: skip
+    if p.returncode != 0:
+        raise SystemExit(f"fmi_call_timer failed ({p.returncode}): {p.stderr[-500:]}")
+    return json.loads(p.stdout)
+
+
+def compile_timer(out: Path) -> Path:
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        raise SystemExit("bench/fmu_step.py: no C compiler for bench/fmi_call_timer.c")
+    exe = out / "fmi_call_timer"
+    headers = Path(fmpy.__file__).parent / "c-code"
+    src = str(HERE / "fmi_call_timer.c")
+    cmd = [cc, "-std=c11", "-O2", "-Wall", "-Wextra", f"-I{headers}", src, "-o", str(exe), "-ldl"]
+    subprocess.run(cmd, check=True)
+    return exe
+
+
+def overhead(timer: Path, fmu: Path, name: str, n: int, repeat: int = 3) -> dict[str, object]:
+    """Best of ``repeat`` runs each way, and what the runtime adds per call (us)."""
+    best_c: dict[str, float] = {}
+    best_py: dict[str, float] = {}
+    for _ in range(repeat):
+        for best, run in ((best_c, runtime_ns(timer, fmu, INPUTS[name], n)),
+                          (best_py, direct_ns(name, INPUTS[name], n))):  # fmt: skip
+            for k, v in run.items():
+                best[k] = min(best.get(k, math.inf), v)
+    return {
+        "runtime_ns": {k: round(v, 1) for k, v in best_c.items()},
+        "direct_ns": {k: round(v, 1) for k, v in best_py.items()},
+        "overhead_us": {
+            k.removesuffix("_ns"): round((best_c[k] - best_py[k]) / 1e3, 3) for k in best_c
+        },  # fmt: skip
+    }
+
+
 def model_us(name: str, steps: int) -> float:
     clock = time.perf_counter
     H = observer_gain(P, DEFAULT_R, DEFAULT_Q)
@@ -84,17 +187,27 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus")
     args = ap.parse_args()
     fmus = build_all(Path(args.fmu_dir), only_stale=True)
-    result = {
-        name: {
-            "us_per_doStep": round(fmu_us(fmus[name], INPUTS[name], args.steps), 1),
-            "model_us_per_step": round(model_us(name, args.steps), 1),
+    with tempfile.TemporaryDirectory() as tmp:
+        timer = compile_timer(Path(tmp))
+        result = {
+            name: {
+                "us_per_doStep": round(fmu_us(fmus[name], INPUTS[name], args.steps), 1),
+                "model_us_per_step": round(model_us(name, args.steps), 1),
+                "runtime": overhead(timer, fmus[name], name, max(args.steps, 20000)),
+            }
+            for name in INPUTS
         }
-        for name in INPUTS
-    }
+    result["max_overhead_us"] = max(
+        v for r in result.values() for v in r["runtime"]["overhead_us"].values()
+    )
     if not args.json:
         for name, r in result.items():
+            if name == "max_overhead_us":
+                continue
             fmi, model = r["us_per_doStep"], r["model_us_per_step"]
-            print(f"{name:17s} doStep {fmi:6.1f} us   model {model:6.1f} us")
+            extra = ", ".join(f"{k} +{v:.3f}" for k, v in r["runtime"]["overhead_us"].items())
+            print(f"{name:17s} doStep {fmi:6.1f} us   model {model:6.1f} us   runtime: {extra} us")
+        print(f"largest runtime overhead per call: {result['max_overhead_us']:.3f} us")
     print(json.dumps(result))
 
 

@@ -548,7 +548,9 @@ static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
     x->inst = lookup(c);
     if (!x->inst) return fmi2Error; /* not an instance of this FMU: nobody to log to */
     Instance *inst = x->inst;
-    if (!pPy_IsInitialized()) return FAIL(x, "Python has been finalized in this process");
+    if (!pPy_IsInitialized())
+        return FAIL(x, "the process's Python is finalizing: the slave cannot be called any "
+                       "more (free instances before the interpreter exits)");
     x->gil = pPyGILState_Ensure();
     x->have_gil = 1;
     if (inst->state == S_FATAL) {

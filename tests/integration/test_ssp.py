@@ -109,7 +109,7 @@ def test_libcosim_equals_our_jacobi_master(ssp, libcosim_20s):
     np.testing.assert_allclose(lc.column("time"), ours.column("time"), rtol=0, atol=1e-12)
     diff = np.abs(lc.column("plant.theta_g") - ours.column("plant.theta_g"))
     print(f"libcosim vs our jacobi: max |d theta_g| = {diff.max():.3g} rad over 20 s")
-    assert diff.max() < 1e-6
+    assert diff.max() < 1e-15  # libcosim steps the instances on its thread pool
     # the first steps, the initial point included
     np.testing.assert_allclose(
         lc.column("controller.delta_cmd")[:5], ours.column("controller.delta_cmd")[:5], atol=1e-12
