@@ -51,7 +51,12 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
+from glider_fmi.compile import PYTHON_CONFIG_FILE
+
 COUPLINGS = ("gauss-seidel", "jacobi")
+#: the calls made at every step, through :meth:`Instance.call_dll`
+_HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
+_HOT_CALLS += ("fmi2DoStep",)
 _STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
 _CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 
@@ -284,9 +289,29 @@ class Instance:
             instanceName=name,
         )
         self.log: list[str] = []
+        self._call_dll: ctypes.CDLL | None = None
         self.alive = False  # instantiated and not fatal
         self.fatal = False
         self.failed = False  # returned fmi2Error: only getters, reset and free are allowed
+
+    def call_dll(self) -> ctypes.CDLL:
+        """The FMU's binary for the per-step calls.
+
+        An FMU on our FMI runtime runs its code under the GIL, which the runtime takes for
+        every call: it is called with the GIL held (``ctypes.PyDLL``), saving a release
+        and re-acquisition per call. Any other FMU is called through fmpy's handle, with
+        the GIL released.
+        """
+        if self._call_dll is None:
+            dll = self.slave.dll
+            if (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file():
+                gil_dll = ctypes.PyDLL(dll._name)
+                for name in _HOT_CALLS:
+                    src, dst = getattr(dll, name), getattr(gil_dll, name)
+                    dst.argtypes, dst.restype = src.argtypes, src.restype
+                dll = gil_dll
+            self._call_dll = dll
+        return self._call_dll
 
     def var(self, name: str, causality: Iterable[str] | None = None):
         v = self.vars.get(name)
@@ -593,7 +618,7 @@ class CoSimulation:
         self._readers: dict[str, list[tuple]] = {}
         self._writers: dict[str, list[tuple]] = {}
         for n, inst in self.instances.items():
-            dll, comp = inst.slave.dll, inst.slave.component
+            dll, comp = inst.call_dll(), inst.slave.component
             self._readers[n] = [
                 (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.n,
                  g.value, [f"{n}.{v}" for v in names])
@@ -612,7 +637,7 @@ class CoSimulation:
         ops += [(False, *w) for n in self._plain for w in self._writers[n]]
         self._exchange_ops = ops
         self._steppers = [
-            (inst, inst.slave.dll.fmi2DoStep, inst.slave.component)
+            (inst, inst.call_dll().fmi2DoStep, inst.slave.component)
             for inst in self.instances.values()
         ]
         self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
@@ -641,7 +666,7 @@ class CoSimulation:
             self._check(
                 inst,
                 "fmi2SetReal",
-                inst.slave.dll.fmi2SetReal(inst.slave.component, g.vr, g.n, g.value),
+                inst.call_dll().fmi2SetReal(inst.slave.component, g.vr, g.n, g.value),
             )
             self._driven_last[j] = new
 

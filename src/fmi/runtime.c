@@ -191,6 +191,14 @@ typedef struct FmuState {
 
 typedef enum { T_REAL = 'R', T_INTEGER = 'I', T_BOOLEAN = 'B', T_STRING = 'S' } VarType;
 
+/* The value-reference list last passed for a call, reused while the host passes the
+ * same references (slaves must not modify the list they get). */
+typedef struct {
+    size_t n;
+    fmi2ValueReference *vr;
+    PyObject *list;
+} RefCache;
+
 typedef struct Instance {
     uint32_t magic;
     struct Instance *next; /* registry of live instances */
@@ -212,6 +220,7 @@ typedef struct Instance {
     char **strings;     /* buffers returned by fmi2GetString, valid until the next call */
     size_t nstrings;
     FmuState *states;
+    RefCache refs[C_COUNT];
 } Instance;
 
 static Instance *g_instances;
@@ -825,7 +834,9 @@ static void free_instance(Instance *inst, int python_alive) {
     if (python_alive) {
         release_slave(inst);
         CLEAR(inst->cls);
+        for (int i = 0; i < C_COUNT; ++i) CLEAR(inst->refs[i].list);
     }
+    for (int i = 0; i < C_COUNT; ++i) free(inst->refs[i].vr);
     for (size_t i = 0; i < inst->nvars; ++i) free(inst->var_names ? inst->var_names[i] : NULL);
     for (size_t i = 0; i < inst->nstrings; ++i) free(inst->strings[i]);
     for (int i = 0; i < inst->ncat; ++i) free(inst->cat_names[i]);
@@ -893,6 +904,26 @@ static PyObject *ref_list(const fmi2ValueReference vr[], size_t nvr) {
     return l;
 }
 
+/* The references as a Python list (new reference), from the call's cache if unchanged. */
+static PyObject *call_refs(Instance *inst, int call, const fmi2ValueReference vr[], size_t nvr) {
+    RefCache *rc = &inst->refs[call];
+    if (rc->list && rc->n == nvr && !memcmp(rc->vr, vr, nvr * sizeof *vr)) {
+        INCREF(rc->list);
+        return rc->list;
+    }
+    PyObject *l = ref_list(vr, nvr);
+    fmi2ValueReference *copy = l ? malloc(nvr * sizeof *vr) : NULL;
+    if (!copy) return l; /* not cached */
+    memcpy(copy, vr, nvr * sizeof *vr);
+    free(rc->vr);
+    XDECREF(rc->list);
+    rc->vr = copy;
+    rc->n = nvr;
+    INCREF(l);
+    rc->list = l;
+    return l;
+}
+
 static void clear_strings(Instance *inst) {
     for (size_t i = 0; i < inst->nstrings; ++i) free(inst->strings[i]);
     inst->nstrings = 0;
@@ -950,7 +981,7 @@ static fmi2Status get_values(fmi2Component c, int call, int method, char type,
         if (!s) return end(&x, FAIL(&x, "out of memory"));
         inst->strings = s;
     }
-    PyObject *refs = ref_list(vr, nvr);
+    PyObject *refs = call_refs(inst, call, vr, nvr);
     PyObject *r = refs ? call_slave(&x, method, refs, NULL, NULL) : NULL;
     XDECREF(refs);
     if (!r) return end(&x, py_error(&x));
@@ -998,7 +1029,7 @@ static fmi2Status set_values(fmi2Component c, int call, int method, char type,
             CLEAR(l);
         }
     }
-    PyObject *refs = l ? ref_list(vr, nvr) : NULL;
+    PyObject *refs = l ? call_refs(x.inst, call, vr, nvr) : NULL;
     if (!refs) {
         XDECREF(l);
         return end(&x, py_error(&x));

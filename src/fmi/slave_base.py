@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import math
 import operator
+from collections.abc import Sequence
 from typing import Any, NamedTuple, Protocol
 from xml.etree.ElementTree import Element, SubElement
 
@@ -211,7 +212,7 @@ class GliderSlave(Fmi2Slave):
                 )
 
     # fast paths for the hot get/set calls (pythonfmu's generic ones check every type)
-    def get_real(self, vrs: list[int]) -> list[float]:
+    def get_real(self, vrs: list[int]) -> Sequence[float]:
         key = tuple(vrs)
         fast = self._get_cache.get(key)
         if fast is None:
@@ -228,7 +229,7 @@ class GliderSlave(Fmi2Slave):
                 gs = tuple(getters[vr] for vr in key)
                 fast = lambda obj: [g() for g in gs]  # noqa: E731
             self._get_cache[key] = fast
-        return list(fast(self))
+        return fast(self)  # a sequence (the runtime takes any)
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
         inputs = self._real_inputs
