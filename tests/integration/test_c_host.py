@@ -45,7 +45,7 @@ def host(tmp_path_factory) -> Path:
     assert (headers / "fmi2Functions.h").is_file()
     p = subprocess.run(
         [gcc, "-std=c99", "-D_DEFAULT_SOURCE", "-Wall", "-Wextra", "-Werror", "-O1",
-         f"-I{headers}", "-o", str(out), str(HOST_C), "-ldl", "-lm"],
+         f"-I{headers}", "-o", str(out), str(HOST_C), "-ldl", "-lm", "-lpthread"],
         capture_output=True,
         text=True,
     )  # fmt: skip
@@ -113,6 +113,17 @@ def test_c_host_in_an_empty_environment_equals_our_master_bit_for_bit(host, loop
     # it really is the closed loop: the glide angle moves from -35 deg towards -22.6 deg
     assert c_rows[0, 1] == pytest.approx(np.radians(-35.0))
     assert np.radians(-30.0) < c_rows[-1, 1] < np.radians(-18.0)
+
+
+def test_c_host_stepping_from_threads_equals_our_master(host, loop, tmp_path):
+    """Each doStep from a new thread, the runtime having started Python on the main one."""
+    system, plan = loop
+    threaded = tmp_path / "plan.txt"
+    threaded.write_text(plan.read_text() + "threads\n")
+    p = run_host(host, threaded, EMPTY_ENV)
+    assert p.returncode == 0, p.stderr[-3000:]
+    c_rows = np.array([[float(x) for x in line.split(",")] for line in p.stdout.splitlines()])
+    assert np.array_equal(c_rows, master_jacobi(system))
 
 
 def test_c_host_with_another_python_configuration_gets_one_line_not_a_crash(host, loop, tmp_path):

@@ -13,6 +13,8 @@
  *   connect SRC VR DST VR                  SRC's output to DST's input (Real)
  *   record NAME VR                         a Real printed at every point
  *   run STEP STOP                          communication step and stop time (s)
+ *   threads                                step the instances each in a thread of its own
+ *                                          at every point (as libcosim's thread pool does)
  *
  * usage: host PLAN.  Compiled against the FMI 2.0 headers fmpy ships.
  * Exit codes: 0 ok, 2 usage or plan, 3 dlopen/dlsym, 4 instantiate, 5 initialisation,
@@ -20,6 +22,7 @@
  */
 #include <dlfcn.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -57,7 +60,19 @@ static int n_fmus;
 static Ref params[MAX * 4], records[MAX];
 static int n_params, n_records;
 static Ref conn_src[MAX], conn_dst[MAX];
-static int n_conns;
+static int n_conns, use_threads;
+
+typedef struct {
+    Fmu *f;
+    double t, h;
+    fmi2Status status;
+} StepJob;
+
+static void *step_job(void *arg) {
+    StepJob *j = arg;
+    j->status = j->f->do_step(j->f->c, j->t, j->h, fmi2True);
+    return NULL;
+}
 
 static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
                    fmi2String category, fmi2String message, ...) {
@@ -145,6 +160,8 @@ int main(int argc, char **argv) {
             conn_dst[n_conns++] = (Ref){find(d), (fmi2ValueReference)strtoul(e, NULL, 10), 0, 0};
         } else if (!strcmp(a, "record") && n == 3 && n_records < MAX) {
             records[n_records++] = (Ref){find(b), (fmi2ValueReference)strtoul(c, NULL, 10), 0, 0};
+        } else if (!strcmp(a, "threads") && n == 1) {
+            use_threads = 1;
         } else if (!strcmp(a, "run") && n == 3) {
             h = strtod(b, NULL);
             stop = strtod(c, NULL);
@@ -191,8 +208,16 @@ int main(int argc, char **argv) {
             Fmu *f = &fmus[conn_dst[i].fmu];
             if (f->set_real(f->c, &conn_dst[i].vr, 1, &v[i]) > fmi2Warning) return 7;
         }
+        StepJob jobs[MAX];
+        pthread_t tids[MAX];
         for (int i = 0; i < n_fmus; ++i) {
-            if (fmus[i].do_step(fmus[i].c, t, h, fmi2True) > fmi2Warning) {
+            jobs[i] = (StepJob){&fmus[i], t, h, fmi2OK};
+            if (!use_threads) step_job(&jobs[i]);
+            else if (pthread_create(&tids[i], NULL, step_job, &jobs[i])) return 6;
+        }
+        for (int i = 0; use_threads && i < n_fmus; ++i) pthread_join(tids[i], NULL);
+        for (int i = 0; i < n_fmus; ++i) {
+            if (jobs[i].status > fmi2Warning) {
                 fprintf(stderr, "%s: step %ld at t = %g failed\n", fmus[i].name, k, t);
                 return 6;
             }
