@@ -1201,28 +1201,25 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     return end(&x, st);
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+/* A call without arguments that moves the instance to `next` when the slave succeeds. */
+static fmi2Status transition(fmi2Component c, int call, int method, unsigned next) {
     Ctx x;
-    fmi2Status st = begin(&x, c, C_ENTER_INIT);
-    if (st == fmi2OK && (st = call_void(&x, M_ENTER, NULL, NULL, NULL)) == fmi2OK)
-        x.inst->state = S_INIT;
+    fmi2Status st = begin(&x, c, call);
+    if (st == fmi2OK && (st = call_void(&x, method, NULL, NULL, NULL)) == fmi2OK)
+        x.inst->state = next;
     return end(&x, st);
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    return transition(c, C_ENTER_INIT, M_ENTER, S_INIT);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Ctx x;
-    fmi2Status st = begin(&x, c, C_EXIT_INIT);
-    if (st == fmi2OK && (st = call_void(&x, M_EXIT, NULL, NULL, NULL)) == fmi2OK)
-        x.inst->state = S_STEP_COMPLETE;
-    return end(&x, st);
+    return transition(c, C_EXIT_INIT, M_EXIT, S_STEP_COMPLETE);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    Ctx x;
-    fmi2Status st = begin(&x, c, C_TERMINATE);
-    if (st == fmi2OK && (st = call_void(&x, M_TERMINATE, NULL, NULL, NULL)) == fmi2OK)
-        x.inst->state = S_TERMINATED;
-    return end(&x, st);
+    return transition(c, C_TERMINATE, M_TERMINATE, S_TERMINATED);
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
@@ -1237,38 +1234,21 @@ fmi2Status fmi2Reset(fmi2Component c) {
 }
 
 /* ------------------------------------------------------------------ FMI: values */
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       fmi2Real value[]) {
-    return get_values(c, C_GET_REAL, M_GET_REAL, T_REAL, vr, nvr, value);
-}
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Integer value[]) {
-    return get_values(c, C_GET_INTEGER, M_GET_INTEGER, T_INTEGER, vr, nvr, value);
-}
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Boolean value[]) {
-    return get_values(c, C_GET_BOOLEAN, M_GET_BOOLEAN, T_BOOLEAN, vr, nvr, value);
-}
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         fmi2String value[]) {
-    return get_values(c, C_GET_STRING, M_GET_STRING, T_STRING, vr, nvr, (void *)value);
-}
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[]) {
-    return set_values(c, C_SET_REAL, M_SET_REAL, T_REAL, vr, nvr, value);
-}
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Integer value[]) {
-    return set_values(c, C_SET_INTEGER, M_SET_INTEGER, T_INTEGER, vr, nvr, value);
-}
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[]) {
-    return set_values(c, C_SET_BOOLEAN, M_SET_BOOLEAN, T_BOOLEAN, vr, nvr, value);
-}
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[]) {
-    return set_values(c, C_SET_STRING, M_SET_STRING, T_STRING, vr, nvr, value);
-}
+/* fmi2Get<Type> and fmi2Set<Type> for the four types, all through get_values/set_values */
+#define VALUE_ACCESS(Type, TYPE)                                                           \
+    fmi2Status fmi2Get##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,   \
+                             fmi2##Type value[]) {                                         \
+        return get_values(c, C_GET_##TYPE, M_GET_##TYPE, T_##TYPE, vr, nvr, (void *)value); \
+    }                                                                                      \
+    fmi2Status fmi2Set##Type(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,   \
+                             const fmi2##Type value[]) {                                   \
+        return set_values(c, C_SET_##TYPE, M_SET_##TYPE, T_##TYPE, vr, nvr, value);         \
+    }
+VALUE_ACCESS(Real, REAL)
+VALUE_ACCESS(Integer, INTEGER)
+VALUE_ACCESS(Boolean, BOOLEAN)
+VALUE_ACCESS(String, STRING)
+#undef VALUE_ACCESS
 
 /* ------------------------------------------------------------------ FMI: FMU state */
 static FmuState *owned_state(Instance *inst, fmi2FMUstate s) {
