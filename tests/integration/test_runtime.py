@@ -442,3 +442,38 @@ def test_a_missing_compiler_is_one_line(tmp_path, monkeypatch):
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "no C compiler found" in p.stderr
     assert not list(Path(tmp_path).glob("fmus/*.fmu"))
+
+
+# ---------------------------------------------------------------- a plain fmpy user
+FMPY_CASES = {  # start value(s) -> (call that fails, expected message)
+    "parameter out of range": ({"m": -1.0}, "fmi2ExitInitializationMode",
+                               "m = -1.0 is invalid: expected a finite value in (0, inf)"),
+    "NaN parameter": ({"K_L": math.nan}, "fmi2ExitInitializationMode",
+                      "K_L = nan is invalid: expected a finite value"),
+    "Integer parameter out of range": ({"noise_seed": -5}, "fmi2ExitInitializationMode",
+                                       "noise_seed = -5 is invalid"),
+    "inconsistent parameters": ({"delta_max": 0.1, "delta_0": 0.2}, "fmi2ExitInitializationMode",
+                                "delta_0 = 0.2 is invalid: expected |delta_0| <= delta_max"),
+    "non-finite input": ({"F_z": math.inf}, "fmi2DoStep",
+                         "input F_z = inf at t = 0 s is invalid: expected a finite value"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("logging", [False, True], ids=["debug_logging off", "on"])
+@pytest.mark.parametrize("case", sorted(FMPY_CASES))
+def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging):
+    """What a user of ``fmpy.simulate_fmu`` sees (its default: debug_logging=False)."""
+    from fmpy import simulate_fmu
+    from fmpy.fmi1 import FMICallException
+
+    start, call, expected = FMPY_CASES[case]
+    seen: list[tuple[int, str]] = []
+
+    def logger(env, instance, status, category, message):
+        seen.append((status, message.decode()))
+
+    with pytest.raises(FMICallException, match=rf"{call} failed with status 3 \(error\)"):
+        simulate_fmu(str(fmu_dir / "GliderPlant.fmu"), start_values=start, stop_time=1.0,
+                     output_interval=0.02, debug_logging=logging, logger=logger)  # fmt: skip
+    errors = [text for status, text in seen if status == 3]
+    assert len(errors) == 1 and errors[0].startswith(f"{call}: {expected}"), errors
