@@ -57,6 +57,7 @@ COUPLINGS = ("gauss-seidel", "jacobi")
 #: the calls made at every step, through :meth:`Instance.call_dll`
 _HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
 _HOT_CALLS += ("fmi2DoStep",)
+_C_TRUE = ctypes.c_int(1)
 _STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
 _CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 
@@ -191,6 +192,7 @@ class _Group:
     def __init__(self, vrs: Sequence[int], type_: str):
         n = len(vrs)
         self.n = n
+        self.cn = ctypes.c_size_t(n)  # passed as is: no conversion per call
         self.type = type_
         self.vr = (ctypes.c_uint * n)(*vrs)
         self.value = (_CTYPES[type_] * n)()
@@ -305,10 +307,10 @@ class Instance:
         if self._call_dll is None:
             dll = self.slave.dll
             if (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file():
+                # the master passes ctypes objects of the exact types: no argtypes to check
                 gil_dll = ctypes.PyDLL(dll._name)
                 for name in _HOT_CALLS:
-                    src, dst = getattr(dll, name), getattr(gil_dll, name)
-                    dst.argtypes, dst.restype = src.argtypes, src.restype
+                    getattr(gil_dll, name).restype = ctypes.c_int
                 dll = gil_dll
             self._call_dll = dll
         return self._call_dll
@@ -357,6 +359,7 @@ class CoSimulation:
             raise SystemSpecError(f"step = {step!r} is invalid: expected a finite value > 0 s")
         self.system = system
         self.step_size = float(step)
+        self._c_step = ctypes.c_double(self.step_size)
         self.coupling = coupling
         self.t0 = float(start_time)
         self.k = 0
@@ -618,14 +621,14 @@ class CoSimulation:
         self._readers: dict[str, list[tuple]] = {}
         self._writers: dict[str, list[tuple]] = {}
         for n, inst in self.instances.items():
-            dll, comp = inst.call_dll(), inst.slave.component
+            dll, comp = inst.call_dll(), ctypes.c_void_p(inst.slave.component)
             self._readers[n] = [
-                (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.n,
+                (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.cn,
                  g.value, [f"{n}.{v}" for v in names])
                 for g, names in self._read[n]
             ]  # fmt: skip
             self._writers[n] = [
-                (inst, getattr(dll, f"fmi2Set{g.type}"), f"fmi2Set{g.type}", comp, g.vr, g.n,
+                (inst, getattr(dll, f"fmi2Set{g.type}"), f"fmi2Set{g.type}", comp, g.vr, g.cn,
                  g.value, srcs)
                 for g, srcs in self._write[n]
             ]  # fmt: skip
@@ -637,7 +640,7 @@ class CoSimulation:
         ops += [(False, *w) for n in self._plain for w in self._writers[n]]
         self._exchange_ops = ops
         self._steppers = [
-            (inst, inst.call_dll().fmi2DoStep, inst.slave.component)
+            (inst, inst.call_dll().fmi2DoStep, ctypes.c_void_p(inst.slave.component))
             for inst in self.instances.values()
         ]
         self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
@@ -663,11 +666,8 @@ class CoSimulation:
                 continue  # unchanged since the last call: the FMU holds its inputs
             for i, value in enumerate(new):
                 g.value[i] = value
-            self._check(
-                inst,
-                "fmi2SetReal",
-                inst.call_dll().fmi2SetReal(inst.slave.component, g.vr, g.n, g.value),
-            )
+            comp = ctypes.c_void_p(inst.slave.component)
+            self._check(inst, "fmi2SetReal", inst.call_dll().fmi2SetReal(comp, g.vr, g.cn, g.value))
             self._driven_last[j] = new
 
     def _exchange(self) -> None:
@@ -721,10 +721,10 @@ class CoSimulation:
 
     def do_step(self) -> None:
         """Step every instance from ``t_k`` to ``t_k + h``."""
-        t = self.t0 + self.k * self.step_size
-        h = self.step_size
+        t = ctypes.c_double(self.t0 + self.k * self.step_size)
+        h = self._c_step
         for inst, fn, comp in self._steppers:
-            status = fn(comp, t, h, 1)
+            status = fn(comp, t, h, _C_TRUE)
             if status > 1:
                 self._raise(inst, "fmi2DoStep", status)
         self.k += 1
