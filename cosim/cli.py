@@ -295,19 +295,19 @@ def _terminate(signum: int, frame: object) -> None:
     raise Interrupted(signum)
 
 
-class _NoteFormatter(logging.Formatter):
-    def format(self, record: logging.LogRecord) -> str:
-        return f"glider-cosim: note: {one_line(record.getMessage())}"
+class _NoteHandler(logging.Handler):
+    """Warnings of our modules as one-line notes on the current ``sys.stderr``."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        sys.stderr.write(f"glider-cosim: note: {one_line(record.getMessage())}\n")
 
 
 def _notes_to_stderr() -> None:
     """Warnings of our modules (e.g. a skipped optional connection) as one-line notes."""
     logger = logging.getLogger("glider_cosim")
-    if not logger.handlers:
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(_NoteFormatter())
+    if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
+        handler = _NoteHandler(logging.WARNING)
         logger.addHandler(handler)
-        logger.propagate = False
 
 
 def main(argv: Sequence[str] | None = None) -> int:

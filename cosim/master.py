@@ -439,7 +439,10 @@ class CoSimulation:
                 raise SystemSpecError(f"input {dst} is connected twice ({sources[dst]}, {src})")
             sources[dst] = src
         for ref in self._driven_refs():
-            _, v = self._resolve(ref, ("input",))
+            try:
+                _, v = self._resolve(ref, ("input",))
+            except SystemSpecError as err:
+                raise SystemSpecError(f"driven input {ref}: {err}") from None
             if v.type != "Real":
                 raise SystemSpecError(f"driven input {ref} must be Real, is {v.type}")
             if ref in sources:

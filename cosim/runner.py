@@ -170,8 +170,9 @@ def skip_optional(sim: CoSimulation, scenario: Scenario) -> list[str]:
 
     Optional: the disturbance inputs (``plant.F_x``, ``F_z``, ``M_y``) when the scenario
     drives none of them (no ``inputs``, disturbance or event on them), and recorded
-    variables of a swapped instance (``[fmus]``) that its FMU lacks. Each skip is logged
-    (logger ``glider_cosim.runner``, level WARNING). Everything else stays required:
+    variables of a swapped instance (``[fmus]``) that its FMU lacks. :func:`simulate`
+    logs each note (logger ``glider_cosim.runner``, level WARNING) once the system is
+    loaded. Everything else stays required:
     :meth:`~glider_cosim.master.CoSimulation.load` names a missing connection.
     """
     notes = []
@@ -198,8 +199,6 @@ def skip_optional(sim: CoSimulation, scenario: Scenario) -> list[str]:
                 continue
             kept.append(ref)
         sim.system.record = kept
-    for note in notes:
-        log.warning(note)
     return notes
 
 
@@ -281,15 +280,19 @@ def simulate(
     sim = CoSimulation(system, step=h, coupling=coupling or scenario.coupling, max_steps=max_steps)
     origin = origin_of(scenario, ssp_system is not None)
 
+    notes: list[str] = []
+
     def before_checks(s: CoSimulation) -> None:
         if ssp_system is None:
-            skip_optional(s, scenario)
+            notes.extend(skip_optional(s, scenario))
         check_system_values(s, origin)
 
     try:
         sim.load(before_checks)
     except SystemSpecError as err:
         raise SystemSpecError(f"{scenario.source}: {err}") from None
+    for note in notes:  # only for a system that loaded: a refused one gets one line
+        log.warning(note)
     files: dict[str, Path] = {}
     if out is not None:
         out = Path(out)

@@ -459,6 +459,7 @@ def write_plots(path: Path, out: Path) -> list[Path]:
 
 def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
     """A Dask client: an existing cluster, or a local one of worker processes."""
+    import dask
     from distributed import Client, LocalCluster
 
     from .tempdirs import new_temp_dir
@@ -467,9 +468,11 @@ def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
         return Client(scheduler, timeout="20s")
     # workers inherit GLIDER_COSIM_TMP: their extractions and Dask's scratch space are
     # removed with this process's temporary folder
+    scratch = str(new_temp_dir("dask_"))
+    dask.config.set({"temporary-directory": scratch})
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=None, silence_logs=50,
-                           local_directory=str(new_temp_dir("dask_")))  # fmt: skip
+                           local_directory=scratch)  # fmt: skip
     return Client(cluster)
 
 

@@ -71,8 +71,10 @@ def check_system_values(sim: Any, origin: Origin) -> None:
             params[name] = check_value(params[name], inst.md, v, where)
     for ref, value in system.driven.items():
         inst_name, _, name = ref.partition(".")
-        inst = sim.instances[inst_name]
-        system.driven[ref] = float(check_value(value, inst.md, inst.vars[name], origin(ref)))
+        inst = sim.instances.get(inst_name)
+        v = inst.vars.get(name) if inst is not None else None
+        if v is not None:  # (a missing one is named by the wiring check)
+            system.driven[ref] = float(check_value(value, inst.md, v, origin(ref)))
     for i, ev in enumerate(system.events):
         where = origin(f"event[{i}]")
         if isinstance(ev.threshold, bool) or not math.isfinite(float(ev.threshold)):
