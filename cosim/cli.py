@@ -18,7 +18,7 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from .inputs.text import one_line, quote
+from .inputs.text import one_line, quote, shown_path
 from .master import DEFAULT_MAX_STEPS, Interrupted, MasterError, SystemSpecError
 from .scenario import ScenarioError, shipped_scenarios
 
@@ -82,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser(
         "run",
         help="run a scenario or an SSP (default: the paper's Sec. 3.3 case)",
-        description="Run a TOML scenario, a shipped scenario or an SSP (.ssp archive, .ssd "
+        description="Run a TOML scenario, a shipped scenario or an SSP (.ssp archive, .ssd\n"
         "file) with our master; write results.csv, metrics.json and PNG plots.",
     )
     r.add_argument(
@@ -187,6 +187,11 @@ def _os_error(err: OSError, paths: dict[str, Path]) -> UsageError:
     return UsageError(f"{option} {quote(str(path))}: {reason}{where}")
 
 
+def _ssp_origin(source: str, ref: str) -> str:
+    inst, _, name = ref.partition(".")
+    return f"{source}: component '{inst}'" + (f": parameter '{name}'" if name else "")
+
+
 def _time(seconds: float | None) -> str:
     """A time for display: rounded to 1 us, shortest form."""
     return "n/a" if seconds is None else f"{round(seconds, 6):.10g}"
@@ -194,7 +199,7 @@ def _time(seconds: float | None) -> str:
 
 def _run(args: argparse.Namespace) -> int:
     from .inputs.archives import set_extract_limit
-    from .inputs.check import check_ranges
+    from .inputs.check import check_ranges, our_kinds
     from .master import count_steps
     from .report import apply_overrides
     from .runner import origin_of, simulate
@@ -207,9 +212,12 @@ def _run(args: argparse.Namespace) -> int:
         from .inputs.ssp_files import ssp_name
         from .ssp import load_ssp
 
-        _, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
+        system, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
         scenario = args.scenario
-        name, source = ssp_name(args.scenario), quote(str(args.scenario))
+        name, source = ssp_name(args.scenario), shown_path(args.scenario)
+        # our FMUs inside: their parameter tables' ranges
+        check_ranges(system.parameters, lambda ref: _ssp_origin(source, ref),
+                     kinds=our_kinds(system.fmus))  # fmt: skip
     else:
         scenario = load_scenario(args.scenario)
         if args.set:

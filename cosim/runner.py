@@ -252,6 +252,16 @@ def simulate(
         A KeyboardInterrupt (SIGINT or SIGTERM during the run), raised after the results
         so far are written (status ``"interrupted"``).
     """
+    if scenario is not None and not isinstance(scenario, Scenario | str | Path):
+        raise TypeError(
+            f"scenario {quote(scenario)} is invalid: expected a Scenario, a path, a shipped "
+            "name or None"
+        )
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"max_steps {quote(max_steps)} is invalid: expected an integer >= 1")
+    for key, value in (("step", step), ("stop_time", stop_time)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
     ssp_system = None
     if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
         from .inputs.ssp_files import ssp_name

@@ -115,6 +115,7 @@ def check_ranges(
     origin: Origin,
     swapped: set[str] | frozenset[str] = frozenset(),
     events: list[Any] | None = None,
+    kinds: dict[str, str] | None = None,
 ) -> None:
     """Check values for our own FMUs against their parameter tables' valid ranges.
 
@@ -129,6 +130,9 @@ def check_ranges(
         Instances that are not our FMUs.
     events : list of Event, optional
         Their actions on our FMUs are checked too.
+    kinds : dict, optional
+        Instance -> which of our FMUs it is (``"plant"``, ``"observer"``,
+        ``"controller"``); default: the instances of those names.
 
     Raises
     ------
@@ -137,6 +141,9 @@ def check_ranges(
     """
     from glider_plant.params import GliderParams, ParameterError
 
+    if kinds is None:
+        kinds = {i: i for i in SLAVES}
+    kinds = {i: k for i, k in kinds.items() if i not in swapped and k in SLAVES}
     checks = [(inst, name, value, origin(f"{inst}.{name}"))
               for inst, params in parameters.items() for name, value in params.items()]  # fmt: skip
     for i, ev in enumerate(events or ()):
@@ -145,9 +152,9 @@ def check_ranges(
             checks.append((inst, name, value, f"{origin(f'event[{i}]')}.set.{target}"))
     tables: dict[str, dict[str, Any]] = {}
     for inst, name, value, where in checks:
-        if inst not in SLAVES or inst in swapped:
+        if inst not in kinds:
             continue
-        table = tables.setdefault(inst, _table(inst))
+        table = tables.setdefault(kinds[inst], _table(kinds[inst]))
         spec = table.get(name)
         if spec is None or spec.valid is None or isinstance(value, bool):
             continue
@@ -168,8 +175,8 @@ def check_ranges(
                 unit = "" if spec.unit == "1" else f" ({spec.unit})"
                 expected = spec.valid.describe() + unit
             raise ValueCheckError(f"{where}: {shown} is invalid: expected {expected}")
-    for inst in ("plant", "controller"):
-        if inst in swapped or inst not in parameters:
+    for inst, kind in kinds.items():
+        if kind not in ("plant", "controller") or inst not in parameters:
             continue
         try:
             GliderParams.from_mapping(
@@ -179,13 +186,33 @@ def check_ranges(
             raise ValueCheckError(f"{origin(inst)}: {err}") from None
         except (TypeError, OverflowError):
             continue
-    plant = parameters.get("plant", {})
-    if "plant" not in swapped and ("delta_0" in plant or "delta_max" in plant):
-        table = tables.setdefault("plant", _table("plant"))
-        d0 = plant.get("delta_0", table["delta_0"].start)
-        dmax = plant.get("delta_max", table["delta_max"].start)
-        if isinstance(d0, int | float) and isinstance(dmax, int | float) and abs(d0) > dmax:
-            raise ValueCheckError(
-                f"{origin('plant.delta_0')}: {quote(d0)} is invalid: expected |delta_0| <= "
-                f"delta_max = {dmax:g} rad"
-            )
+        if kind != "plant":
+            continue
+        plant = parameters[inst]
+        if "delta_0" in plant or "delta_max" in plant:
+            table = tables.setdefault("plant", _table("plant"))
+            d0 = plant.get("delta_0", table["delta_0"].start)
+            dmax = plant.get("delta_max", table["delta_max"].start)
+            if isinstance(d0, int | float) and isinstance(dmax, int | float) and abs(d0) > dmax:
+                raise ValueCheckError(
+                    f"{origin(f'{inst}.delta_0')}: {quote(d0)} is invalid: expected "
+                    f"|delta_0| <= delta_max = {dmax:g} rad"
+                )
+
+
+def our_kinds(fmus: dict[str, Any]) -> dict[str, str]:
+    """Instance -> ``"plant"``/``"observer"``/``"controller"`` for the FMUs that are ours
+    (by model name and pythonfmu generation tool), e.g. the components of our SSP."""
+    from fmpy import read_model_description
+
+    names = {"GliderPlant": "plant", "GliderObserver": "observer",
+             "GliderController": "controller"}  # fmt: skip
+    kinds = {}
+    for inst, path in fmus.items():
+        try:
+            md = read_model_description(str(path))
+        except Exception:  # fmpy raises plain Exception; an unreadable FMU is not ours
+            continue
+        if md.modelName in names and str(md.generationTool or "").startswith("PythonFMU"):
+            kinds[inst] = names[md.modelName]
+    return kinds

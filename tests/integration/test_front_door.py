@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import zipfile
 from pathlib import Path
@@ -312,6 +313,14 @@ SSP_FINDINGS = [
                                                  'source="resources/GliderPlant.fmu"',
                                                  'source="http://x/GliderPlant.fmu"'),
      (), "expected a path relative to the SSP"),
+    ("K_c out of range", lambda s, t, f: edit_member(s, t / "b.ssp", SSD,
+                                                     '<ssv:Real value="10.0" />',
+                                                     '<ssv:Real value="-5.0" />'), (),
+     "component 'controller': parameter 'K_c': -5.0 is invalid: expected a finite value in"),
+    ("law out of range", lambda s, t, f: edit_member(s, t / "b.ssp", SSD,
+                                                     '<ssv:Integer value="1" />',
+                                                     '<ssv:Integer value="7" />'), (),
+     "parameter 'law': 7 is invalid: expected an integer in [0, 3]"),
     ("corrupt deflate", lambda s, t, f: corrupt_deflate(s, t / "b.ssp", SSD), (),
      "not a readable SSP archive"),
     ("zip bomb, default limit", lambda s, t, f: zip_bomb(s, t / "b.ssp", 300 << 20), (),
@@ -458,3 +467,21 @@ def test_a_fifo_scenario_is_not_read(tmp_path, capsys):
     os.mkfifo(fifo)
     code, err = run_cli(capsys, "run", str(fifo))
     assert_one_line_error(code, err, "is not a regular file")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"scenario": 123}, TypeError, "expected a Scenario, a path"),
+        ({"step": True}, TypeError, "step true is invalid"),
+        ({"stop_time": "60"}, TypeError, "stop_time '60' is invalid"),
+        ({"max_steps": 0}, ValueError, "max_steps 0 is invalid"),
+        ({"coupling": "sideways"}, ValueError, "coupling 'sideways' is unknown"),
+        ({"step": -0.02}, ValueError, "step = -0.02 s is invalid"),
+        ({"scenario": "nope"}, ValueError, "scenario file does not exist"),
+    ],
+)
+def test_api_argument_errors_are_typed(fmu_dir, kwargs, error, message, no_instantiation):
+    kwargs = {"scenario": "default", **kwargs}
+    with pytest.raises(error, match=re.escape(message)):
+        simulate(out=None, fmu_dir=fmu_dir, build=False, **kwargs)
