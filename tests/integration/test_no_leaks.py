@@ -118,17 +118,25 @@ def test_signal_stops_the_run_writes_everything_and_leaves_nothing(
     assert list(tmp.iterdir()) == []
 
 
-def test_sigterm_while_building_leaves_nothing(tmp_path):
-    """SIGTERM outside the stepping loop (building the FMUs): exit 143, nothing left."""
-    tmp = tmp_path / "t"
-    p = subprocess.Popen([sys.executable, "-c", CLI, "build", "--out", str(tmp_path / "f")],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         env=private_env(tmp))  # fmt: skip
-    time.sleep(1.5)
+def test_sigterm_during_a_sweep_leaves_nothing(fmu_dir, tmp_path):
+    """SIGTERM outside the stepping loop of this process (Dask workers run the FMUs):
+    exit 143, the rows so far in sweep.csv, nothing left by the process or its workers."""
+    tmp, out = tmp_path / "t", tmp_path / "o"
+    p = subprocess.Popen(
+        [sys.executable, "-c", CLI, "sweep", "--param", "controller.K_c=2:20:200",
+         "--workers", "2", "--stop-time", "10", "--fmu-dir", str(fmu_dir), "--out", str(out),
+         "--no-plots"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=private_env(tmp),
+    )  # fmt: skip
+    table = out / "sweep.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline and (not table.exists() or table.stat().st_size < 500):
+        time.sleep(0.1)
     p.send_signal(signal.SIGTERM)
-    _, err = p.communicate(timeout=60)
-    assert p.returncode in (0, 143), err
-    assert "Traceback" not in err
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    assert "terminated (SIGTERM)" in err and "Traceback" not in err
+    assert 1 < len(table.read_text().splitlines()) < 201
     assert list(tmp.iterdir()) == []
 
 
