@@ -188,7 +188,7 @@ def read_fmu(path: str | Path, where: str) -> Any:
                     )
                 module = z.read("resources/slavemodule.txt")[:1000].decode("utf-8", "replace")
                 module = module.strip()
-                if f"resources/{module}.py" not in infos:
+                if not {f"resources/{module}.py", f"resources/{module}/__init__.py"} & set(infos):
                     raise InputFileError(
                         f"{where}: FMU {name} (pythonfmu) has no script "
                         f"{quote(f'resources/{module}.py')}"

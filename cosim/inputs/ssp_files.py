@@ -67,6 +67,8 @@ def locate(path: Path) -> tuple[Path, Path]:
 
 
 def parse_value(text: str, tag: str, where: str) -> float | int | bool:
+    """An ``ssv:Real``/``Integer``/``Boolean`` value attribute: a finite float, an exact
+    32-bit integer, or ``true``/``false``/``1``/``0``; :class:`SSPError` otherwise."""
     try:
         if tag == "Real":
             value = float(text)
