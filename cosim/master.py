@@ -40,7 +40,6 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from fmpy import calloc as fmpy_calloc
-from fmpy import extract, read_model_description
 from fmpy import free as fmpy_free
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
@@ -53,7 +52,13 @@ from fmpy.fmi2 import (
 
 from glider_fmi.compile import PYTHON_CONFIG_FILE
 
+from .inputs.archives import InputFileError, read_fmu, safe_extract
+from .inputs.text import one_line, quote
+from .tempdirs import new_temp_dir
+
 COUPLINGS = ("gauss-seidel", "jacobi")
+#: default limit of communication steps in one run (``--max-steps``)
+DEFAULT_MAX_STEPS = 1_000_000
 #: the calls made at every step, through :meth:`Instance.call_dll`
 _HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
 _HOT_CALLS += ("fmi2DoStep",)
@@ -99,6 +104,23 @@ class FMUStopped(FMUCallError):
     """An FMI call returned fmi2Discard: the FMU stopped the run cleanly (e.g. a stall)."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by SIGINT (Ctrl-C) or SIGTERM at a communication point.
+
+    ``signum`` is the signal's number.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+    def describe(self) -> str:
+        """``"interrupted by the user (Ctrl-C)"`` or ``"terminated (SIGTERM)"``."""
+        if self.signum == signal.SIGTERM:
+            return "terminated (SIGTERM)"
+        return "interrupted by the user (Ctrl-C)"
+
+
 @dataclass(frozen=True)
 class VarRef:
     """``instance.variable``."""
@@ -111,7 +133,7 @@ class VarRef:
         inst, sep, var = text.partition(".")
         if not sep or not inst or not var:
             raise SystemSpecError(
-                f"'{text}' is not a variable reference: expected instance.variable"
+                f"{quote(text)} is not a variable reference: expected instance.variable"
             )
         return cls(inst, var)
 
@@ -200,24 +222,26 @@ class _Group:
 
 @contextlib.contextmanager
 def _deferred_sigint():
-    """Turn Ctrl-C into a flag checked between steps (main thread only).
+    """Turn Ctrl-C and SIGTERM into a flag checked between steps (main thread only).
 
     A KeyboardInterrupt raised inside an FMU's Python code would become fmi2Fatal; the
-    master stops at the next communication point instead and raises it there.
+    master stops at the next communication point instead and raises
+    :class:`Interrupted` there. Yields a function returning the signal number or 0.
     """
     if threading.current_thread() is not threading.main_thread():
-        yield lambda: False
+        yield lambda: 0
         return
-    flag = []
+    flag: list[int] = []
 
     def handler(signum, frame):
         flag.append(signum)
 
-    old = signal.signal(signal.SIGINT, handler)
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield lambda: bool(flag)
+        yield lambda: flag[0] if flag else 0
     finally:
-        signal.signal(signal.SIGINT, old)
+        for sig, h in old.items():
+            signal.signal(sig, h)
 
 
 _EXTRACTED: dict[tuple[str, int, int], str] = {}
@@ -233,8 +257,14 @@ def _extracted(fmu: Path) -> str:
     """
     st = fmu.stat()
     key = (str(fmu.resolve()), st.st_size, st.st_mtime_ns)
-    if key not in _EXTRACTED:
-        _EXTRACTED[key] = extract(str(fmu))
+    if key not in _EXTRACTED or not Path(_EXTRACTED[key]).is_dir():
+        folder = new_temp_dir(f"{fmu.stem[:40]}_")
+        try:
+            safe_extract(fmu, folder, f"FMU {quote(fmu.name)}")
+        except InputFileError:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        _EXTRACTED[key] = str(folder)
     return _EXTRACTED[key]
 
 
@@ -256,24 +286,48 @@ def _close_live() -> None:
             sim.close()
 
 
+def count_steps(span: float, step: float, max_steps: int = DEFAULT_MAX_STEPS) -> int:
+    """Number of communication steps of ``step`` s in ``span`` s.
+
+    Raises
+    ------
+    SystemSpecError
+        ``span`` or ``step`` not finite and > 0, ``step`` larger than ``span``, ``span``
+        not a whole number of steps (to 1e-6 of a step), or more than ``max_steps``.
+    """
+    if not (isinstance(span, int | float) and math.isfinite(span) and span > 0):
+        raise SystemSpecError(
+            f"stop time {quote(span)} s is invalid: expected a finite value > the start time"
+        )
+    if not (isinstance(step, int | float) and math.isfinite(step) and step > 0):
+        raise SystemSpecError(f"step = {quote(step)} s is invalid: expected a finite value > 0")
+    ratio = span / step
+    if not math.isfinite(ratio) or ratio > max_steps + 0.5:
+        raise SystemSpecError(
+            f"step {step:.6g} s over {span:.6g} s is {ratio:.3g} steps: more than the limit "
+            f"of {max_steps} (option --max-steps)"
+        )
+    if ratio < 1 - 1e-6:
+        raise SystemSpecError(f"step {step:.6g} s is longer than the run ({span:.6g} s)")
+    n = round(ratio)
+    if abs(ratio - n) > 1e-6:
+        raise SystemSpecError(
+            f"the run ({span:.6g} s) is not a whole number of steps of {step:.6g} s "
+            f"({ratio:.6g} steps)"
+        )
+    return n
+
+
 class Instance:
     """One FMU instance under a name (fmpy ``FMU2Slave`` with batched value access)."""
 
     def __init__(self, name: str, fmu: Path):
         self.name = name
         self.fmu = Path(fmu)
-        if not self.fmu.exists():
-            raise SystemSpecError(f"instance {name}: FMU file {self.fmu} does not exist")
-        try:
-            self.md = read_model_description(str(self.fmu))
-        except Exception as err:  # fmpy raises plain Exception for bad archives
-            raise SystemSpecError(
-                f"instance {name}: {self.fmu} is not a readable FMU ({err})"
-            ) from None
-        if self.md.fmiVersion != "2.0" or self.md.coSimulation is None:
-            raise SystemSpecError(
-                f"instance {name}: {self.fmu} is not an FMI 2.0 co-simulation FMU"
-            )
+        try:  # complete and readable, checked before the binary is loaded
+            self.md = read_fmu(self.fmu, f"instance {name}")
+        except InputFileError as err:
+            raise SystemSpecError(str(err)) from None
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
@@ -283,13 +337,22 @@ class Instance:
             for u in self.md.outputs
             if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
         }
-        self.unzipdir = _extracted(self.fmu)
-        self.slave = FMU2Slave(
-            guid=self.md.guid,
-            unzipDirectory=self.unzipdir,
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
-            instanceName=name,
-        )
+        try:
+            self.unzipdir = _extracted(self.fmu)
+        except InputFileError as err:
+            raise SystemSpecError(f"instance {name}: {err}") from None
+        try:
+            self.slave = FMU2Slave(
+                guid=self.md.guid,
+                unzipDirectory=self.unzipdir,
+                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                instanceName=name,
+            )
+        except Exception as err:  # fmpy and ctypes raise plain Exception/OSError here
+            raise SystemSpecError(
+                f"instance {name}: the binary of {quote(self.fmu.name)} cannot be loaded "
+                f"({one_line(err)})"
+            ) from None
         self.log: list[str] = []
         self._call_dll: ctypes.CDLL | None = None
         self.alive = False  # instantiated and not fatal
@@ -319,7 +382,7 @@ class Instance:
         v = self.vars.get(name)
         if v is None:
             raise SystemSpecError(
-                f"instance {self.name} ({self.md.modelName}) has no variable '{name}'"
+                f"instance {self.name} ({self.md.modelName}) has no variable {quote(name)}"
             )
         if causality is not None and v.causality not in causality:
             raise SystemSpecError(
@@ -342,6 +405,8 @@ class CoSimulation:
         ``"gauss-seidel"`` or ``"jacobi"``.
     start_time : float
         Start time, s.
+    max_steps : int
+        Most communication steps :meth:`run` takes (a larger run is refused).
     """
 
     def __init__(
@@ -350,6 +415,7 @@ class CoSimulation:
         step: float = 0.02,
         coupling: str = "gauss-seidel",
         start_time: float = 0.0,
+        max_steps: int = DEFAULT_MAX_STEPS,
     ):
         if coupling not in COUPLINGS:
             raise SystemSpecError(
@@ -362,6 +428,7 @@ class CoSimulation:
         self._c_step = ctypes.c_double(self.step_size)
         self.coupling = coupling
         self.t0 = float(start_time)
+        self.max_steps = int(max_steps)
         self.k = 0
         self.instances: dict[str, Instance] = {}
         self._keep_callbacks: list[Any] = []
@@ -373,18 +440,32 @@ class CoSimulation:
         inst = self.instances.get(r.instance)
         if inst is None:
             raise SystemSpecError(
-                f"'{ref}': no instance '{r.instance}' (instances: {', '.join(self.instances)})"
+                f"{quote(ref)}: no instance {quote(r.instance)} (instances: "
+                f"{', '.join(self.instances)})"
             )
         return inst, inst.var(r.variable, causality)
 
-    def load(self) -> None:
-        """Read the FMUs and check the wiring; no FMU code runs yet."""
+    def load(self, before_checks: Callable[[CoSimulation], None] | None = None) -> None:
+        """Read the FMUs and check the wiring; no FMU code runs yet.
+
+        Parameters
+        ----------
+        before_checks : callable, optional
+            Called with this co-simulation once the model descriptions are read (in
+            :attr:`instances`) and before the system is checked against them; it may
+            check or adapt :attr:`system`.
+        """
         for name, path in self.system.fmus.items():
             self.instances[name] = Instance(name, Path(path))
+        if before_checks is not None:
+            before_checks(self)
         sources: dict[str, str] = {}
         for src, dst in self.system.connections:
-            si, sv = self._resolve(src, ("output",))
-            di, dv = self._resolve(dst, ("input",))
+            try:
+                si, sv = self._resolve(src, ("output",))
+                di, dv = self._resolve(dst, ("input",))
+            except SystemSpecError as err:
+                raise SystemSpecError(f"connection {src} -> {dst}: {err}") from None
             if sv.type != dv.type:
                 raise SystemSpecError(
                     f"connection {src} -> {dst}: type mismatch ({sv.type} -> {dv.type})"
@@ -393,7 +474,10 @@ class CoSimulation:
                 raise SystemSpecError(f"input {dst} is connected twice ({sources[dst]}, {src})")
             sources[dst] = src
         for ref in self._driven_refs():
-            _, v = self._resolve(ref, ("input",))
+            try:
+                _, v = self._resolve(ref, ("input",))
+            except SystemSpecError as err:
+                raise SystemSpecError(f"driven input {ref}: {err}") from None
             if v.type != "Real":
                 raise SystemSpecError(f"driven input {ref} must be Real, is {v.type}")
             if ref in sources:
@@ -410,11 +494,19 @@ class CoSimulation:
         for inst_name, params in self.system.parameters.items():
             for name in params:
                 self._resolve(f"{inst_name}.{name}", ("parameter", "input"))
-        for ev in self.system.events:
-            if ev.variable != "time":
-                self._resolve(ev.variable, ("output",))
-            for target in ev.actions:
-                self._resolve(target, ("parameter", "input"))
+        for i, ev in enumerate(self.system.events):
+            try:
+                if ev.variable != "time":
+                    self._resolve(ev.variable, ("output",))
+                for target in ev.actions:
+                    self._resolve(target, ("parameter", "input"))
+            except SystemSpecError as err:
+                raise SystemSpecError(f"event[{i}]: {err}") from None
+        for ref in self.system.record or ():
+            try:
+                self._resolve(ref)
+            except SystemSpecError as err:
+                raise SystemSpecError(f"record {quote(ref)}: {err}") from None
         self._sources = sources
         self._plan()
         self._loaded = True
@@ -736,19 +828,14 @@ class CoSimulation:
         far were handed to ``recorder``; the caller closes it and frees the instances
         (:meth:`close`).
         """
-        if not (math.isfinite(stop_time) and stop_time > self.t0):
-            raise SystemSpecError(
-                f"stop_time = {stop_time!r} is invalid: expected a finite value > start time "
-                f"{self.t0:g} s"
-            )
-        n = round((stop_time - self.t0) / self.step_size)
+        n = count_steps(stop_time - self.t0, self.step_size, self.max_steps)
         with _deferred_sigint() as interrupted:
             self.initialize()
             recorder.start(self.columns)
             recorder.row(self.communication_point())
             for _ in range(n):
-                if interrupted():
-                    raise KeyboardInterrupt
+                if signum := interrupted():
+                    raise Interrupted(signum)
                 self.do_step()
                 recorder.row(self.communication_point())
 

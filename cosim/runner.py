@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,9 +13,23 @@ from typing import Any
 import numpy as np
 
 from .build import build_all
-from .master import CoSimulation, FMUCallError, FMUStopped, System, SystemSpecError
+from .inputs.check import check_system_values
+from .inputs.text import quote
+from .master import (
+    DEFAULT_MAX_STEPS,
+    CoSimulation,
+    FMUCallError,
+    FMUStopped,
+    Interrupted,
+    MasterError,
+    System,
+    SystemSpecError,
+    count_steps,
+)
 from .metrics import compute_metrics
 from .scenario import Scenario, load_scenario
+
+log = logging.getLogger(__name__)
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 DEFAULT_FMU_DIR = Path("fmus")
@@ -75,8 +90,11 @@ class ArrayRecorder:
     def close(self) -> None:
         pass
 
-    def array(self) -> np.ndarray:
-        return np.array(self.rows, dtype=float).reshape(-1, len(self.columns))
+    def array(self, n_columns: int | None = None) -> np.ndarray:
+        n = len(self.columns) if self.columns else (n_columns or 0)
+        if not self.rows:
+            return np.empty((0, n))
+        return np.array(self.rows, dtype=float).reshape(-1, n)
 
 
 class CsvRecorder:
@@ -127,6 +145,63 @@ class RunResult:
             raise KeyError(f"no column '{name}' (columns: {', '.join(self.columns)})") from None
 
 
+def origin_of(scenario: Scenario, ssp: bool = False) -> Callable[[str], str]:
+    """``instance.variable`` (or ``event[i]``) -> where its value came from."""
+
+    def origin(ref: str) -> str:
+        if ref in scenario.origins:
+            return scenario.origins[ref]
+        if ssp:
+            inst, _, name = ref.partition(".")
+            return f"{scenario.source}: component '{inst}'" + (
+                f": parameter '{name}'" if name else ""
+            )
+        if ref.startswith("event["):
+            return f"{scenario.source}: key {ref}"
+        if ref in scenario.inputs:
+            return f"{scenario.source}: key 'inputs.{ref}'"
+        return f"{scenario.source}: key '{ref}'"
+
+    return origin
+
+
+def skip_optional(sim: CoSimulation, scenario: Scenario) -> list[str]:
+    """Drop what a swapped-in FMU lacks and the scenario does not need; return the notes.
+
+    Optional: the disturbance inputs (``plant.F_x``, ``F_z``, ``M_y``) when the scenario
+    drives none of them (no ``inputs``, disturbance or event on them), and recorded
+    variables of a swapped instance (``[fmus]``) that its FMU lacks. :func:`simulate`
+    logs each note (logger ``glider_cosim.runner``, level WARNING) once the system is
+    loaded. Everything else stays required:
+    :meth:`~glider_cosim.master.CoSimulation.load` names a missing connection.
+    """
+    notes = []
+    used = set(scenario.inputs) | {d.target for d in scenario.disturbances}
+    used |= {t for e in scenario.events for t in e.actions}
+    for ref in DISTURBANCE_INPUTS:
+        inst, _, name = ref.partition(".")
+        i = sim.instances.get(inst)
+        if i is not None and name not in i.vars and ref not in used and ref in sim.system.driven:
+            del sim.system.driven[ref]
+            notes.append(
+                f"{inst} ({quote(i.md.modelName)}) has no input {name}: skipped (the scenario "
+                "applies no disturbance to it)"
+            )
+    if sim.system.record is not None:
+        kept = []
+        for ref in sim.system.record:
+            inst, _, name = ref.partition(".")
+            i = sim.instances.get(inst)
+            if inst in scenario.fmus and i is not None and name and name not in i.vars:
+                notes.append(
+                    f"{inst} ({quote(i.md.modelName)}) has no variable {quote(name)}: not recorded"
+                )
+                continue
+            kept.append(ref)
+        sim.system.record = kept
+    return notes
+
+
 def simulate(
     scenario: Scenario | str | Path | None = None,
     out: str | Path | None = None,
@@ -137,13 +212,15 @@ def simulate(
     step: float | None = None,
     stop_time: float | None = None,
     plots: bool = True,
+    max_steps: int = DEFAULT_MAX_STEPS,
 ) -> RunResult:
     """Run a scenario and return its results.
 
     Parameters
     ----------
     scenario : Scenario, path, shipped name or None
-        ``None`` runs the default (paper Sec. 3.3) scenario.
+        ``None`` runs the default (paper Sec. 3.3) scenario; a ``.ssp``/``.ssd`` path
+        runs an SSP.
     out : path, optional
         Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
         it, nothing is written and the rows are kept in memory.
@@ -153,21 +230,56 @@ def simulate(
         Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
     plots : bool
         Write the PNG plots (with ``out``).
+    max_steps : int
+        Most communication steps; a longer run is refused before it starts.
 
     Returns
     -------
     RunResult
-        ``data`` has one row per communication point (the initial one included).
+        ``data`` has one row per communication point (the initial one included). A run
+        that fails in an FMU (its initialisation included, e.g. an out-of-range
+        parameter) returns with status ``"error"`` (``"stopped"`` for fmi2Discard) and
+        the FMU's message.
+
+    Raises
+    ------
+    ScenarioError, SSPError, SystemSpecError, ValueError
+        Bad arguments (scenario, SSP or FMU files, names, value types and units, step
+        and stop time): raised before any FMU is instantiated.
+    OSError
+        ``out`` cannot be created or written.
+    glider_cosim.master.Interrupted
+        A KeyboardInterrupt (SIGINT or SIGTERM during the run), raised after the results
+        so far are written (status ``"interrupted"``).
     """
+    if scenario is not None and not isinstance(scenario, Scenario | str | Path):
+        raise TypeError(
+            f"scenario {quote(scenario)} is invalid: expected a Scenario, a path, a shipped "
+            "name or None"
+        )
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"max_steps {quote(max_steps)} is invalid: expected an integer >= 1")
+    for key, value in (("step", step), ("stop_time", stop_time)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
     ssp_system = None
     if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
+        from .inputs.ssp_files import ssp_name
         from .ssp import load_ssp
 
         ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
-        scenario = Scenario(name=Path(scenario).stem, source=str(scenario), step=ssp_step,
+        scenario = Scenario(name=ssp_name(scenario), source=str(scenario), step=ssp_step,
                             stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    h = step if step is not None else scenario.step
+    stop = stop_time if stop_time is not None else scenario.stop_time
+    try:
+        count_steps(stop, h, max_steps)
+    except SystemSpecError as err:
+        given = [f"{k} = {quote(v)}" for k, v in (("step", step), ("stop_time", stop_time))
+                 if v is not None]  # fmt: skip
+        raise SystemSpecError(f"{', '.join(given) or scenario.source}: {err}") from None
     fmu_dir = Path(fmu_dir)
     if ssp_system is not None:
         system = ssp_system
@@ -175,16 +287,22 @@ def simulate(
         if build:
             build_all(fmu_dir, only_stale=True)
         system = system_for(scenario, fmu_dir)
-    sim = CoSimulation(
-        system,
-        step=step if step is not None else scenario.step,
-        coupling=coupling or scenario.coupling,
-    )
-    stop = stop_time if stop_time is not None else scenario.stop_time
+    sim = CoSimulation(system, step=h, coupling=coupling or scenario.coupling, max_steps=max_steps)
+    origin = origin_of(scenario, ssp_system is not None)
+
+    notes: list[str] = []
+
+    def before_checks(s: CoSimulation) -> None:
+        if ssp_system is None:
+            notes.extend(skip_optional(s, scenario))
+        check_system_values(s, origin)
+
     try:
-        sim.load()
+        sim.load(before_checks)
     except SystemSpecError as err:
         raise SystemSpecError(f"{scenario.source}: {err}") from None
+    for note in notes:  # only for a system that loaded: a refused one gets one line
+        log.warning(note)
     files: dict[str, Path] = {}
     if out is not None:
         out = Path(out)
@@ -194,17 +312,25 @@ def simulate(
     else:
         recorder = ArrayRecorder()
     status, message = "ok", ""
+    interrupt: Interrupted | None = None
     try:
         sim.run(stop, recorder)
     except FMUStopped as err:
         status, message = "stopped", str(err)
     except FMUCallError as err:
         status, message = "error", str(err)
-    except KeyboardInterrupt:
-        status, message = "interrupted", "interrupted by the user (Ctrl-C)"
+    except SystemSpecError:
+        raise
+    except MasterError as err:
+        status, message = "error", str(err)
+    except KeyboardInterrupt as err:
+        interrupt = err if isinstance(err, Interrupted) else Interrupted()
+        status, message = "interrupted", interrupt.describe()
     finally:
         recorder.close()
         sim.close()
+    if "results" in files and not files["results"].exists():
+        del files["results"]  # the run failed before its first row
     if isinstance(recorder, CsvRecorder):
         data = (
             np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
@@ -213,7 +339,7 @@ def simulate(
         )
         columns = sim.columns
     else:
-        columns, data = recorder.columns or sim.columns, recorder.array()
+        columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
     metrics = compute_metrics(columns, data, scenario, sim)
     metrics.update(status=status, message=message)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
@@ -224,8 +350,8 @@ def simulate(
             from .plots import write_plots
 
             files.update(write_plots(result, out))
-    if status == "interrupted":
-        raise KeyboardInterrupt
+    if interrupt is not None:
+        raise interrupt
     return result
 
 

@@ -30,6 +30,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .inputs.archives import InputFileError, regular_file
+from .inputs.text import quote, shown_path
+from .inputs.values import Degrees
 from .master import Disturbance, Event
 
 INSTANCES = ("plant", "observer", "controller")
@@ -41,6 +44,9 @@ _TOP = {
 }  # fmt: skip
 _DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
 _COND = re.compile(r"^\s*([A-Za-z_][\w.]*)\s*(>=|<=)\s*(.+?)\s*$")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
+#: largest scenario file read (bytes)
+MAX_SCENARIO_BYTES = 4 * 2**20
 
 
 class ScenarioError(ValueError):
@@ -66,29 +72,65 @@ class Scenario:
     inputs: dict[str, float] = field(default_factory=dict)
     disturbances: list[Disturbance] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
+    #: ``instance.variable`` -> where an overridden value came from (e.g. ``--set ...``)
+    origins: dict[str, str] = field(default_factory=dict)
 
 
 def _number(value: Any, where: str) -> float | int | bool:
-    """A TOML value as a number; ``"X deg"`` becomes radians."""
+    """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
+
+    Types are kept (an int stays an int, a boolean a boolean): the variable's type and
+    unit are checked against its FMU before the run.
+    """
     if isinstance(value, bool | int | float):
         return value
     if isinstance(value, str):
         m = _DEG.match(value)
         if m:
-            return math.radians(float(m.group(1)))
-    raise ScenarioError(f"{where}: {value!r} is not a number: expected a number or 'X deg'")
+            rad = math.radians(float(m.group(1)))
+            if math.isfinite(rad):
+                return Degrees(rad, value.strip())
+    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected a number or 'X deg'")
 
 
-def _float(value: Any, where: str, positive: bool = False, non_negative: bool = False) -> float:
+def _float(
+    value: Any,
+    where: str,
+    positive: bool = False,
+    non_negative: bool = False,
+    angle: bool = False,
+) -> float:
+    """A finite float (``angle``: ``"X deg"`` accepted, checked against the unit later)."""
     v = _number(value, where)
-    if isinstance(v, bool) or not math.isfinite(float(v)):
-        raise ScenarioError(f"{where}: {value!r} is invalid: expected a finite number")
-    v = float(v)
+    if isinstance(v, Degrees) and not angle:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number without a unit")
+    try:
+        finite = not isinstance(v, bool) and math.isfinite(float(v))
+    except OverflowError:
+        finite = False
+    if not finite:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a finite number")
     if positive and not v > 0:
-        raise ScenarioError(f"{where}: {value!r} is invalid: expected a number > 0")
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number > 0")
     if non_negative and v < 0:
-        raise ScenarioError(f"{where}: {value!r} is invalid: expected a number >= 0")
-    return v
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number >= 0")
+    return v if isinstance(v, Degrees) else float(v)
+
+
+def _law(value: Any, where: str) -> Any:
+    """``controller.law``: a name or an exact integer 0..3 (the type is checked later)."""
+    if isinstance(value, str):
+        if value not in LAWS:
+            raise ScenarioError(
+                f"{where}: {quote(value)} is invalid: expected one of {', '.join(LAWS)} (or 0..3)"
+            )
+        return LAWS[value]
+    if isinstance(value, bool) or not isinstance(value, int) or value not in LAWS.values():
+        raise ScenarioError(
+            f"{where}: {quote(value)} is invalid: expected one of {', '.join(LAWS)} or an "
+            "integer 0..3"
+        )
+    return value
 
 
 def _table(value: Any, where: str) -> dict[str, Any]:
@@ -102,7 +144,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     for key in data:
         if key not in _TOP:
             raise ScenarioError(
-                f"{source}: unknown key '{key}': expected one of {', '.join(sorted(_TOP))}"
+                f"{source}: unknown key {quote(key)}: expected one of {', '.join(sorted(_TOP))}"
             )
     sc = Scenario(source=source)
     for key in ("name", "description", "notes"):
@@ -110,6 +152,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
             if not isinstance(data[key], str):
                 raise ScenarioError(f"{source}: key '{key}': expected a string")
             setattr(sc, key, data[key])
+    if "name" in data:
+        check_name(sc.name, f"{source}: key 'name'")
     if "stop_time" in data:
         sc.stop_time = _float(data["stop_time"], f"{source}: key 'stop_time'", positive=True)
     if "step" in data:
@@ -117,14 +161,14 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     if "coupling" in data:
         if data["coupling"] not in ("gauss-seidel", "jacobi"):
             raise ScenarioError(
-                f"{source}: key 'coupling': {data['coupling']!r} is invalid: expected "
+                f"{source}: key 'coupling': {quote(data['coupling'])} is invalid: expected "
                 "'gauss-seidel' or 'jacobi'"
             )
         sc.coupling = data["coupling"]
     if "feedback" in data:
         if data["feedback"] not in ("observer", "state"):
             raise ScenarioError(
-                f"{source}: key 'feedback': {data['feedback']!r} is invalid: expected "
+                f"{source}: key 'feedback': {quote(data['feedback'])} is invalid: expected "
                 "'observer' or 'state'"
             )
         sc.feedback = data["feedback"]
@@ -150,31 +194,29 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         if inst in data:
             params = {}
             for k, v in _table(data[inst], f"{source}: key '{inst}'").items():
-                where = f"{source}: key '{inst}.{k}'"
-                if inst == "controller" and k == "law" and isinstance(v, str):
-                    if v not in LAWS:
-                        raise ScenarioError(
-                            f"{where}: {v!r} is invalid: expected one of {', '.join(LAWS)}"
-                        )
-                    v = LAWS[v]
+                where = f"{source}: key {quote(f'{inst}.{k}')}"
+                if inst == "controller" and k == "law":
+                    v = _law(v, where)
                 params[k] = _number(v, where)
             sc.parameters[inst] = params
     for k, v in _table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
         if k not in INSTANCES:
             raise ScenarioError(
-                f"{source}: key 'fmus.{k}': unknown instance: expected one of "
+                f"{source}: key {quote(f'fmus.{k}')}: unknown instance: expected one of "
                 f"{', '.join(INSTANCES)}"
             )
-        if not isinstance(v, str):
+        if not isinstance(v, str) or not v or "\0" in v:
             raise ScenarioError(f"{source}: key 'fmus.{k}': expected a path string")
         path = Path(v)
-        if not path.is_absolute() and source not in ("<string>", "<defaults>"):
+        if not path.is_absolute() and not source.startswith("<"):
             path = Path(source).parent / path
-        if not path.exists():
-            raise ScenarioError(f"{source}: key 'fmus.{k}': {path} does not exist")
+        try:
+            regular_file(path, f"{source}: key 'fmus.{k}'", "FMU")
+        except InputFileError as err:
+            raise ScenarioError(str(err)) from None
         sc.fmus[k] = str(path)
     for k, v in _table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
-        sc.inputs[k] = _float(v, f"{source}: key 'inputs.{k}'")
+        sc.inputs[k] = _float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
     dist = data.get("disturbance", [])
     if not isinstance(dist, list):
         raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
@@ -183,10 +225,12 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         d = _table(d, where)
         extra = set(d) - {"target", "kind", "time", "value", "duration"}
         if extra:
-            raise ScenarioError(f"{where}: unknown key '{sorted(extra)[0]}'")
+            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
         kind = d.get("kind", "step")
         if kind not in ("step", "pulse"):
-            raise ScenarioError(f"{where}.kind: {kind!r} is invalid: expected 'step' or 'pulse'")
+            raise ScenarioError(
+                f"{where}.kind: {quote(kind)} is invalid: expected 'step' or 'pulse'"
+            )
         if not isinstance(d.get("target"), str):
             raise ScenarioError(f"{where}.target: expected 'instance.variable' (e.g. plant.F_z)")
         sc.disturbances.append(
@@ -208,28 +252,33 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         e = _table(e, where)
         extra = set(e) - {"when", "delay", "set"}
         if extra:
-            raise ScenarioError(f"{where}: unknown key '{sorted(extra)[0]}'")
-        m = _COND.match(str(e.get("when", "")))
+            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
+        when = e.get("when", "")
+        m = _COND.match(when) if isinstance(when, str) and len(when) < 1000 else None
         if not m:
             raise ScenarioError(
-                f"{where}.when: {e.get('when')!r} is invalid: expected 'time >= T' or "
+                f"{where}.when: {quote(when)} is invalid: expected 'time >= T' or "
                 "'instance.variable >= X' (or <=)"
             )
         actions = {}
         for target, v in _table(e.get("set", {}), f"{where}.set").items():
-            if target == "controller.law" and isinstance(v, str):
-                if v not in LAWS:
-                    raise ScenarioError(
-                        f"{where}.set: law {v!r} is invalid: expected one of {', '.join(LAWS)}"
-                    )
-                v = LAWS[v]
-            actions[target] = _number(v, f"{where}.set.{target}")
+            if target == "controller.law":
+                v = _law(v, f"{where}.set.{target}")
+            actions[target] = _number(v, f"{where}.set.{quote(target)}")
         if not actions:
             raise ScenarioError(f"{where}.set: expected at least one 'instance.variable' = value")
         try:
             threshold = float(m.group(3))
         except ValueError:
-            threshold = _float(m.group(3), f"{where}.when")
+            threshold = _float(m.group(3), f"{where}.when", angle=True)
+        if not math.isfinite(threshold):
+            raise ScenarioError(
+                f"{where}.when: threshold {quote(m.group(3))} is invalid: expected a finite number"
+            )
+        if isinstance(threshold, Degrees) and m.group(1) == "time":
+            raise ScenarioError(
+                f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not deg"
+            )
         sc.events.append(
             Event(
                 variable=m.group(1),
@@ -257,21 +306,52 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = (resources.files("glider_cosim") / "scenarios" / f"{path}.toml").read_text()
         source = f"<shipped>/{path}.toml"
     else:
+        shown = _shown(str(path))
         if not p.exists():
             raise ScenarioError(
-                f"{path}: scenario file does not exist (shipped scenarios: "
+                f"{shown}: scenario file does not exist (shipped scenarios: "
                 f"{', '.join(shipped_scenarios())})"
             )
         try:
-            text = p.read_text()
+            regular_file(p, shown, "scenario file")
+            if p.stat().st_size > MAX_SCENARIO_BYTES:
+                raise ScenarioError(
+                    f"{shown}: scenario file is larger than {MAX_SCENARIO_BYTES} bytes"
+                )
+            text = p.read_text(encoding="utf-8")
+        except InputFileError as err:
+            raise ScenarioError(str(err)) from None
         except (OSError, UnicodeDecodeError) as err:
-            raise ScenarioError(f"{path}: cannot read scenario file ({err})") from None
+            reason = getattr(err, "strerror", None) or err
+            raise ScenarioError(f"{shown}: cannot read scenario file ({reason})") from None
         source = str(p)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ScenarioError(f"{source}: not valid TOML ({err})") from None
-    return parse_scenario(data, source)
+        raise ScenarioError(f"{_shown(source)}: not valid TOML ({err})") from None
+    except RecursionError:
+        raise ScenarioError(f"{_shown(source)}: not valid TOML (nested too deeply)") from None
+    try:
+        return parse_scenario(data, source)
+    except RecursionError:
+        raise ScenarioError(f"{_shown(source)}: values nested too deeply") from None
+
+
+_shown = shown_path
+
+
+def check_name(name: str, where: str) -> str:
+    """``name`` if it is a plain name (it becomes a results folder), else ScenarioError.
+
+    Letters, digits, ``.``, ``_``, ``+``, ``-``; at most 100 characters; not starting
+    with ``.`` or ``-`` (so no path, no ``..``).
+    """
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ScenarioError(
+            f"{where}: {quote(name)} is not a name: expected letters, digits, '.', '_', '+', "
+            "'-' (at most 100, not a path)"
+        )
+    return name
 
 
 def shipped_scenarios() -> list[str]:
@@ -286,20 +366,24 @@ def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int
     for item in items:
         key, sep, text = item.partition("=")
         inst, dot, name = key.strip().partition(".")
+        where = f"{source} {quote(item)}"
         if not sep or not dot or inst not in INSTANCES or not name:
             raise ScenarioError(
-                f"{source} {item!r}: expected INSTANCE.NAME=VALUE with INSTANCE one of "
-                f"{', '.join(INSTANCES)}"
+                f"{where}: expected INSTANCE.NAME=VALUE with INSTANCE one of {', '.join(INSTANCES)}"
             )
         text = text.strip()
         if inst == "controller" and name == "law" and text in LAWS:
             out[key.strip()] = LAWS[text]
             continue
-        try:
-            value: float | int | bool = (
-                int(text) if re.fullmatch(r"[-+]?\d+", text) else float(text)
-            )
-        except ValueError:
-            value = _number(text, f"{source} {item!r}")
+        value: float | int | bool
+        if text in ("true", "false"):
+            value = text == "true"
+        elif re.fullmatch(r"[-+]?\d{1,40}", text):
+            value = int(text)
+        else:
+            try:
+                value = float(text)
+            except ValueError:
+                value = _number(text, where)
         out[key.strip()] = value
     return out

@@ -33,13 +33,10 @@ process, so :func:`simulate_libcosim_isolated` runs it in a subprocess.
 
 from __future__ import annotations
 
-import atexit
 import json
 import math
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 import zipfile
 from collections.abc import Sequence
@@ -50,6 +47,9 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from .inputs.archives import InputFileError, confined
+from .inputs.ssp_files import SSD_NAME, SSPError, locate, parse_value
+from .inputs.text import quote
 from .master import System
 
 if TYPE_CHECKING:
@@ -67,15 +67,7 @@ for _prefix, _uri in NS.items():
 
 OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
 FMU_MIME = "application/x-fmu-sharedlibrary"
-SSD_NAME = "SystemStructure.ssd"
 _VALUE_TYPES = ("Real", "Integer", "Boolean")
-
-
-class SSPError(ValueError):
-    """A malformed or unsupported SSP, or one that does not fit its FMUs.
-
-    The message is one line: the SSP file, the element, what is wrong.
-    """
 
 
 def _q(prefix: str, tag: str) -> str:
@@ -226,67 +218,6 @@ def export_ssp(
 
 
 # --------------------------------------------------------------------------- import
-_UNPACKED: dict[tuple[str, int, int], Path] = {}
-
-
-@atexit.register
-def _remove_unpacked() -> None:
-    for folder in _UNPACKED.values():
-        shutil.rmtree(folder, ignore_errors=True)
-
-
-def _locate(path: Path) -> tuple[Path, Path]:
-    """(folder the sources are relative to, the .ssd file) of an archive, .ssd or folder.
-
-    An archive is unpacked once per process and file version (the master keeps FMU
-    binaries loaded, so the same archive must keep giving the same FMU paths); the
-    folders are removed at exit.
-    """
-    if not path.exists():
-        raise SSPError(f"{path}: SSP file does not exist")
-    if path.is_dir():
-        return path, path / SSD_NAME
-    if path.suffix.lower() == ".ssd":
-        return path.parent, path
-    st = path.stat()
-    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
-    if key not in _UNPACKED:
-        folder = Path(tempfile.mkdtemp(prefix="glider_ssp_"))
-        try:
-            with zipfile.ZipFile(path) as z:
-                for name in z.namelist():
-                    target = (folder / name).resolve()
-                    if not target.is_relative_to(folder.resolve()):
-                        raise SSPError(f"{path}: archive member '{name}' points outside it")
-                z.extractall(folder)
-        except (OSError, zipfile.BadZipFile) as err:
-            shutil.rmtree(folder, ignore_errors=True)
-            raise SSPError(f"{path}: not a readable SSP archive ({err})") from None
-        except SSPError:
-            shutil.rmtree(folder, ignore_errors=True)
-            raise
-        _UNPACKED[key] = folder
-    return _UNPACKED[key], _UNPACKED[key] / SSD_NAME
-
-
-def _parse_value(text: str, tag: str, where: str) -> float | int | bool:
-    try:
-        if tag == "Real":
-            value = float(text)
-            if not math.isfinite(value):
-                raise ValueError
-            return value
-        if tag == "Integer":
-            return int(text)
-        if text in ("true", "1"):
-            return True
-        if text in ("false", "0"):
-            return False
-        raise ValueError
-    except ValueError:
-        raise SSPError(f"{where}: value {text!r} is not a valid {tag}") from None
-
-
 @dataclass
 class _Component:
     name: str
@@ -297,12 +228,12 @@ class _Component:
 
 
 def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
-    from fmpy import read_model_description
+    from .inputs.archives import read_fmu
 
     name, source = el.get("name"), el.get("source")
     if not name:
         raise SSPError(f"{where}: an ssd:Component has no name attribute")
-    cwhere = f"{where}: component '{name}'"
+    cwhere = f"{where}: component {quote(name)}"
     if "." in name:
         raise SSPError(f"{cwhere}: names with '.' are not supported (instance.variable)")
     if not source:
@@ -314,17 +245,16 @@ def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
             f"{cwhere}: implementation {el.get('implementation')!r} is not supported: "
             "expected CoSimulation"
         )
-    rel = source[len("file:") :] if source.startswith("file:") else source
-    fmu = folder / rel
-    if not fmu.is_file():
-        raise SSPError(f"{cwhere}: FMU '{source}' is missing")
     try:
-        md = read_model_description(str(fmu))
-    except Exception as err:  # fmpy raises plain Exception for bad archives
-        msg = " ".join(str(err).split())
-        raise SSPError(f"{cwhere}: '{source}' is not a readable FMU ({msg})") from None
-    if md.fmiVersion != "2.0" or md.coSimulation is None:
-        raise SSPError(f"{cwhere}: '{source}' is not an FMI 2.0 co-simulation FMU")
+        fmu = confined(folder, source, cwhere)
+    except InputFileError as err:
+        raise SSPError(str(err)) from None
+    if not fmu.exists():
+        raise SSPError(f"{cwhere}: FMU {quote(source)} is missing")
+    try:  # complete (binary, pythonfmu script) and readable; nothing loaded
+        md = read_fmu(fmu, cwhere)
+    except InputFileError as err:
+        raise SSPError(str(err)) from None
     variables = {v.name: v for v in md.modelVariables}
     connectors: dict[str, str] = {}
     for c in el.iterfind("ssd:Connectors/ssd:Connector", NS):
@@ -356,9 +286,12 @@ def _read_parameters(
         prefix = binding.get("prefix", "")
         source = binding.get("source")
         if source is not None:
-            ssv = folder / (source[len("file:") :] if source.startswith("file:") else source)
+            try:
+                ssv = confined(folder, source, cwhere)
+            except InputFileError as err:
+                raise SSPError(str(err)) from None
             if not ssv.is_file():
-                raise SSPError(f"{cwhere}: parameter values '{source}' are missing")
+                raise SSPError(f"{cwhere}: parameter values {quote(source)} are missing")
             try:
                 pset = ET.parse(ssv).getroot()
             except ET.ParseError as err:
@@ -388,7 +321,7 @@ def _read_parameters(
             text = typed[0].get("value")
             if text is None:
                 raise SSPError(f"{pwhere} has no value attribute")
-            values[name] = _parse_value(text.strip(), tag, pwhere)
+            values[name] = parse_value(text.strip(), tag, pwhere)
     return values
 
 
@@ -467,7 +400,7 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
     """
     path = Path(path)
     where = str(path)
-    folder, ssd = _locate(path)
+    folder, ssd = locate(path)
     if not ssd.is_file():
         raise SSPError(f"{where}: {SSD_NAME} is missing")
     try:

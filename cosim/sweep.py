@@ -424,12 +424,20 @@ def write_plots(path: Path, out: Path) -> list[Path]:
 
 def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
     """A Dask client: an existing cluster, or a local one of worker processes."""
+    import dask
     from distributed import Client, LocalCluster
+
+    from .tempdirs import new_temp_dir
 
     if scheduler:
         return Client(scheduler, timeout="20s")
+    # workers inherit GLIDER_COSIM_TMP: their extractions and Dask's scratch space are
+    # removed with this process's temporary folder
+    scratch = str(new_temp_dir("dask_"))
+    dask.config.set({"temporary-directory": scratch})
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=50)  # fmt: skip
+                           dashboard_address=None, silence_logs=50,
+                           local_directory=scratch)  # fmt: skip
     return Client(cluster)
 
 
@@ -447,12 +455,13 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--workers", type=int, default=2, help="local worker processes")
     s.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     s.add_argument("--out", default="out/sweep", help="results folder")
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
     s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
     s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
     s.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     s.add_argument("--restart", action="store_true", help="ignore results already in --out")
-    s.add_argument("--no-plots", action="store_true")
+    s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
 
 
 def main(args: argparse.Namespace) -> int:

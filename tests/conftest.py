@@ -2,11 +2,45 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 HERE = Path(__file__).parent
+
+
+def pytest_configure(config):
+    """Every temporary file of the session goes to one private folder, checked at the end.
+
+    ``$TMPDIR`` (inherited by subprocesses) and :mod:`tempfile` point into it, so that
+    pytest's ``tmp_path`` folders, our extracted FMUs and SSPs, and whatever the CLI
+    subprocesses and Dask workers create all land there.
+    """
+    base = tempfile.mkdtemp(prefix="glider-tests-")
+    config._glider_tmp = (base, os.environ.get("TMPDIR"), tempfile.tempdir)
+    os.environ["TMPDIR"] = base
+    tempfile.tempdir = base
+
+
+def _leaked_temp_files(config) -> list[str]:
+    """Entries left in the session's temporary folder besides pytest's own ``tmp_path``
+    tree, after this process removed its extraction folder; the folder is then removed."""
+    from glider_cosim import tempdirs
+
+    base, old_env, old_tempdir = config._glider_tmp
+    tempdirs.cleanup()
+    leaked = sorted(e.name for e in os.scandir(base) if not e.name.startswith("pytest-of-"))
+    tempfile.tempdir = old_tempdir
+    if old_env is None:
+        os.environ.pop("TMPDIR", None)
+    else:
+        os.environ["TMPDIR"] = old_env
+    shutil.rmtree(base, ignore_errors=True)
+    return leaked
 
 
 @pytest.fixture(scope="session")
@@ -23,8 +57,6 @@ def fmu_dir(tmp_path_factory) -> Path:
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
     """Small FMUs written for the tests (integrator, gain, delay, runtime probe), on our
     FMI runtime like ours."""
-    import tempfile
-
     from glider_cosim.build import package_slave
     from glider_fmi.compile import compile_runtime
 
@@ -38,3 +70,11 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
             for p in sorted(src.glob("*Test*.py"))
             if not p.stem.startswith("Swap")
         }
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Fail the session if it left temporary files (see :func:`pytest_configure`)."""
+    leaked = _leaked_temp_files(session.config)
+    if leaked:
+        sys.stderr.write(f"\nthe test session left temporary files: {', '.join(leaked[:20])}\n")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -132,7 +132,7 @@ def test_wrong_causality_and_bad_settings(test_fmus, tmp_path):
         CoSimulation(missing).load()
     junk = tmp_path / "junk.fmu"
     junk.write_text("not a zip")
-    with pytest.raises(SystemSpecError, match=r"is not a readable FMU"):
+    with pytest.raises(SystemSpecError, match=r"junk.fmu' is not a readable zip"):
         CoSimulation(System(fmus={"i": junk}, connections=[])).load()
 
 

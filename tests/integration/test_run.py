@@ -166,8 +166,11 @@ def test_stall_stops_cleanly_and_keeps_the_rows(fmu_dir, tmp_path):
 
 
 def test_fmu_error_is_reported_with_instance_call_and_time(fmu_dir, tmp_path):
+    # given under [fmus], the controller is not checked against our parameter table
+    # before the run (that would exit 2): the FMU itself refuses K_c at initialisation
     sc = tmp_path / "bad.toml"
-    sc.write_text("[controller]\nK_c = -1.0\n")
+    controller = fmu_dir / "GliderController.fmu"
+    sc.write_text(f"[fmus]\ncontroller = '{controller}'\n[controller]\nK_c = -1.0\n")
     p = cli("run", str(sc), "--out", str(tmp_path / "o"), "--fmu-dir", str(fmu_dir))
     assert p.returncode == 1
     assert p.stderr.count("\n") == 1

@@ -461,10 +461,13 @@ FMPY_CASES = {  # start value(s) -> (call that fails, expected message)
 
 @pytest.mark.parametrize("logging", [False, True], ids=["debug_logging off", "on"])
 @pytest.mark.parametrize("case", sorted(FMPY_CASES))
-def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging):
+def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging, tmp_path):
     """What a user of ``fmpy.simulate_fmu`` sees (its default: debug_logging=False)."""
-    from fmpy import simulate_fmu
+    from fmpy import extract, simulate_fmu
     from fmpy.fmi1 import FMICallException
+
+    # simulate_fmu would leave its own extraction behind when the FMU fails
+    unzipped = extract(str(fmu_dir / "GliderPlant.fmu"), str(tmp_path / "plant"))
 
     start, call, expected = FMPY_CASES[case]
     seen: list[tuple[int, str]] = []
@@ -473,7 +476,7 @@ def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging):
         seen.append((status, message.decode()))
 
     with pytest.raises(FMICallException, match=rf"{call} failed with status 3 \(error\)"):
-        simulate_fmu(str(fmu_dir / "GliderPlant.fmu"), start_values=start, stop_time=1.0,
+        simulate_fmu(unzipped, start_values=start, stop_time=1.0,
                      output_interval=0.02, debug_logging=logging, logger=logger)  # fmt: skip
     errors = [text for status, text in seen if status == 3]
     assert len(errors) == 1 and errors[0].startswith(f"{call}: {expected}"), errors

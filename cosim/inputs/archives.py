@@ -1,0 +1,224 @@
+"""Reading FMU and SSP files safely: regular files only, complete FMUs, bounded unpacking.
+
+Nothing here loads a binary or runs FMU code: :func:`read_fmu` checks an FMU from its
+zip directory and model description, :func:`safe_extract` unpacks an archive member by
+member, refusing paths that leave the target folder and stopping at a total size.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import sys
+import zipfile
+import zlib
+from pathlib import Path
+from typing import Any
+
+from .text import one_line, quote, shown_path
+
+#: default limit of the bytes one archive may unpack to (``--max-extract-mb``)
+DEFAULT_EXTRACT_LIMIT = 256 * 2**20
+#: most members one archive may have
+MAX_MEMBERS = 100_000
+#: largest model description read (bytes)
+MAX_MODEL_DESCRIPTION = 64 * 2**20
+_limit = {"bytes": DEFAULT_EXTRACT_LIMIT}
+_MAGIC = {"linux": (b"\x7fELF",), "win32": (b"MZ",),
+          "darwin": (b"\xcf\xfa\xed\xfe", b"\xce\xfa\xed\xfe", b"\xca\xfe\xba\xbe")}  # fmt: skip
+_ZIP_ERRORS = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError,
+               OSError, ValueError, KeyError)  # fmt: skip
+
+
+class InputFileError(ValueError):
+    """An FMU, SSP or scenario file cannot be used; the message names it and why."""
+
+
+def set_extract_limit(n_bytes: int) -> None:
+    """Set the total size (bytes, > 0) an archive may unpack to, for this process."""
+    if isinstance(n_bytes, bool) or not isinstance(n_bytes, int) or n_bytes <= 0:
+        raise ValueError(f"extraction limit {quote(n_bytes)} is invalid: expected an integer > 0")
+    _limit["bytes"] = n_bytes
+
+
+def extract_limit() -> int:
+    """The current extraction limit (bytes)."""
+    return _limit["bytes"]
+
+
+def regular_file(path: str | Path, where: str, what: str = "file") -> Path:
+    """``path`` if it is an existing regular file, else :class:`InputFileError`.
+
+    Devices, FIFOs and folders are refused before anything is read from them.
+    """
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise InputFileError(f"{where}: {what} {shown_path(p)} does not exist") from None
+    except (OSError, ValueError) as err:
+        reason = getattr(err, "strerror", None) or one_line(err)
+        raise InputFileError(f"{where}: cannot read {what} {shown_path(p)} ({reason})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputFileError(
+            f"{where}: {what} {shown_path(p)} is not a regular file: expected a file on disk"
+        )
+    return p
+
+
+def safe_extract(archive: str | Path, dest: Path, where: str, limit: int | None = None) -> None:
+    """Unpack the zip ``archive`` into the folder ``dest``.
+
+    Parameters
+    ----------
+    archive : path
+        A regular zip file.
+    dest : Path
+        Existing target folder.
+    where : str
+        Prefix of error messages (the file or option).
+    limit : int, optional
+        Most bytes unpacked in total (default :func:`extract_limit`); the declared sizes
+        are checked first and the bytes actually written while unpacking.
+
+    Raises
+    ------
+    InputFileError
+        Not a readable zip, corrupt data, a member outside ``dest``, too many members,
+        or more than ``limit`` bytes.
+    """
+    limit = extract_limit() if limit is None else limit
+    too_big = (
+        f"{where}: unpacks to more than {limit} bytes (the extraction limit, "
+        "option --max-extract-mb)"
+    )
+    dest_r = dest.resolve()
+    try:
+        with zipfile.ZipFile(archive) as z:
+            infos = z.infolist()
+            if len(infos) > MAX_MEMBERS:
+                raise InputFileError(f"{where}: {len(infos)} members: more than {MAX_MEMBERS}")
+            if sum(i.file_size for i in infos) > limit:
+                raise InputFileError(too_big)
+            for info in infos:
+                target = (dest / info.filename).resolve()
+                if info.filename.startswith(("/", "\\")) or not target.is_relative_to(dest_r):
+                    raise InputFileError(
+                        f"{where}: archive member {quote(info.filename)} points outside it"
+                    )
+            written = 0
+            for info in infos:
+                target = dest / info.filename
+                if info.is_dir():
+                    target.mkdir(parents=True, exist_ok=True)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                with z.open(info) as src, open(target, "wb") as dst:
+                    while chunk := src.read(1 << 20):
+                        written += len(chunk)
+                        if written > limit:
+                            raise InputFileError(too_big)
+                        dst.write(chunk)
+    except InputFileError:
+        raise
+    except _ZIP_ERRORS as err:
+        raise InputFileError(f"{where}: not a readable zip archive ({one_line(err)})") from None
+
+
+def _is_pythonfmu(md: Any, names: set[str]) -> bool:
+    return "resources/slavemodule.txt" in names or str(md.generationTool or "").startswith(
+        "PythonFMU"
+    )
+
+
+def read_fmu(path: str | Path, where: str) -> Any:
+    """Check that ``path`` is a complete FMI 2.0 co-simulation FMU; return its model
+    description (``fmpy.model_description.ModelDescription``).
+
+    Checked without loading anything: a regular zip file, ``modelDescription.xml``, FMI
+    2.0 co-simulation, the binary for this platform (``binaries/<platform>/<model
+    identifier><ext>``, with the platform's executable header), and for a pythonfmu FMU
+    ``resources/slavemodule.txt`` and the script it names (without them pythonfmu's
+    binary crashes at instantiation).
+
+    Raises
+    ------
+    InputFileError
+        What is missing or unreadable, after ``where``.
+    """
+    from fmpy import platform, read_model_description, sharedLibraryExtension
+
+    p = regular_file(path, where, "FMU")
+    name = quote(p.name)
+    try:
+        with zipfile.ZipFile(p) as z:
+            infos = {i.filename: i for i in z.infolist()}
+            md_info = infos.get("modelDescription.xml")
+            if md_info is None:
+                raise InputFileError(f"{where}: FMU {name} has no modelDescription.xml")
+            if md_info.file_size > MAX_MODEL_DESCRIPTION:
+                raise InputFileError(f"{where}: FMU {name}: modelDescription.xml is too large")
+            z.read(md_info)  # CRC and deflate data checked
+            try:
+                md = read_model_description(str(p))
+            except Exception as err:  # fmpy raises plain Exception for bad descriptions
+                raise InputFileError(
+                    f"{where}: FMU {name} has no readable model description ({one_line(err)})"
+                ) from None
+            if md.fmiVersion != "2.0" or md.coSimulation is None:
+                raise InputFileError(f"{where}: FMU {name} is not an FMI 2.0 co-simulation FMU")
+            mi = md.coSimulation.modelIdentifier
+            binary = f"binaries/{platform}/{mi}{sharedLibraryExtension}"
+            if binary not in infos:
+                raise InputFileError(
+                    f"{where}: FMU {name} has no binary for this platform ({quote(binary)})"
+                )
+            with z.open(binary) as f:
+                head = f.read(4)
+            magics = _MAGIC.get(sys.platform, ())
+            if magics and not head.startswith(magics):
+                raise InputFileError(
+                    f"{where}: FMU {name}: {quote(binary)} is not a shared library for this "
+                    "platform"
+                )
+            if _is_pythonfmu(md, set(infos)):
+                if "resources/slavemodule.txt" not in infos:
+                    raise InputFileError(
+                        f"{where}: FMU {name} (pythonfmu) has no resources/slavemodule.txt"
+                    )
+                module = z.read("resources/slavemodule.txt")[:1000].decode("utf-8", "replace")
+                module = module.strip()
+                if not {f"resources/{module}.py", f"resources/{module}/__init__.py"} & set(infos):
+                    raise InputFileError(
+                        f"{where}: FMU {name} (pythonfmu) has no script "
+                        f"{quote(f'resources/{module}.py')}"
+                    )
+    except InputFileError:
+        raise
+    except _ZIP_ERRORS as err:
+        reason = one_line(err)
+        raise InputFileError(f"{where}: FMU {name} is not a readable zip ({reason})") from None
+    return md
+
+
+def confined(folder: Path, ref: str, where: str) -> Path:
+    """The file ``ref`` (an SSP ``source``: relative, optionally ``file:``) inside
+    ``folder``; :class:`InputFileError` if it is absolute, has another URI scheme, or
+    leaves ``folder`` (``..``, symbolic links)."""
+    rel = ref[len("file:") :] if ref.startswith("file:") else ref
+    if rel.startswith("//"):
+        rel = rel[2:]
+    if (
+        not rel
+        or "\0" in rel
+        or rel.startswith(("/", "\\"))
+        or Path(rel).is_absolute()
+        or (":" in rel.split("/", 1)[0])
+    ):
+        raise InputFileError(
+            f"{where}: source {quote(ref)} is invalid: expected a path relative to the SSP"
+        )
+    target = (folder / rel).resolve()
+    if not target.is_relative_to(folder.resolve()):
+        raise InputFileError(f"{where}: source {quote(ref)} points outside the SSP")
+    return target
