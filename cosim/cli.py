@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from .metrics import describe_outcome
     from .report import apply_overrides
     from .runner import simulate
     from .scenario import load_scenario, parse_sets
@@ -135,6 +136,7 @@ def _run(args: argparse.Namespace) -> int:
         f"{fmt('control_effort', unit=' rad s')}, max |delta_cmd| "
         f"{fmt('max_abs_delta_cmd_rad', deg, ' deg')}"
     )
+    print(f"  outcome: {describe_outcome(m)}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
         print(f"glider-cosim: run {result.status}: {result.message}", file=sys.stderr)

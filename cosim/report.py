@@ -21,6 +21,7 @@ import numpy as np
 
 from glider_observer.filter import butterworth_coefficients
 
+from .metrics import describe_outcome
 from .monolithic import COLUMNS, simulate_continuous, simulate_monolithic
 from .runner import RunResult, simulate
 from .scenario import LAWS, Scenario, load_scenario
@@ -58,7 +59,7 @@ FIGURES: tuple[Figure, ...] = (
     Figure(
         "fig3-4", "Figs. 3-4: effect of K_c (full-state feedback)",
         tuple(Run(f"K_c = {k:g}", "fig3-4-kc", {"controller.K_c": float(k)})
-              for k in (2, 3, 6, 10, 20)),
+              for k in (2, 3, 6, 8, 10, 20)),
         (("controller.delta_cmd", "tail command delta_cmd [deg] (Fig. 3)"),
          ("plant.theta_g", "glide angle theta_g [deg] (Fig. 4)")),
     ),
@@ -164,7 +165,8 @@ def _metrics_row(label: str, r: RunResult) -> str:
         err = r.column("observer.theta_g_hat") - r.column("plant.theta_g")
         est = _fmt(float(np.sqrt(np.mean(err**2))), DEG)
     return (
-        f"| {label} | {r.status} | {_fmt(m.get('rise_time_s'))} | "
+        f"| {label} | {r.status} | {describe_outcome(m, brief=True)} | "
+        f"{_fmt(m.get('rise_time_s'))} | "
         f"{_fmt(m.get('overshoot_rad'), DEG)} | {_fmt(m.get('overshoot_pct'), 1, 0)} | "
         f"{_fmt(m.get('settling_time_s'))} | {_fmt(m.get('control_effort'), 1, 3)} | "
         f"{_fmt(m.get('max_abs_delta_cmd_rad'), DEG, 1)} | {est} |"
@@ -282,11 +284,11 @@ def _markdown(results, an, study, pngs) -> str:
         "theta_g_hat - theta_g over the run.",
         "",
     ]
-    header = ("| run | status | rise [s] | overshoot [deg] | overshoot [%] | settling [s] | "
-              "effort [rad s] | peak tail [deg] | est. RMS [deg] |")  # fmt: skip
+    header = ("| run | status | outcome | rise [s] | overshoot [deg] | overshoot [%] | "
+              "settling [s] | effort [rad s] | peak tail [deg] | est. RMS [deg] |")  # fmt: skip
     for fig in FIGURES:
         lines += [f"## {fig.title}", "", f"![{fig.key}]({pngs[fig.key].name})", "", header,
-                  "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+                  "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
         lines += [_metrics_row(run.label, r) for run, r in results[fig.key]]
         stopped = [(run, r) for run, r in results[fig.key] if r.status != "ok"]
         for run, r in stopped:
@@ -374,14 +376,22 @@ def _agreement_section(results, an, study) -> list[str]:
             )
     fig2 = dict((run.label, r) for run, r in results["fig2"])
     k2 = fig2["K_c = 2 (paper)"]
-    final2 = k2.metrics.get("final_error_rad")
     lines.append(
-        f"- Fig. 2 in simulation: with K_c = 2 the run ends {k2.status} with a final glide-angle "
-        f"error of {_fmt(final2, DEG)} deg and settling {_fmt(k2.metrics.get('settling_time_s'))}"
-        f" s; with K_c = 10 settling takes {_fmt(fig2['K_c = 10'].metrics.get('settling_time_s'))}"
-        f" s against {_fmt(fig2['open loop'].metrics.get('settling_time_s'))} s open loop."
+        f"- Fig. 2 in simulation: with the paper's K_c = 2 the glide angle does not settle "
+        f"({describe_outcome(k2.metrics)}, in glide angle, over the last third of the run); "
+        f"with K_c = 10 it is {describe_outcome(fig2['K_c = 10'].metrics)}, open loop "
+        f"{describe_outcome(fig2['open loop'].metrics)} (that run is longer: its slow mode has "
+        f"a period of {_fmt(fig2['open loop'].metrics.get('outcome_period_s'))} s and settling "
+        "needs three of them in the band)."
     )
-    sweep = [(run, r) for run, r in results["fig3-4"] if r.metrics.get("settling_time_s")]
+    sweep = [(run, r) for run, r in results["fig3-4"] if r.metrics.get("outcome") == "settled"]
+    unsettled = [(run, r) for run, r in results["fig3-4"] if r.metrics.get("outcome") != "settled"]
+    if unsettled:
+        lines.append(
+            "- Figs. 3-4: "
+            + "; ".join(f"{run.label}: {describe_outcome(r.metrics)}" for run, r in unsettled)
+            + "."
+        )
     if len(sweep) >= 2:
         efforts = [r.metrics["max_abs_delta_cmd_rad"] for _, r in sweep]
         times = [r.metrics["settling_time_s"] for _, r in sweep]

@@ -214,7 +214,7 @@ def simulate(
         columns = sim.columns
     else:
         columns, data = recorder.columns or sim.columns, recorder.array()
-    metrics = compute_metrics(columns, data, scenario, sim)
+    metrics = compute_metrics(columns, data, scenario, sim, status)
     metrics.update(status=status, message=message)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
     if out is not None:

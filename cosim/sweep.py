@@ -48,6 +48,7 @@ from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
     "max_abs_delta_cmd_rad", "final_error_rad", "estimation_rms_rad", "end_time_s",
+    "outcome", "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s", "in_band_s",
 )  # fmt: skip
 METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -288,7 +289,7 @@ def run_one(
         cols, data = rec.columns, rec.array() if rec.rows else None
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
-        m = compute_metrics(cols, data, scenario, sim)
+        m = compute_metrics(cols, data, scenario, sim, status)
         if "observer.theta_g_hat" in cols:
             err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
             m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))

@@ -1,0 +1,195 @@
+"""What a run's error trajectory does at the end: settled, not settled, limit cycle or
+diverging, detected from the trajectory alone (no model, no linearisation).
+
+The rules (README, "Metrics"):
+
+- **Settled** if the error enters the band and stays inside it to the end, with enough
+  run left to tell: the time in the band must be at least ``max(MIN_HOLD_S,
+  HOLD_PERIODS * P)``, where ``P`` is the longest oscillation period seen in the error
+  (from its zero crossings with a hysteresis of the band; 0 if it does not oscillate).
+  A signal that merely passes through the band at a zero crossing of an oscillation
+  is in the band for a fraction of a period, so it never qualifies.
+- Otherwise the last part of the run (its last third after the takeover, at least
+  ``MIN_WINDOW_S`` long) is examined:
+
+  - if the error oscillates (at least two full cycles in that window), the peaks of
+    ``|e|`` between zero crossings give the envelope; a least-squares fit of
+    ``log(peak)`` against time gives the growth rate ``sigma`` [1/s]. If the amplitude
+    changes by less than ``SUSTAINED_PER_PERIOD`` (relative) per period the
+    oscillation is a **limit cycle** (amplitude = mean peak, period); if it grows it is
+    **diverging** (rate ``sigma``); if it shrinks, **not settled** (still converging).
+  - if it does not oscillate, ``log|e|`` is fitted against time; an error that grows
+    by more than ``SUSTAINED_PER_PERIOD`` over the window is **diverging**, one that
+    shrinks is **not settled** (converging), one that stays is **not settled** (an
+    offset).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_HOLD_S = 10.0
+HOLD_PERIODS = 3.0
+MIN_WINDOW_S = 10.0
+SUSTAINED_PER_PERIOD = 0.01
+
+SETTLED = "settled"
+NOT_SETTLED = "not settled"
+LIMIT_CYCLE = "limit cycle"
+DIVERGING = "diverging"
+STOPPED = "stopped"
+OUTCOMES = (SETTLED, NOT_SETTLED, LIMIT_CYCLE, DIVERGING, STOPPED)
+
+
+class TrajectoryError(ValueError):
+    """The time and error arrays cannot be classified (lengths, order, values)."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """The verdict on one error trajectory.
+
+    Attributes
+    ----------
+    status : str
+        One of :data:`OUTCOMES` (``stopped`` is set by the caller for a run that ended
+        early; :func:`classify` never returns it).
+    settling_time_s : float or None
+        Time (from the first sample) after which the error stays in the band, s; only
+        when ``status == "settled"``.
+    hold_required_s : float
+        How long the error had to stay in the band to count as settled, s.
+    period_s : float or None
+        Oscillation period, s (limit cycle, or an oscillating run that is not settled
+        or diverging).
+    amplitude : float or None
+        Mean peak ``|e|`` in the examined window, in the unit of ``e``.
+    rate_per_s : float or None
+        Envelope growth rate ``sigma`` [1/s] (> 0 grows, < 0 decays).
+    window_s : tuple of float or None
+        Start and end of the examined window, s (same time axis as the input).
+    in_band_s : float or None
+        How long the error has been in the band at the end of the run, s (None if it
+        is outside at the last sample).
+    """
+
+    status: str
+    settling_time_s: float | None = None
+    hold_required_s: float = MIN_HOLD_S
+    period_s: float | None = None
+    amplitude: float | None = None
+    rate_per_s: float | None = None
+    window_s: tuple[float, float] | None = None
+    in_band_s: float | None = None
+
+
+def _crossings(t: np.ndarray, e: np.ndarray, hyst: float) -> np.ndarray:
+    """Times at which ``e`` changes sign, counted only between excursions beyond
+    ``+-hyst`` (linear interpolation of the last sign change)."""
+    times = []
+    state = 0
+    last_change = None
+    for i in range(len(e)):
+        if i > 0 and np.sign(e[i]) != np.sign(e[i - 1]) and e[i - 1] != 0.0:
+            last_change = i
+        s = 1 if e[i] > hyst else (-1 if e[i] < -hyst else 0)
+        if s == 0:
+            continue
+        if state != 0 and s != state and last_change is not None:
+            j = last_change
+            a, b = e[j - 1], e[j]
+            times.append(t[j - 1] + (t[j] - t[j - 1]) * a / (a - b) if a != b else t[j])
+        state = s
+    return np.array(times)
+
+
+def oscillation_period(t: np.ndarray, e: np.ndarray, hyst: float) -> float | None:
+    """Longest full period of ``e`` [s] seen between its zero crossings (hysteresis
+    ``hyst``): twice the longest interval between consecutive crossings, ignoring the
+    first one (the transient). None if ``e`` crosses fewer than three times."""
+    c = _crossings(t, e, hyst)
+    if len(c) < 3:
+        return None
+    return float(2.0 * np.max(np.diff(c)[1:] if len(c) > 3 else np.diff(c)))
+
+
+def _fit_rate(times: np.ndarray, values: np.ndarray) -> float:
+    v = np.maximum(np.abs(values), 1e-300)
+    if len(times) < 2 or np.ptp(times) == 0.0:
+        return 0.0
+    return float(np.polyfit(times, np.log(v), 1)[0])
+
+
+def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
+    """Classify the error trajectory ``e(t)`` against the band ``|e| <= band``.
+
+    Parameters
+    ----------
+    t : array of float
+        Times, s, strictly increasing (the takeover at ``t[0]``).
+    e : array of float
+        Error at those times (any unit; ``band`` and the amplitude share it).
+    band : float
+        Half-width of the settling band, > 0.
+
+    Returns
+    -------
+    Outcome
+        See the module docstring for the rules.
+
+    Raises
+    ------
+    TrajectoryError
+        If the arrays differ in length, have fewer than 2 samples, ``t`` is not strictly
+        increasing, a value is not finite, or ``band`` is not > 0.
+    """
+    t = np.asarray(t, dtype=float)
+    e = np.asarray(e, dtype=float)
+    if t.shape != e.shape or t.ndim != 1 or len(t) < 2:
+        raise TrajectoryError(
+            f"t and e must be 1-D arrays of the same length >= 2 (got {t.shape} and {e.shape})"
+        )
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(e))):
+        raise TrajectoryError("t and e must be finite (found NaN or inf)")
+    if not np.all(np.diff(t) > 0):
+        raise TrajectoryError("t must be strictly increasing")
+    if not (math.isfinite(band) and band > 0):
+        raise TrajectoryError(f"band = {band!r} is invalid: expected a finite value > 0")
+    period = oscillation_period(t, e, band)
+    hold = max(MIN_HOLD_S, HOLD_PERIODS * (period or 0.0))
+    outside = np.nonzero(np.abs(e) > band)[0]
+    t_in = t[0] if len(outside) == 0 else (t[outside[-1] + 1] if outside[-1] < len(e) - 1 else None)
+    in_band = None if t_in is None else float(t[-1] - t_in)
+    if in_band is not None and in_band >= hold:
+        return Outcome(SETTLED, float(t_in - t[0]), hold, period, in_band_s=in_band)
+    # the end of the run: its last third, at least MIN_WINDOW_S (or all of it)
+    width = max(MIN_WINDOW_S, (t[-1] - t[0]) / 3.0)
+    i0 = int(np.searchsorted(t, t[-1] - width))
+    tw, ew = t[i0:], e[i0:]
+    window = (float(tw[0]), float(tw[-1]))
+    peak = float(np.max(np.abs(ew)))
+    c = _crossings(tw, ew, 0.1 * peak) if peak > 0 else np.array([])
+    if len(c) >= 4:
+        # half-cycle peaks of |e| between consecutive crossings
+        idx = np.searchsorted(tw, c)
+        pk_t, pk_v = [], []
+        for a, b in zip(idx[:-1], idx[1:], strict=True):
+            k = a + int(np.argmax(np.abs(ew[a:b])))
+            pk_t.append(tw[k])
+            pk_v.append(abs(ew[k]))
+        p = float(2.0 * np.mean(np.diff(c)))
+        sigma = _fit_rate(np.array(pk_t), np.array(pk_v))
+        amp = float(np.mean(pk_v))
+        per_period = math.expm1(abs(sigma) * p)
+        if per_period < SUSTAINED_PER_PERIOD:
+            status = LIMIT_CYCLE
+        else:
+            status = DIVERGING if sigma > 0 else NOT_SETTLED
+        return Outcome(status, None, hold, p, amp, sigma, window, in_band)
+    sigma = _fit_rate(tw, ew)
+    change = math.expm1(sigma * (tw[-1] - tw[0]))
+    status = DIVERGING if change > SUSTAINED_PER_PERIOD else NOT_SETTLED
+    return Outcome(status, None, hold, period, float(np.mean(np.abs(ew))), sigma, window, in_band)
