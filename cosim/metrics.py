@@ -177,7 +177,7 @@ def describe_outcome(m: dict[str, Any], brief: bool = False) -> str:
     if brief:
         return f"not settled ({rate:+.3g} 1/s)"
     w0, w1 = m["outcome_window_s"]
-    text = f"not settled: mean |error| {math.degrees(amp):.2f} deg over {w0:.1f}-{w1:.1f} s"
+    text = f"not settled: |error| about {math.degrees(amp):.2f} deg over {w0:.1f}-{w1:.1f} s"
     if rate < 0:
         text += f", still decaying at {-rate:.3g} 1/s"
     if m.get("in_band_s") is not None:

@@ -66,7 +66,8 @@ class Outcome:
         Oscillation period, s (limit cycle, or an oscillating run that is not settled
         or diverging).
     amplitude : float or None
-        Mean peak ``|e|`` in the examined window, in the unit of ``e``.
+        Mean peak ``|e|`` in the examined window if ``e`` oscillates there, else the mean
+        ``|e|``, in the unit of ``e``.
     rate_per_s : float or None
         Envelope growth rate ``sigma`` [1/s] (> 0 grows, < 0 decays).
     window_s : tuple of float or None

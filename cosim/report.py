@@ -179,8 +179,7 @@ def _step_study(fmu_dir: Path) -> dict[str, Any]:
     fmu = simulate(sc, None, fmu_dir=fmu_dir, build=False)
     mono = simulate_monolithic(sc, fmu_dir=fmu_dir)
     cont = simulate_continuous(sc, fmu_dir=fmu_dir)
-    sc200 = apply_overrides(sc, {"observer.f_sample": 200.0})
-    m200 = simulate_monolithic(sc200, step=0.005, fmu_dir=fmu_dir)[::4]
+    m200 = simulate_monolithic(sc, step=0.005, fmu_dir=fmu_dir)[::4]  # f_sample follows: 200 Hz
     i = COLUMNS.index("plant.theta_g")
     nofilter = apply_overrides(sc, {"observer.filter_enabled": False})
     raw = {

@@ -14,7 +14,7 @@ import numpy as np
 from .build import build_all
 from .master import CoSimulation, FMUCallError, FMUStopped, System, SystemSpecError
 from .metrics import compute_metrics
-from .scenario import Scenario, load_scenario
+from .scenario import Scenario, load_scenario, with_sampling
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 DEFAULT_FMU_DIR = Path("fmus")
@@ -39,8 +39,10 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
     return conns
 
 
-def system_for(scenario: Scenario, fmu_dir: Path) -> System:
-    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped)."""
+def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
+    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
+    run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
+    unless the scenario sets it (:func:`~glider_cosim.scenario.with_sampling`)."""
     fmus = {
         inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
         for inst, name in FMU_NAMES.items()
@@ -51,7 +53,12 @@ def system_for(scenario: Scenario, fmu_dir: Path) -> System:
     return System(
         fmus=fmus,
         connections=default_connections(scenario.feedback, scenario.observer),
-        parameters={k: dict(v) for k, v in scenario.parameters.items()},
+        parameters=with_sampling(
+            scenario.parameters,
+            step if step is not None else scenario.step,
+            scenario.source,
+            scenario.observer,
+        ),
         driven=driven,
         disturbances=list(scenario.disturbances),
         events=[type(e)(**{**e.__dict__}) for e in scenario.events],
@@ -169,15 +176,18 @@ def simulate(
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     fmu_dir = Path(fmu_dir)
+    h = step if step is not None else scenario.step
     if ssp_system is not None:
         system = ssp_system
+        if "observer" in system.parameters:  # the SSP sets every value: only check it
+            with_sampling(system.parameters, h, scenario.source)
     else:
         if build:
             build_all(fmu_dir, only_stale=True)
-        system = system_for(scenario, fmu_dir)
+        system = system_for(scenario, fmu_dir, h)
     sim = CoSimulation(
         system,
-        step=step if step is not None else scenario.step,
+        step=h,
         coupling=coupling or scenario.coupling,
     )
     stop = stop_time if stop_time is not None else scenario.stop_time

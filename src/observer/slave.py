@@ -5,7 +5,7 @@ Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_obser
 
 from __future__ import annotations
 
-from glider_observer.filter import ButterworthFilter
+from glider_observer.filter import DEFAULT_F_CUTOFF, DEFAULT_F_SAMPLE, ButterworthFilter
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
 from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
 from glider_plant.model import StallError, equilibrium
@@ -73,11 +73,18 @@ class GliderObserver(GliderSlave):
             "f_sample",
             "parameter",
             "Hz",
-            "pre-filter sampling frequency (= 1/step)",
-            50.0,
+            "pre-filter sampling frequency (= 1/step; glider-cosim sets it from the step)",
+            DEFAULT_F_SAMPLE,
             valid=POSITIVE,
         ),
-        Var("f_cutoff", "parameter", "Hz", "pre-filter cut-off frequency", 10.0, valid=POSITIVE),
+        Var(
+            "f_cutoff",
+            "parameter",
+            "Hz",
+            "pre-filter cut-off frequency",
+            DEFAULT_F_CUTOFF,
+            valid=POSITIVE,
+        ),
         Var(
             "start_at_equilibrium",
             "parameter",
