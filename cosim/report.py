@@ -36,6 +36,7 @@ class Run:
     label: str
     scenario: str
     overrides: dict[str, Any] = field(default_factory=dict)
+    group: str = ""  # the panel column it is drawn in (figures with ``by_group``)
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,8 @@ class Figure:
     title: str
     runs: tuple[Run, ...]
     panels: tuple[tuple[str, str], ...]  # (column, y label)
+    by_group: bool = False  # one column of panels per Run.group
+    share_y: bool = True  # one y-range per row (else per panel)
 
 
 SEC53 = "sec53-protocol"
@@ -58,10 +61,12 @@ FIGURES: tuple[Figure, ...] = (
     ),
     Figure(
         "fig3-4", "Figs. 3-4: effect of K_c (full-state feedback)",
-        tuple(Run(f"K_c = {k:g}", "fig3-4-kc", {"controller.K_c": float(k)})
+        tuple(Run(f"K_c = {k:g}", "fig3-4-kc", {"controller.K_c": float(k)},
+                  "K_c = 2, 3, 6" if k < 7 else "K_c = 8, 10, 20")
               for k in (2, 3, 6, 8, 10, 20)),
         (("controller.delta_cmd", "tail command delta_cmd [deg] (Fig. 3)"),
          ("plant.theta_g", "glide angle theta_g [deg] (Fig. 4)")),
+        by_group=True, share_y=False,
     ),
     Figure(
         "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1",
@@ -72,22 +77,27 @@ FIGURES: tuple[Figure, ...] = (
          ("plant.theta_g", "true glide angle [deg] (Fig. 6)")),
     ),
     Figure(
-        "fig11-20", "Figs. 11-20: Sec. 5.3 protocol, passivity against P and PI "
-        "(observer feedback; the paper's gains and stable ones)",
-        (Run("passivity K_c = 1", SEC53, {"controller.K_c": 1.0}),
-         Run("passivity K_c = 3", SEC53, {"controller.K_c": 3.0}),
-         Run("P K_P = 2", SEC53, {"event.controller.law": "p", "controller.K_P": 2.0}),
-         Run("P K_P = 3", SEC53, {"event.controller.law": "p", "controller.K_P": 3.0}),
+        "fig11-20", "Figs. 11-20: Sec. 5.3 protocol (2 deg hold, observer feedback), the "
+        "paper's gains and stable ones",
+        (Run("passivity K_c = 1", SEC53, {"controller.K_c": 1.0}, "passivity law"),
+         Run("passivity K_c = 3", SEC53, {"controller.K_c": 3.0}, "passivity law"),
+         Run("P K_P = 2", SEC53, {"event.controller.law": "p", "controller.K_P": 2.0}, "P law"),
+         Run("P K_P = 3", SEC53, {"event.controller.law": "p", "controller.K_P": 3.0}, "P law"),
          Run("PI K_P = 2, K_I = 1", SEC53,
-             {"event.controller.law": "pi", "controller.K_P": 2.0, "controller.K_I": 1.0}),
+             {"event.controller.law": "pi", "controller.K_P": 2.0, "controller.K_I": 1.0},
+             "PI law"),
          Run("PI K_P = 2, K_I = 3", SEC53,
-             {"event.controller.law": "pi", "controller.K_P": 2.0, "controller.K_I": 3.0}),
-         Run("passivity K_c = 10 (ours)", SEC53, {"controller.K_c": 10.0}),
-         Run("P K_P = 0.5 (ours)", SEC53, {"event.controller.law": "p", "controller.K_P": 0.5}),
+             {"event.controller.law": "pi", "controller.K_P": 2.0, "controller.K_I": 3.0},
+             "PI law"),
+         Run("passivity K_c = 10 (ours)", SEC53, {"controller.K_c": 10.0}, "passivity law"),
+         Run("P K_P = 0.5 (ours)", SEC53, {"event.controller.law": "p", "controller.K_P": 0.5},
+             "P law"),
          Run("PI K_P = 0.5, K_I = 0.2 (ours)", SEC53,
-             {"event.controller.law": "pi", "controller.K_P": 0.5, "controller.K_I": 0.2})),
+             {"event.controller.law": "pi", "controller.K_P": 0.5, "controller.K_I": 0.2},
+             "PI law")),
         (("plant.theta_g", "glide angle theta_g [deg]"), ("plant.theta", "pitch theta [deg]"),
          ("controller.delta_cmd", "tail command [deg]")),
+        by_group=True,
     ),
 )  # fmt: skip
 
@@ -134,24 +144,92 @@ def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
     return f"{v * scale:.{digits}f}"
 
 
+def _bounded(r: RunResult) -> bool:
+    """A run that stays bounded: it ran to the end and does not diverge."""
+    return r.status == "ok" and r.metrics.get("outcome") != "diverging"
+
+
 def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """One panel per (column, group); y-limits of a row from the runs that stay bounded
+    (shared by the row's panels); a run leaving them is clipped and marked (a triangle
+    where it leaves, a cross where a stopped run ends, both in the legend)."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = len(fig.panels)
-    f, axes = plt.subplots(n, 1, figsize=(8, 2.8 * n), sharex=True, squeeze=False)
-    for ax, (col, ylabel) in zip(axes[:, 0], fig.panels, strict=True):
-        for run, r in results:
-            if col in r.columns and len(r.data):
-                ax.plot(r.data[:, 0], r.column(col) * DEG, lw=1.0, label=run.label)
-        ax.set_ylabel(ylabel, fontsize=8)
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7, loc="best")
-    axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].set_title(fig.title, fontsize=10)
-    f.tight_layout()
+    groups = list(dict.fromkeys(run.group for run, _ in results)) if fig.by_group else [""]
+    nrow, ncol = len(fig.panels), len(groups)
+    width = 8.0 if ncol == 1 else 4.3 * ncol
+    f, axes = plt.subplots(nrow, ncol, figsize=(width, 2.6 * nrow + 0.6), sharex=True,
+                           squeeze=False, layout="constrained")  # fmt: skip
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colour = {run.label: colours[i % len(colours)] for i, (run, _) in enumerate(results)}
+    clipped = stopped = False
+    for i, (col, ylabel) in enumerate(fig.panels):
+        series = [(run, r, r.data[:, 0], r.column(col) * DEG) for run, r in results
+                  if col in r.columns and len(r.data)]  # fmt: skip
+        for j, g in enumerate(groups):
+            ax = axes[i, j]
+            mine = [y for run, r, _, y in series if _bounded(r)
+                    and (fig.share_y or not fig.by_group or run.group == g)]  # fmt: skip
+            lim = None
+            if mine:
+                lo = min(float(np.min(y)) for y in mine)
+                hi = max(float(np.max(y)) for y in mine)
+                pad = 0.08 * max(hi - lo, 1.0)
+                lim = (lo - pad, hi + pad)
+            for run, r, t, y in series:
+                if fig.by_group and run.group != g:
+                    continue
+                c = colour[run.label]
+                notes = []
+                if lim is not None:
+                    out_of = np.nonzero((y < lim[0]) | (y > lim[1]))[0]
+                    if len(out_of):
+                        k = out_of[0]
+                        above = y[k] > lim[1]
+                        ax.plot(t[k], lim[1] if above else lim[0], marker="^" if above else "v",
+                                color=c, ms=8, clip_on=False, zorder=5)  # fmt: skip
+                if r.status != "ok":
+                    notes.append(f"stopped at {t[-1]:.1f} s")
+                    y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
+                    ax.plot(t[-1], y_end, marker="x", color=c, ms=8, mew=2, clip_on=False,
+                            zorder=5)  # fmt: skip
+                label = run.label + (f" ({'; '.join(notes)})" if notes else "")
+                ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
+                clipped |= lim is not None and bool(np.any((y < lim[0]) | (y > lim[1])))
+                stopped |= r.status != "ok"
+            if lim is not None:
+                ax.set_ylim(*lim)
+            if col in ("plant.theta_g", "observer.theta_g_hat"):
+                th = next((r.metrics.get("theta_ge_rad") for _, r in results), None)
+                if th is not None:
+                    ax.axhline(th * DEG, color="k", ls=":", lw=0.8,
+                               label="equilibrium" if i == 0 else None)  # fmt: skip
+            ax.grid(alpha=0.3)
+            if j == 0:
+                ax.set_ylabel(ylabel, fontsize=8)
+            if i == 0 and fig.by_group:
+                ax.set_title(g, fontsize=9)
+            if i == 0 and not fig.by_group:
+                ax.legend(fontsize=7, loc="best")
+            if i == nrow - 1:
+                ax.set_xlabel("time [s]")
+    if fig.by_group:  # legends under each column, out of the curves' way
+        for j in range(ncol):
+            h, lab = axes[0, j].get_legend_handles_labels()
+            axes[-1, j].legend(h, lab, fontsize=7, loc="upper center", ncol=1,
+                               bbox_to_anchor=(0.5, -0.28))  # fmt: skip
+    keys = []
+    if clipped:
+        keys.append("triangle: the run leaves the axes (clipped there)")
+    if stopped:
+        keys.append("cross: the run stops (stall)")
+    title = "\n".join(textwrap.wrap(fig.title, int(width * 11)))
+    f.suptitle(title + (f"\n{'; '.join(keys)}" if keys else ""), fontsize=10)
     path = out / f"{fig.key}.png"
     f.savefig(path, dpi=100)
     plt.close(f)
@@ -212,14 +290,18 @@ def _plot_steps(study: dict[str, Any], out: Path) -> Path:
     import matplotlib.pyplot as plt
 
     tr = study["traces"]
-    f, ax = plt.subplots(figsize=(8, 3.2))
+    f, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 4.8), sharex=True, layout="constrained",
+                                height_ratios=(3, 2))  # fmt: skip
     for k in ("50 Hz", "200 Hz", "continuous"):
         ax.plot(tr["t"], tr[k] * DEG, lw=1.0, label=k)
-    ax.set(xlabel="time [s]", ylabel="glide angle theta_g [deg]",
+    for k in ("50 Hz", "200 Hz"):
+        ax2.plot(tr["t"], (tr[k] - tr["continuous"]) * DEG, lw=1.0, label=f"{k} - continuous")
+    ax.set(ylabel="glide angle theta_g [deg]",
            title="Default scenario: effect of the communication step")  # fmt: skip
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    f.tight_layout()
+    ax2.set(xlabel="time [s]", ylabel="difference [deg]")
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
     path = out / "communication_step.png"
     f.savefig(path, dpi=100)
     plt.close(f)
@@ -326,7 +408,10 @@ def _analysis_section(an: dict[str, Any] | None) -> list[str]:
     )
     ts = an.get("time_scales")
     if ts:
-        lines.append("Time scales: " + ", ".join(f"{k} = {v:.4g}" for k, v in ts.items()) + ".")
+        lines.append(
+            f"Time scales (Sec. 2.2): tau_s = {ts['tau_s']:.4g} s; eps1 = {ts['eps1']:.4g}, "
+            f"eps2 = {ts['eps2']:.4g}, mu = {ts['mu']:.4g} (dimensionless)."
+        )
     rng = an["stable_K_c"]
     for key, label in (("continuous", "full-state, continuous time"),
                        ("sampled", "sampled at 50 Hz with the servo"),
