@@ -1,8 +1,10 @@
 """Performance metrics of a glide-stabilisation run (definitions in README, "Metrics").
 
-All are computed on the true glide angle ``plant.theta_g`` against the plant's
-open-loop equilibrium ``theta_ge``, from the time the controller takes over ``t_on``
-(its ``t_enable``, or the time an event last changed the controller):
+All are computed on the true glide angle ``plant.theta_g`` against the glide angle the
+loop should reach (:func:`reference_glide_angle`: the equilibrium ``theta_ge``, or for an
+open-loop law with a held tail the steady glide with that tail; ``theta_ge_rad`` in the
+metrics), from the time the controller takes over ``t_on`` (its ``t_enable``, or the time
+an event last changed the controller):
 
 - ``rise_time_s``: first time after ``t_on`` the error has shrunk to 10 % of its value
   at ``t_on`` (i.e. 90 % of the way to the equilibrium).
@@ -32,6 +34,7 @@ import numpy as np
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
+from .heldtail import held_glide
 from .outcome import STOPPED, classify
 
 BAND_FRACTION = 0.02
@@ -116,6 +119,22 @@ def glide_metrics(
     return out
 
 
+def reference_glide_angle(
+    p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
+) -> float:
+    """The glide angle [rad] the loop should reach: the equilibrium ``theta_ge`` for the
+    passivity, P and PI laws (they drive the tail to 0 there); for the open-loop law
+    (after the events) the steady glide with its tail ``delta_open`` held
+    (:func:`glider_cosim.heldtail.held_glide`)."""
+    law, delta_open = controller.get("law", 1), controller.get("delta_open", 0.0)
+    for ev in events:
+        law = ev.actions.get("controller.law", law)
+        delta_open = ev.actions.get("controller.delta_open", delta_open)
+    if int(law) != 0 or delta_open == 0.0:
+        return equilibrium(p).theta_g
+    return held_glide(p, p.K_udelta * float(delta_open)).theta_g
+
+
 def compute_metrics(
     columns: Sequence[str], data: np.ndarray, scenario: Any, sim: Any, status: str = "ok"
 ) -> dict:
@@ -132,13 +151,14 @@ def compute_metrics(
     if len(data) == 0 or "plant.theta_g" not in columns or "controller.delta_cmd" not in columns:
         return metrics
     p = GliderParams.from_mapping(sim.system.parameters.get("plant", {}))
-    t_on = takeover_time(sim.system.parameters.get("controller", {}), sim.system.events)
+    ctrl = sim.system.parameters.get("controller", {})
+    t_on = takeover_time(ctrl, sim.system.events)
     metrics.update(
         glide_metrics(
             data[:, 0],
             data[:, list(columns).index("plant.theta_g")],
             data[:, list(columns).index("controller.delta_cmd")],
-            equilibrium(p).theta_g,
+            reference_glide_angle(p, ctrl, sim.system.events),
             t_on,
             completed=status == "ok",
         )

@@ -109,8 +109,11 @@ def simulate_monolithic(
         dist = [0.0, 0.0, 0.0]
         for d in scenario.disturbances:
             dist[("plant.F_x", "plant.F_z", "plant.M_y").index(d.target)] += d.at(t)
-        theta_f = filt(theta_meas) if op["filter_enabled"] else theta_meas
-        xh = observer_step(xh, theta_f, po.K_udelta * cmd, h, po, H, op["h_max"])
+        if t < op["t_start"] - 1e-9:  # the observer is not initialised yet
+            theta_f = theta_meas
+        else:
+            theta_f = filt(theta_meas) if op["filter_enabled"] else theta_meas
+            xh = observer_step(xh, theta_f, po.K_udelta * cmd, h, po, H, op["h_max"])
         if cp["law"] == Law.PI and enabled:
             pi.update(fb_th - eq_c.theta_g, h)
         x, delta = plant_step(

@@ -19,9 +19,9 @@ The rules (README, "Metrics"):
     oscillation is a **limit cycle** (amplitude = mean peak, period); if it grows it is
     **diverging** (rate ``sigma``); if it shrinks, **not settled** (still converging).
   - if it does not oscillate, ``log|e|`` is fitted against time; an error that grows
-    by more than ``SUSTAINED_PER_PERIOD`` over the window is **diverging**, one that
-    shrinks is **not settled** (converging), one that stays is **not settled** (an
-    offset).
+    by more than ``SUSTAINED_PER_PERIOD`` over the window, or stays farther from zero
+    over the whole window than it was at the start, is **diverging**; one that shrinks
+    is **not settled** (converging), one that stays is **not settled** (an offset).
 """
 
 from __future__ import annotations
@@ -192,5 +192,8 @@ def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
         return Outcome(status, None, hold, p, amp, sigma, window, in_band)
     sigma = _fit_rate(tw, ew)
     change = math.expm1(sigma * (tw[-1] - tw[0]))
-    status = DIVERGING if change > SUSTAINED_PER_PERIOD else NOT_SETTLED
+    # farther from zero over the whole window than at the start (e.g. a tumbling glider
+    # whose angle error keeps growing turn after turn, whatever its local trend)
+    away = float(np.min(np.abs(ew))) > (1.0 + SUSTAINED_PER_PERIOD) * abs(float(e[0]))
+    status = DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED
     return Outcome(status, None, hold, period, float(np.mean(np.abs(ew))), sigma, window, in_band)

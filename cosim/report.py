@@ -23,6 +23,7 @@ from glider_observer.filter import butterworth_coefficients
 
 from .metrics import describe_outcome
 from .monolithic import COLUMNS, simulate_continuous, simulate_monolithic
+from .report_sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 from .runner import RunResult, simulate
 from .scenario import LAWS, Scenario, load_scenario
 
@@ -331,7 +332,7 @@ def build_report(
     out.mkdir(parents=True, exist_ok=True)
     fmu_dir = Path(fmu_dir)
     build_all(fmu_dir, only_stale=True)
-    total = sum(len(f.runs) for f in FIGURES) + 2
+    total = sum(len(f.runs) for f in FIGURES) + 3
     bar = Progress(total) if progress else None
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
@@ -348,9 +349,14 @@ def build_report(
     study = _step_study(fmu_dir)
     if bar:
         bar.step("communication step study")
+    held = held_tail_study()
+    sec52 = run_sec52(fmu_dir, held["k_star"])
+    if bar:
+        bar.step("Sec. 5.2: held tail")
     pngs = {fig.key: _plot_figure(fig, results[fig.key], out) for fig in FIGURES}
     pngs["steps"] = _plot_steps(study, out)
-    text = _markdown(results, an, study, pngs)
+    pngs["fig8"] = plot_sec52(sec52, out)
+    text = _markdown(results, an, study, pngs, sec52_markdown(held, sec52, pngs["fig8"]))
     (out / "report.md").write_text(text)
     summary = {
         "metrics": {
@@ -359,12 +365,18 @@ def build_report(
             for run, r in runs
         },
         "step_study": {k: v for k, v in study.items() if k not in ("traces", "literal")},
-    }
+        "held_tail": {"u_linear_rad": held["u_linear"], "u_release_rad": held["u_release"],
+                      "k_star": held["k_star"], "rows": held["rows"]},
+        "sec52": [{"tail_deg": r.tail_deg, "K_udelta": r.k_udelta, "status": r.result.status,
+                   "end_time_s": float(r.result.data[-1, 0]),
+                   "est_minus_meas_rms_rad": r.est_minus_meas_rms,
+                   "est_minus_true_rms_rad": r.est_minus_true_rms} for r in sec52],
+    }  # fmt: skip
     (out / "report.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
     return out / "report.md"
 
 
-def _markdown(results, an, study, pngs) -> str:
+def _markdown(results, an, study, pngs, sec52: list[str]) -> str:
     lines = [
         "# glider-cosim report",
         "",
@@ -394,6 +406,7 @@ def _markdown(results, an, study, pngs) -> str:
         for run, r in stopped:
             lines.append(f"\n{run.label}: {r.message}")
         lines.append("")
+    lines += sec52
     lines += _analysis_section(an)
     lines += [
         "## Accuracy of the co-simulation",

@@ -57,6 +57,13 @@ def test_monotonic_growth_is_diverging():
     assert o.rate_per_s == pytest.approx(0.08, rel=0.01)
 
 
+def test_an_error_that_ran_away_and_stays_far_is_diverging():
+    """A tumbling glider: the angle error grew by turns and decays only locally."""
+    e = np.where(T < 40.0, 0.1 + 0.08 * T, 3.3 - 0.01 * (T - 40.0))
+    o = classify(T, e, 0.004)
+    assert o.status == DIVERGING and o.rate_per_s < 0
+
+
 def test_slow_decay_still_outside_the_band_is_not_settled():
     e = 0.2 * np.exp(-0.03 * T) * np.cos(W * T)
     o = classify(T, e, 0.004)

@@ -9,7 +9,7 @@ from glider_observer.filter import DEFAULT_F_CUTOFF, DEFAULT_F_SAMPLE, Butterwor
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
 from glider_plant.fmi_base import GliderSlave, Var, model_constant_vars
 from glider_plant.model import StallError, equilibrium
-from glider_plant.params import POSITIVE, GliderParams, Range
+from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 
 _EQ = equilibrium(GliderParams())
 
@@ -114,6 +114,14 @@ class GliderObserver(GliderSlave):
             "omega2_hat_0", "parameter", "rad/s", "initial pitch-rate estimate", 0.0, valid=Range()
         ),
         Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.02, valid=POSITIVE),
+        Var(
+            "t_start",
+            "parameter",
+            "s",
+            "time the observer is initialised (before it: initial estimate held, no filtering)",
+            0.0,
+            valid=NON_NEGATIVE,
+        ),
     )
     INTERNAL_STATE = ("_p", "_H", "_filter", "_xh")
 
@@ -136,6 +144,9 @@ class GliderObserver(GliderSlave):
 
     def step(self, t: float, h: float) -> bool:
         self.check_inputs()
+        if t < self.t_start - 1e-9:  # not initialised yet (Sec. 5.2: 2 s after release)
+            self.theta_filt = self.theta_meas
+            return True
         self.theta_filt = self._filter(self.theta_meas) if self.filter_enabled else self.theta_meas
         try:
             self._xh = observer_step(

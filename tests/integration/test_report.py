@@ -45,6 +45,12 @@ def test_report_is_written_with_figures_tables_and_findings(report):
     assert "the Schur complement of Sec. 3.2 is [[-1.26, 10.19]" in text
     assert re.search(r"stable K_c range, full-state, continuous time: \(5\.2\d, unbounded\)", text)
     assert "tau_s = 12.59 s" in text
+    assert (out / "fig8.png").stat().st_size > 10_000
+    sec = _section(text, "Sec. 5.2 / Fig. 8: open loop with the tail held")
+    assert "The steady glide with u held is stable up to u = 2.57 deg" in sec
+    assert re.search(r"^\| 1 \| 2\.57 \| 2\.3\d \|$", sec, re.M)
+    assert "**Disagreement** with Fig. 8 at K_udelta = 1" in sec
+    assert "**Implication for the paper's unstated K_udelta**" in sec
 
 
 def test_every_gain_called_settling_lies_in_the_sampled_stable_range(report):
