@@ -77,6 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default="out/report", help="report folder (default: out/report)")
     rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
+                     help="region-of-attraction grid: N glide angles x M speeds (default "
+                     "7x5; none: skip the map)")  # fmt: skip
+    rep.add_argument("--workers", type=int, default=2, help="local Dask workers for the map")
+    rep.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -152,7 +157,13 @@ def _report(args: argparse.Namespace) -> int:
         from .analysis import analyze
     except ImportError:  # pragma: no cover - analysis is part of the package
         analyze = None
-    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress)
+    from .roa import parse_grid
+
+    grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
+    if args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: expected a number >= 1")
+    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
+                        roa_grid=grid, workers=args.workers, scheduler=args.scheduler)  # fmt: skip
     print(f"wrote {path}")
     return 0
 

@@ -130,7 +130,7 @@ def release_run(
             return "stall", (k + 1) * h, None
         th[k + 1] = x[1]
     t = np.arange(n + 1) * h
-    return "ok", float(t[-1]), classify(t, th - target, math.radians(0.1))
+    return "ok", float(t[-1]), classify(t, th - target, math.radians(0.1), 2.0 * math.pi)
 
 
 def carried(run: tuple[str, float, Outcome | None]) -> bool:

@@ -15,7 +15,9 @@ an event last changed the controller):
   left to tell (at least ``settling_hold_s`` = max(10 s, 3 periods of the slowest
   oscillation seen in the error)); None otherwise.
 - ``outcome``: ``settled``, ``not settled`` (still converging, or an offset),
-  ``limit cycle``, ``diverging`` or ``stopped`` (the run ended early), detected from the
+  ``limit cycle``, ``diverging``, ``tumbling`` (more than a full turn of the glide angle
+  at the end; the error is otherwise taken modulo 360 deg) or ``stopped`` (the run
+  ended early), detected from the
   trajectory by :func:`glider_cosim.outcome.classify`, with ``outcome_period_s``,
   ``outcome_amplitude_rad`` (mean peak error), ``outcome_rate_per_s`` (envelope growth
   rate, > 0 grows) and ``outcome_window_s`` (the examined end of the run, s).
@@ -84,7 +86,8 @@ def glide_metrics(
         out.update(rise_time_s=None, overshoot_rad=None, overshoot_pct=None, settling_time_s=None)
         out["outcome"] = None if completed else STOPPED  # the controller never took over
         return out
-    e = theta_g[i0:] - theta_ge
+    e_turns = theta_g[i0:] - theta_ge  # unwrapped: a tumbling glider adds turns
+    e = np.mod(e_turns + math.pi, 2.0 * math.pi) - math.pi  # the same glide, modulo 360 deg
     tt = t[i0:] - t[i0]
     e0 = float(e[0])
     band = max(BAND_FRACTION * abs(e0), BAND_FLOOR)
@@ -105,7 +108,7 @@ def glide_metrics(
         return out
     if len(e) < 2:
         return out
-    o = classify(tt, e, band)
+    o = classify(tt, e_turns, band, period=2.0 * math.pi)
     out.update(
         settling_time_s=o.settling_time_s,
         outcome=o.status,
@@ -188,6 +191,12 @@ def describe_outcome(m: dict[str, Any], brief: bool = False) -> str:
         if brief:
             return f"limit cycle {math.degrees(amp):.2f} deg, {per:.2f} s"
         return f"limit cycle: amplitude {math.degrees(amp):.2f} deg, period {per:.2f} s"
+    if o == "tumbling":
+        w0, w1 = m["outcome_window_s"]
+        turns = abs(rate) * (w1 - w0)
+        if brief:
+            return f"tumbling {abs(rate):.3g} turns/s"
+        return f"tumbling: {turns:.1f} turns over {w0:.1f}-{w1:.1f} s ({per:.1f} s per turn)"
     if o == "diverging":
         return (
             f"diverging {rate:+.3g} 1/s"

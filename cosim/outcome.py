@@ -1,8 +1,12 @@
-"""What a run's error trajectory does at the end: settled, not settled, limit cycle or
-diverging, detected from the trajectory alone (no model, no linearisation).
+"""What a run's error trajectory does at the end: settled, not settled, limit cycle,
+diverging or (for an angle) tumbling, detected from the trajectory alone (no model, no
+linearisation).
 
 The rules (README, "Metrics"):
 
+- For an angle error (``period`` given, 2 pi for the glide angle): **tumbling** if the
+  angle turns by more than a full turn within the examined window (below); otherwise the
+  error is wrapped to half a turn either side first, and the rules below apply.
 - **Settled** if the error enters the band and stays inside it to the end, with enough
   run left to tell: the time in the band must be at least ``max(MIN_HOLD_S,
   HOLD_PERIODS * P)``, where ``P`` is the longest oscillation period seen in the error
@@ -40,8 +44,9 @@ SETTLED = "settled"
 NOT_SETTLED = "not settled"
 LIMIT_CYCLE = "limit cycle"
 DIVERGING = "diverging"
+TUMBLING = "tumbling"
 STOPPED = "stopped"
-OUTCOMES = (SETTLED, NOT_SETTLED, LIMIT_CYCLE, DIVERGING, STOPPED)
+OUTCOMES = (SETTLED, NOT_SETTLED, LIMIT_CYCLE, DIVERGING, TUMBLING, STOPPED)
 
 
 class TrajectoryError(ValueError):
@@ -67,9 +72,10 @@ class Outcome:
         or diverging).
     amplitude : float or None
         Mean peak ``|e|`` in the examined window if ``e`` oscillates there, else the mean
-        ``|e|``, in the unit of ``e``.
+        ``|e|``, in the unit of ``e`` (None when tumbling).
     rate_per_s : float or None
-        Envelope growth rate ``sigma`` [1/s] (> 0 grows, < 0 decays).
+        Envelope growth rate ``sigma`` [1/s] (> 0 grows, < 0 decays); tumbling: turns
+        per second (signed), and ``period_s`` the time per turn.
     window_s : tuple of float or None
         Start and end of the examined window, s (same time axis as the input).
     in_band_s : float or None
@@ -87,14 +93,18 @@ class Outcome:
     in_band_s: float | None = None
 
 
-def _crossings(t: np.ndarray, e: np.ndarray, hyst: float) -> np.ndarray:
+def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf) -> np.ndarray:
     """Times at which ``e`` changes sign, counted only between excursions beyond
-    ``+-hyst`` (linear interpolation of the last sign change)."""
+    ``+-hyst`` (linear interpolation of the last sign change); a sign change by a step
+    larger than ``jump`` (a wrapped angle passing +-180 deg) is not a crossing."""
     times = []
     state = 0
     last_change = None
     for i in range(len(e)):
         if i > 0 and np.sign(e[i]) != np.sign(e[i - 1]) and e[i - 1] != 0.0:
+            if abs(e[i] - e[i - 1]) > jump:
+                state = 0  # through the wrap, not through zero
+                continue
             last_change = i
         s = 1 if e[i] > hyst else (-1 if e[i] < -hyst else 0)
         if s == 0:
@@ -107,11 +117,14 @@ def _crossings(t: np.ndarray, e: np.ndarray, hyst: float) -> np.ndarray:
     return np.array(times)
 
 
-def oscillation_period(t: np.ndarray, e: np.ndarray, hyst: float) -> float | None:
+def oscillation_period(
+    t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf
+) -> float | None:
     """Longest full period of ``e`` [s] seen between its zero crossings (hysteresis
-    ``hyst``): twice the longest interval between consecutive crossings, ignoring the
-    first one (the transient). None if ``e`` crosses fewer than three times."""
-    c = _crossings(t, e, hyst)
+    ``hyst``; sign changes by steps above ``jump`` ignored): twice the longest interval
+    between consecutive crossings, ignoring the first one (the transient). None if ``e``
+    crosses fewer than three times."""
+    c = _crossings(t, e, hyst, jump)
     if len(c) < 3:
         return None
     return float(2.0 * np.max(np.diff(c)[1:] if len(c) > 3 else np.diff(c)))
@@ -124,7 +137,7 @@ def _fit_rate(times: np.ndarray, values: np.ndarray) -> float:
     return float(np.polyfit(times, np.log(v), 1)[0])
 
 
-def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
+def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = None) -> Outcome:
     """Classify the error trajectory ``e(t)`` against the band ``|e| <= band``.
 
     Parameters
@@ -135,6 +148,11 @@ def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
         Error at those times (any unit; ``band`` and the amplitude share it).
     band : float
         Half-width of the settling band, > 0.
+    period : float, optional
+        ``e`` is an angle defined modulo ``period`` (2 pi for a glide angle), given
+        unwrapped: a trajectory that turns by more than ``period`` within the examined
+        window is **tumbling**; otherwise the error is wrapped into ``(-period/2,
+        period/2]`` first (a glider that loops once and then settles has settled).
 
     Returns
     -------
@@ -159,7 +177,19 @@ def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
         raise TrajectoryError("t must be strictly increasing")
     if not (math.isfinite(band) and band > 0):
         raise TrajectoryError(f"band = {band!r} is invalid: expected a finite value > 0")
-    period = oscillation_period(t, e, band)
+    if period is not None and not (math.isfinite(period) and period > 0):
+        raise TrajectoryError(f"period = {period!r} is invalid: expected a finite value > 0")
+    width = max(MIN_WINDOW_S, (t[-1] - t[0]) / 3.0)
+    i0 = int(np.searchsorted(t, t[-1] - width))
+    jump = math.inf
+    if period is not None:
+        if np.ptp(e[i0:]) > period:
+            rate = float((e[-1] - e[i0]) / (t[-1] - t[i0]) / period)  # turns per second
+            return Outcome(TUMBLING, None, MIN_HOLD_S, 1.0 / abs(rate) if rate else None,
+                           None, rate, (float(t[i0]), float(t[-1])))  # fmt: skip
+        e = np.mod(e + 0.5 * period, period) - 0.5 * period
+        jump = 0.5 * period
+    period = oscillation_period(t, e, band, jump)
     hold = max(MIN_HOLD_S, HOLD_PERIODS * (period or 0.0))
     outside = np.nonzero(np.abs(e) > band)[0]
     t_in = t[0] if len(outside) == 0 else (t[outside[-1] + 1] if outside[-1] < len(e) - 1 else None)
@@ -167,12 +197,10 @@ def classify(t: np.ndarray, e: np.ndarray, band: float) -> Outcome:
     if in_band is not None and in_band >= hold:
         return Outcome(SETTLED, float(t_in - t[0]), hold, period, in_band_s=in_band)
     # the end of the run: its last third, at least MIN_WINDOW_S (or all of it)
-    width = max(MIN_WINDOW_S, (t[-1] - t[0]) / 3.0)
-    i0 = int(np.searchsorted(t, t[-1] - width))
     tw, ew = t[i0:], e[i0:]
     window = (float(tw[0]), float(tw[-1]))
     peak = float(np.max(np.abs(ew)))
-    c = _crossings(tw, ew, 0.1 * peak) if peak > 0 else np.array([])
+    c = _crossings(tw, ew, 0.1 * peak, jump) if peak > 0 else np.array([])
     if len(c) >= 4:
         # half-cycle peaks of |e| between consecutive crossings
         idx = np.searchsorted(tw, c)

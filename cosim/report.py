@@ -324,15 +324,22 @@ def build_report(
     fmu_dir: str | Path = "fmus",
     analysis: Callable[[], dict[str, Any]] | None = None,
     progress: bool = True,
+    roa_grid: tuple[int, int] | None = (7, 5),
+    workers: int = 2,
+    scheduler: str | None = None,
 ) -> Path:
-    """Run everything and write ``report.md`` (returns its path)."""
+    """Run everything and write ``report.md`` (returns its path).
+
+    ``roa_grid``: glide angles x speeds of the region-of-attraction map, run as a Dask
+    sweep on ``workers`` local processes (or the cluster at ``scheduler``); None skips it.
+    """
     from .build import build_all
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     fmu_dir = Path(fmu_dir)
     build_all(fmu_dir, only_stale=True)
-    total = sum(len(f.runs) for f in FIGURES) + 3
+    total = sum(len(f.runs) for f in FIGURES) + 4
     bar = Progress(total) if progress else None
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
@@ -353,10 +360,27 @@ def build_report(
     sec52 = run_sec52(fmu_dir, held["k_star"])
     if bar:
         bar.step("Sec. 5.2: held tail")
+    roa_lines: list[str] = []
+    maps = []
+    if roa_grid is not None:
+        from .roa import plot_roa, roa_markdown, run_roa
+        from .sweep import make_client
+
+        client = make_client(workers, scheduler)
+        try:
+            maps = run_roa(out / "roa", fmu_dir.resolve(), roa_grid, client)
+        finally:
+            client.close()
+            if not scheduler and client.cluster is not None:
+                client.cluster.close()
+        roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
+    if bar:
+        bar.step("region of attraction" if maps else "region of attraction (skipped)")
     pngs = {fig.key: _plot_figure(fig, results[fig.key], out) for fig in FIGURES}
     pngs["steps"] = _plot_steps(study, out)
     pngs["fig8"] = plot_sec52(sec52, out)
-    text = _markdown(results, an, study, pngs, sec52_markdown(held, sec52, pngs["fig8"]))
+    text = _markdown(results, an, study, pngs,
+                     sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines)  # fmt: skip
     (out / "report.md").write_text(text)
     summary = {
         "metrics": {
@@ -371,6 +395,10 @@ def build_report(
                    "end_time_s": float(r.result.data[-1, 0]),
                    "est_minus_meas_rms_rad": r.est_minus_meas_rms,
                    "est_minus_true_rms_rad": r.est_minus_true_rms} for r in sec52],
+        "region_of_attraction": {
+            mp.case.key: {"theta_g0_rad": mp.theta_g0.tolist(), "V0_m_s": mp.V0.tolist(),
+                          "outcome": mp.outcome.tolist(), "stop_time_s": mp.stop_time}
+            for mp in maps},
     }  # fmt: skip
     (out / "report.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
     return out / "report.md"

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.integration
 def report(fmu_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
     an = analyze()
-    path = build_report(out, fmu_dir, analysis=lambda: an, progress=False)
+    path = build_report(out, fmu_dir, analysis=lambda: an, progress=False, roa_grid=(3, 3))
     return path.read_text(), an, out
 
 
@@ -51,6 +51,19 @@ def test_report_is_written_with_figures_tables_and_findings(report):
     assert re.search(r"^\| 1 \| 2\.57 \| 2\.3\d \|$", sec, re.M)
     assert "**Disagreement** with Fig. 8 at K_udelta = 1" in sec
     assert "**Implication for the paper's unstated K_udelta**" in sec
+
+
+def test_region_of_attraction_map_is_drawn_from_a_dask_sweep(report):
+    text, _, out = report
+    assert (out / "roa.png").stat().st_size > 10_000
+    sec = _section(text, "Region of attraction")
+    assert "from a 3 x 3 grid" in sec
+    rows = {m.group(1): [int(v) for v in m.group(2, 3)] for m in re.finditer(
+        r"^\| (passivity K_c = \d+|open loop)[^|]* \| (\d+) \| (\d+) \|", sec, re.M)}  # fmt: skip
+    assert rows["passivity K_c = 2"] == [9, 0]  # linearly unstable: nothing settles
+    assert rows["passivity K_c = 10"][1] >= 1
+    for key in ("kc10", "kc2", "open"):
+        assert (out / "roa" / key / "sweep.csv").exists()
 
 
 def test_every_gain_called_settling_lies_in_the_sampled_stable_range(report):
