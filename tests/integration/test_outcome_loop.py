@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import pytest
 
@@ -39,3 +41,14 @@ def test_k_c_10_settles(fmu_dir):
     assert m["outcome"] == "settled"
     assert m["settling_time_s"] == pytest.approx(10.48, abs=0.1)
     assert 60.0 - m["settling_time_s"] >= m["settling_hold_s"]
+
+
+def test_cli_prints_the_outcome(fmu_dir, tmp_path):
+    code = "from glider_cosim.cli import console_main; console_main()"
+    args = ["run", "fig3-4-kc", "--set", "controller.K_c=6", "--no-plots", "--out",
+            str(tmp_path), "--fmu-dir", str(fmu_dir)]  # fmt: skip
+    p = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert "settling n/a" in p.stdout
+    assert "outcome: limit cycle: amplitude 1.9" in p.stdout

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 import re
 
 import pytest
@@ -92,8 +94,14 @@ def test_every_gain_called_settling_lies_in_the_sampled_stable_range(report):
 
 
 def test_scenario_notes_agree_with_the_analysis(report):
-    _, an, _ = report
+    _, an, out = report
     notes = load_scenario("default").notes
     rng = an["stable_K_c"]
     for key in ("sampled_with_observer", "sampled", "continuous"):
         assert f"{rng[key][0]:.2f}" in notes, key
+    held = json.loads((out / "report.json").read_text())["held_tail"]
+    notes = load_scenario("sec53-protocol").notes
+    for key in ("u_linear_rad", "u_release_rad"):
+        assert f"{math.degrees(held[key]):.2f} deg" in notes, key
+    for tail in (15, 30, 45):
+        assert f"K_udelta={held['k_star']:g}" in load_scenario(f"sec52-tail{tail}").notes
