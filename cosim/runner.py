@@ -14,7 +14,7 @@ import numpy as np
 from .build import build_all
 from .master import CoSimulation, FMUCallError, FMUStopped, System, SystemSpecError
 from .metrics import compute_metrics
-from .scenario import Scenario, load_scenario, with_sampling
+from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 DEFAULT_FMU_DIR = Path("fmus")
@@ -57,7 +57,7 @@ def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> 
             scenario.parameters,
             step if step is not None else scenario.step,
             scenario.source,
-            scenario.observer,
+            has_our_observer(scenario),
         ),
         driven=driven,
         disturbances=list(scenario.disturbances),

@@ -335,7 +335,8 @@ def with_sampling(
     source : str
         Named in the warning (the scenario file).
     observer : bool
-        Whether the system has an observer instance (nothing to do otherwise).
+        Whether the system has our observer FMU (:func:`has_our_observer`; nothing to do
+        otherwise: a swapped-in observer may have no ``f_sample``).
 
     Returns
     -------
@@ -373,3 +374,8 @@ def with_sampling(
             stacklevel=2,
         )
     return out
+
+
+def has_our_observer(sc: Scenario) -> bool:
+    """The scenario runs our GliderObserver FMU (not none, not a swapped-in one)."""
+    return sc.observer and "observer" not in sc.fmus

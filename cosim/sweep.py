@@ -43,7 +43,14 @@ import numpy as np
 from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
 from .metrics import compute_metrics
 from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
-from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario, with_sampling
+from .scenario import (
+    INSTANCES,
+    Scenario,
+    ScenarioError,
+    has_our_observer,
+    load_scenario,
+    with_sampling,
+)
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
@@ -232,7 +239,7 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
         params.setdefault(inst, {})[name] = int(value) if name in ("law", "noise_seed") else value
     if run["seed"] is not None:
         params.setdefault("plant", {})["noise_seed"] = int(run["seed"])
-    return with_sampling(params, scenario.step, scenario.source, scenario.observer)
+    return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
 
 
 def run_one(

@@ -144,3 +144,14 @@ def test_a_step_too_long_for_the_pre_filter_is_refused():
     assert with_sampling({"observer": {"f_cutoff": 2.0}}, 0.1)["observer"]["f_sample"] == 10.0
     off = with_sampling({"observer": {"filter_enabled": False}}, 0.1)
     assert off["observer"]["f_sample"] == pytest.approx(10.0)
+
+
+def test_a_swapped_in_observer_gets_no_f_sample(tmp_path):
+    from glider_cosim.scenario import has_our_observer, parse_scenario
+
+    assert has_our_observer(load_scenario(None))
+    assert not has_our_observer(load_scenario("fig2-open-loop"))  # no observer
+    fmu = tmp_path / "Other.fmu"
+    fmu.write_bytes(b"")
+    sc = parse_scenario({"fmus": {"observer": str(fmu)}})
+    assert not has_our_observer(sc)
