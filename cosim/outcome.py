@@ -163,7 +163,7 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
     ------
     TrajectoryError
         If the arrays differ in length, have fewer than 2 samples, ``t`` is not strictly
-        increasing, a value is not finite, or ``band`` is not > 0.
+        increasing, a value is not finite, or ``band`` or ``period`` is not > 0.
     """
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
@@ -189,13 +189,13 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
                            None, rate, (float(t[i0]), float(t[-1])))  # fmt: skip
         e = np.mod(e + 0.5 * period, period) - 0.5 * period
         jump = 0.5 * period
-    period = oscillation_period(t, e, band, jump)
-    hold = max(MIN_HOLD_S, HOLD_PERIODS * (period or 0.0))
+    p_osc = oscillation_period(t, e, band, jump)
+    hold = max(MIN_HOLD_S, HOLD_PERIODS * (p_osc or 0.0))
     outside = np.nonzero(np.abs(e) > band)[0]
     t_in = t[0] if len(outside) == 0 else (t[outside[-1] + 1] if outside[-1] < len(e) - 1 else None)
     in_band = None if t_in is None else float(t[-1] - t_in)
     if in_band is not None and in_band >= hold:
-        return Outcome(SETTLED, float(t_in - t[0]), hold, period, in_band_s=in_band)
+        return Outcome(SETTLED, float(t_in - t[0]), hold, p_osc, in_band_s=in_band)
     # the end of the run: its last third, at least MIN_WINDOW_S (or all of it)
     tw, ew = t[i0:], e[i0:]
     window = (float(tw[0]), float(tw[-1]))
@@ -224,4 +224,4 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
     # whose angle error keeps growing turn after turn, whatever its local trend)
     away = float(np.min(np.abs(ew))) > (1.0 + SUSTAINED_PER_PERIOD) * abs(float(e[0]))
     status = DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED
-    return Outcome(status, None, hold, period, float(np.mean(np.abs(ew))), sigma, window, in_band)
+    return Outcome(status, None, hold, p_osc, float(np.mean(np.abs(ew))), sigma, window, in_band)

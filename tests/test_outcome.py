@@ -15,6 +15,7 @@ from glider_cosim.outcome import (
     MIN_HOLD_S,
     NOT_SETTLED,
     SETTLED,
+    TUMBLING,
     TrajectoryError,
     classify,
 )
@@ -101,6 +102,20 @@ def test_long_period_needs_three_periods_in_the_band():
     t2 = np.arange(0.0, 150.0 + 1e-9, 0.02)
     o2 = classify(t2, 0.22 * np.exp(-0.0916 * t2) * np.cos(w * t2), band)
     assert o2.status == SETTLED
+
+
+def test_an_angle_that_keeps_turning_is_tumbling():
+    o = classify(T, 0.5 * T, 0.004, period=2 * math.pi)
+    assert o.status == TUMBLING
+    assert o.rate_per_s == pytest.approx(0.5 / (2 * math.pi))
+    assert o.period_s == pytest.approx(4 * math.pi)
+
+
+def test_an_angle_that_loops_once_and_then_settles_has_settled():
+    e = 2 * math.pi * (1 - np.exp(-0.5 * T)) + 0.2 * np.exp(-0.5 * T)
+    assert classify(T, e, 0.004).status != SETTLED  # 360 deg away, unwrapped
+    o = classify(T, e, 0.004, period=2 * math.pi)
+    assert o.status == SETTLED
 
 
 @pytest.mark.parametrize(
