@@ -275,7 +275,8 @@ def format_report(a: dict[str, Any]) -> str:
     out = [
         f"equilibrium: V = {eq['V']:.5f} m/s, theta_g = {eq['theta_g'] * deg:.3f} deg, "
         f"alpha = {eq['alpha'] * deg:.3f} deg, omega2 = 0",
-        "time scales: " + ", ".join(f"{k} = {v:.4g}" for k, v in ts.items()),
+        f"time scales: tau_s = {ts['tau_s']:.4g} s, eps1 = {ts['eps1']:.4g}, "
+        f"eps2 = {ts['eps2']:.4g}, mu = {ts['mu']:.4g} (dimensionless)",
         "open-loop eigenvalues [1/s]: "
         + ", ".join(f"{re:.4f}{im:+.4f}j" for re, im in a["open_loop_eigenvalues"]),
         "",

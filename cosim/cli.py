@@ -15,6 +15,7 @@ import re
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -150,6 +151,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default="out/report", help="report folder")
     rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
+                     help="region-of-attraction grid: N glide angles x M speeds (default "
+                     "7x5; none: skip the map)")  # fmt: skip
+    rep.add_argument("--workers", type=int, default=2, help="local Dask workers for the map")
+    rep.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -208,6 +214,7 @@ def _run(args: argparse.Namespace) -> int:
     from .inputs.archives import set_extract_limit
     from .inputs.check import check_ranges, our_kinds
     from .master import count_steps
+    from .metrics import describe_outcome
     from .report import apply_overrides
     from .runner import origin_of, simulate
     from .scenario import load_scenario, parse_sets
@@ -276,6 +283,7 @@ def _run(args: argparse.Namespace) -> int:
         f"{fmt('control_effort', unit=' rad s')}, max |delta_cmd| "
         f"{fmt('max_abs_delta_cmd_rad', deg, ' deg')}"
     )
+    print(f"  outcome: {describe_outcome(m)}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
         print(f"glider-cosim: run {result.status}: {one_line(result.message)}", file=sys.stderr)
@@ -290,7 +298,13 @@ def _report(args: argparse.Namespace) -> int:
         from .analysis import analyze
     except ImportError:  # pragma: no cover - analysis is part of the package
         analyze = None
-    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress)
+    from .roa import parse_grid
+
+    grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
+    if args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: expected a number >= 1")
+    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
+                        roa_grid=grid, workers=args.workers, scheduler=args.scheduler)  # fmt: skip
     print(f"wrote {path}")
     return 0
 
@@ -325,10 +339,21 @@ def _notes_to_stderr() -> None:
         logger.addHandler(handler)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"glider-cosim: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``glider-cosim`` console script (returns the exit code)."""
+    """Entry point of the ``glider-cosim`` console script (returns the exit code; notes and
+    warnings one line each)."""
     args = build_parser().parse_args(argv)
     _notes_to_stderr()
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        return _main(args)
+
+
+def _main(args: argparse.Namespace) -> int:
     old_term = None
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C

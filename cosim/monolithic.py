@@ -17,7 +17,7 @@ from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
 from glider_plant.params import GliderParams
 
 from .runner import FMU_NAMES
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario, ScenarioError, with_sampling
 
 
 def fmu_parameter_defaults(fmu: Path) -> dict[str, Any]:
@@ -67,8 +67,9 @@ def simulate_monolithic(
     h = step if step is not None else scenario.step
     stop = stop_time if stop_time is not None else scenario.stop_time
     fmu_dir = Path(fmu_dir)
+    params = with_sampling(scenario.parameters, h, scenario.source)  # f_sample follows h
     pp, op, cp = (
-        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
+        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
         for inst, name in FMU_NAMES.items()
     )
     p, po, pc = (GliderParams.from_mapping(d) for d in (pp, op, cp))
@@ -108,8 +109,11 @@ def simulate_monolithic(
         dist = [0.0, 0.0, 0.0]
         for d in scenario.disturbances:
             dist[("plant.F_x", "plant.F_z", "plant.M_y").index(d.target)] += d.at(t)
-        theta_f = filt(theta_meas) if op["filter_enabled"] else theta_meas
-        xh = observer_step(xh, theta_f, po.K_udelta * cmd, h, po, H, op["h_max"])
+        if t < op["t_start"] - 1e-9:  # the observer is not initialised yet
+            theta_f = theta_meas
+        else:
+            theta_f = filt(theta_meas) if op["filter_enabled"] else theta_meas
+            xh = observer_step(xh, theta_f, po.K_udelta * cmd, h, po, H, op["h_max"])
         if cp["law"] == Law.PI and enabled:
             pi.update(fb_th - eq_c.theta_g, h)
         x, delta = plant_step(

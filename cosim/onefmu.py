@@ -96,7 +96,7 @@ def export_one_fmu(
 
     from .build import build_all
     from .runner import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
-    from .scenario import Scenario, load_scenario
+    from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     for key, present in (("event", sc.events), ("disturbance", sc.disturbances), ("fmus", sc.fmus)):
@@ -134,7 +134,7 @@ def export_one_fmu(
                 for v in md.modelVariables:
                     if v.causality == "output":
                         container.add_output(fname, v.name, f"{inst}.{v.name}")
-            values = {i: dict(p) for i, p in sc.parameters.items()}
+            values = with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc))
             for ref, value in sc.inputs.items():
                 inst, _, name = ref.partition(".")
                 values.setdefault(inst, {})[name] = value

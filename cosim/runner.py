@@ -27,7 +27,7 @@ from .master import (
     count_steps,
 )
 from .metrics import compute_metrics
-from .scenario import Scenario, load_scenario
+from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
 log = logging.getLogger(__name__)
 
@@ -54,8 +54,10 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
     return conns
 
 
-def system_for(scenario: Scenario, fmu_dir: Path) -> System:
-    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped)."""
+def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
+    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
+    run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
+    unless the scenario sets it (:func:`~glider_cosim.scenario.with_sampling`)."""
     fmus = {
         inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
         for inst, name in FMU_NAMES.items()
@@ -66,7 +68,12 @@ def system_for(scenario: Scenario, fmu_dir: Path) -> System:
     return System(
         fmus=fmus,
         connections=default_connections(scenario.feedback, scenario.observer),
-        parameters={k: dict(v) for k, v in scenario.parameters.items()},
+        parameters=with_sampling(
+            scenario.parameters,
+            step if step is not None else scenario.step,
+            scenario.source,
+            has_our_observer(scenario),
+        ),
         driven=driven,
         disturbances=list(scenario.disturbances),
         events=[type(e)(**{**e.__dict__}) for e in scenario.events],
@@ -283,10 +290,12 @@ def simulate(
     fmu_dir = Path(fmu_dir)
     if ssp_system is not None:
         system = ssp_system
+        if "observer" in system.parameters:  # the SSP sets every value: only check it
+            with_sampling(system.parameters, h, scenario.source)
     else:
         if build:
             build_all(fmu_dir, only_stale=True)
-        system = system_for(scenario, fmu_dir)
+        system = system_for(scenario, fmu_dir, h)
     sim = CoSimulation(system, step=h, coupling=coupling or scenario.coupling, max_steps=max_steps)
     origin = origin_of(scenario, ssp_system is not None)
 
@@ -340,7 +349,7 @@ def simulate(
         columns = sim.columns
     else:
         columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
-    metrics = compute_metrics(columns, data, scenario, sim)
+    metrics = compute_metrics(columns, data, scenario, sim, status)
     metrics.update(status=status, message=message)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
     if out is not None:

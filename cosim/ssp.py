@@ -120,7 +120,7 @@ def export_ssp(
 
     from .build import build_all
     from .runner import FMU_NAMES, default_connections
-    from .scenario import Scenario, load_scenario
+    from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if sc.events or sc.disturbances:
@@ -160,7 +160,9 @@ def export_ssp(
                     connectors, _q("ssd", "Connector"), {"name": v.name, "kind": v.causality}
                 )
                 ET.SubElement(c, _q("ssc", v.type))
-        values = dict(sc.parameters.get(inst, {}))
+        values = dict(
+            with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc)).get(inst, {})
+        )
         for ref, value in sc.inputs.items():  # constant inputs: their start values
             if ref.startswith(f"{inst}."):
                 values[ref.split(".", 1)[1]] = value

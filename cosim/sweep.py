@@ -40,11 +40,19 @@ import numpy as np
 from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
 from .metrics import compute_metrics
 from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
-from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario
+from .scenario import (
+    INSTANCES,
+    Scenario,
+    ScenarioError,
+    has_our_observer,
+    load_scenario,
+    with_sampling,
+)
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
     "max_abs_delta_cmd_rad", "final_error_rad", "estimation_rms_rad", "end_time_s",
+    "outcome", "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s", "in_band_s",
 )  # fmt: skip
 METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -200,7 +208,7 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
         params.setdefault(inst, {})[name] = int(value) if name in ("law", "noise_seed") else value
     if run["seed"] is not None:
         params.setdefault("plant", {})["noise_seed"] = int(run["seed"])
-    return params
+    return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
 
 
 def run_one(
@@ -256,7 +264,7 @@ def run_one(
         cols, data = rec.columns, rec.array() if rec.rows else None
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
-        m = compute_metrics(cols, data, scenario, sim)
+        m = compute_metrics(cols, data, scenario, sim, status)
         if "observer.theta_g_hat" in cols:
             err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
             m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))

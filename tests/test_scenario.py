@@ -109,3 +109,49 @@ def test_with_observer_false_needs_state_feedback(tmp_path):
         load_scenario(write(tmp_path, "with_observer = false\n"))
     with pytest.raises(ScenarioError, match=r"key 'with_observer': expected true or false"):
         load_scenario(write(tmp_path, 'with_observer = "no"\n'))
+
+
+def test_f_sample_follows_the_step_unless_set():
+    from glider_cosim.scenario import with_sampling
+
+    params = {"controller": {"K_c": 10.0}}
+    out = with_sampling(params, 0.005)
+    assert out["observer"]["f_sample"] == pytest.approx(200.0)
+    assert "observer" not in params  # not modified
+    assert "observer" not in with_sampling(params, 0.005, observer=False)
+
+
+def test_explicit_f_sample_mismatch_is_warned_in_one_line():
+    import warnings
+
+    from glider_cosim.scenario import SamplingMismatchWarning, with_sampling
+
+    with pytest.warns(SamplingMismatchWarning, match=r"s\.toml: observer\.f_sample = 50 Hz") as w:
+        out = with_sampling({"observer": {"f_sample": 50.0}}, 0.01, "s.toml")
+    assert out["observer"]["f_sample"] == 50.0
+    assert "\n" not in str(w[0].message)
+    assert "1/step = 100 Hz" in str(w[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with_sampling({"observer": {"f_sample": 100.0}}, 0.01)  # consistent: silent
+
+
+def test_a_step_too_long_for_the_pre_filter_is_refused():
+    from glider_cosim.scenario import with_sampling
+
+    with pytest.raises(ScenarioError, match=r"step 0\.1 s samples .* at 10 Hz.*below 5 Hz"):
+        with_sampling({}, 0.1, "s.toml")
+    assert with_sampling({"observer": {"f_cutoff": 2.0}}, 0.1)["observer"]["f_sample"] == 10.0
+    off = with_sampling({"observer": {"filter_enabled": False}}, 0.1)
+    assert off["observer"]["f_sample"] == pytest.approx(10.0)
+
+
+def test_a_swapped_in_observer_gets_no_f_sample(tmp_path):
+    from glider_cosim.scenario import has_our_observer, parse_scenario
+
+    assert has_our_observer(load_scenario(None))
+    assert not has_our_observer(load_scenario("fig2-open-loop"))  # no observer
+    fmu = tmp_path / "Other.fmu"
+    fmu.write_bytes(b"")
+    sc = parse_scenario({"fmus": {"observer": str(fmu)}})
+    assert not has_our_observer(sc)

@@ -6,6 +6,10 @@ import math
 
 from glider_plant.params import ParameterError
 
+#: the paper's pre-filter (Sec. 5.1): 10 Hz cut-off, sampled at 50 Hz
+DEFAULT_F_CUTOFF = 10.0
+DEFAULT_F_SAMPLE = 50.0
+
 
 def butterworth_coefficients(f_sample: float, f_cutoff: float) -> tuple[float, ...]:
     """Coefficients ``(a0, a1, a2, b1, b2)`` of Eq. (58) from the Sec. 5.1 formula.

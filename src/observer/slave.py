@@ -6,11 +6,11 @@ Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_obser
 from __future__ import annotations
 
 from glider_fmi.slave_base import GliderSlave, Var
-from glider_observer.filter import ButterworthFilter
+from glider_observer.filter import DEFAULT_F_CUTOFF, DEFAULT_F_SAMPLE, ButterworthFilter
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
 from glider_plant.fmi_vars import model_constant_vars
 from glider_plant.model import StallError, equilibrium
-from glider_plant.params import POSITIVE, GliderParams, Range
+from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 
 _EQ = equilibrium(GliderParams())
 
@@ -74,11 +74,18 @@ class GliderObserver(GliderSlave):
             "f_sample",
             "parameter",
             "Hz",
-            "pre-filter sampling frequency (= 1/step)",
-            50.0,
+            "pre-filter sampling frequency (= 1/step; glider-cosim sets it from the step)",
+            DEFAULT_F_SAMPLE,
             valid=POSITIVE,
         ),
-        Var("f_cutoff", "parameter", "Hz", "pre-filter cut-off frequency", 10.0, valid=POSITIVE),
+        Var(
+            "f_cutoff",
+            "parameter",
+            "Hz",
+            "pre-filter cut-off frequency",
+            DEFAULT_F_CUTOFF,
+            valid=POSITIVE,
+        ),
         Var(
             "start_at_equilibrium",
             "parameter",
@@ -108,6 +115,14 @@ class GliderObserver(GliderSlave):
             "omega2_hat_0", "parameter", "rad/s", "initial pitch-rate estimate", 0.0, valid=Range()
         ),
         Var("h_max", "parameter", "s", "largest internal RK4 sub-step", 0.02, valid=POSITIVE),
+        Var(
+            "t_start",
+            "parameter",
+            "s",
+            "time the observer is initialised (before it: initial estimate held, no filtering)",
+            0.0,
+            valid=NON_NEGATIVE,
+        ),
     )
     INTERNAL_STATE = ("_p", "_H", "_filter", "_xh")
 
@@ -130,6 +145,9 @@ class GliderObserver(GliderSlave):
 
     def step(self, t: float, h: float) -> bool:
         self.check_inputs()
+        if t < self.t_start - 1e-9:  # not initialised yet (Sec. 5.2: 2 s after release)
+            self.theta_filt = self.theta_meas
+            return True
         self.theta_filt = self._filter(self.theta_meas) if self.filter_enabled else self.theta_meas
         try:
             self._xh = observer_step(
