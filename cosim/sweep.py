@@ -44,6 +44,7 @@ from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
 from .metrics import compute_metrics
 from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
 from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario
+from .sweep_store import SweepStore
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
@@ -305,16 +306,13 @@ def run_many(
 
 
 # ----------------------------------------------------------------- client side
-def _read_done(path: Path) -> set[str]:
-    if not path.exists():
-        return set()
-    with open(path, newline="") as f:
-        return {r["run_id"] for r in csv.DictReader(f) if r.get("run_id")}
-
-
 @dataclass
 class SweepResult:
-    """Summary of a sweep: counts and the results file."""
+    """Summary of a sweep: counts and the results file.
+
+    ``failed`` counts the runs that failed in this call, ``failed_total`` every run of
+    the sweep recorded as failed in the file (earlier calls included: the exit code).
+    """
 
     total: int
     done: int
@@ -322,6 +320,7 @@ class SweepResult:
     failed: int
     seconds: float
     path: Path
+    failed_total: int = 0
 
     @property
     def runs_per_s(self) -> float:
@@ -342,28 +341,24 @@ def run_sweep(
     chunk: int = 4,
 ) -> SweepResult:
     """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
-    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped)."""
+    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
+    runs with the same id are run once; see :mod:`glider_cosim.sweep_store`)."""
     from distributed import as_completed
 
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "sweep.csv"
-    if restart and path.exists():
-        path.unlink()
-    done_ids = _read_done(path)
-    todo = [r for r in runs if r["run_id"] not in done_ids]
+    unique = list({r["run_id"]: r for r in runs}.values())
+    ids = [r["run_id"] for r in unique]
+    param_cols = sorted({k for r in unique for k in r["params"]})
+    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
     traj = None
     if trajectories:
         traj = out / "trajectories"
         traj.mkdir(exist_ok=True)
-    param_cols = sorted({k for r in runs for k in r["params"]})
-    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
-    new_file = not path.exists()
     t0 = time.perf_counter()
     failed = done = 0
-    with open(path, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
-        if new_file:
-            writer.writeheader()
+    with SweepStore(out / "sweep.csv", cols, restart=restart) as store:
+        done_ids = store.done()
+        todo = [r for r in unique if r["run_id"] not in done_ids]
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
         chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
@@ -380,14 +375,15 @@ def run_sweep(
                            "status": "error", "message": f"task failed: {err!r}"}
                           for r in futures[fut]]  # fmt: skip
             for row in result:
-                writer.writerow(row)
-                done += 1
-                failed += row.get("status") != "ok"
-            f.flush()
+                if store.add(row):
+                    done += 1
+                    failed += row.get("status") != "ok"
+            store.flush()
             if progress:
                 progress(done, len(todo), failed, time.perf_counter() - t0)
-    return SweepResult(len(runs), done, len(runs) - len(todo), failed,
-                       time.perf_counter() - t0, path)  # fmt: skip
+        failed_total = store.failed(ids)
+    return SweepResult(len(unique), done, len(unique) - len(todo), failed,
+                       time.perf_counter() - t0, store.path, failed_total)  # fmt: skip
 
 
 def write_plots(path: Path, out: Path) -> list[Path]:
@@ -488,7 +484,8 @@ def add_parser(sub: Any) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run the ``sweep`` sub-command; 0 all ok, 1 some runs failed."""
+    """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
+    call or an earlier one recorded in ``sweep.csv``)."""
     from .build import build_all
 
     if not args.param and args.seeds is None:
@@ -534,8 +531,9 @@ def main(args: argparse.Namespace) -> int:
     if not args.no_plots:
         write_plots(res.path, out)
     print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
-          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; results in {res.path}")  # fmt: skip
-    return 1 if res.failed else 0
+          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; {res.failed_total} of "
+          f"{res.total} failed overall; results in {res.path}")  # fmt: skip
+    return 1 if res.failed_total else 0
 
 
 __all__ = ["ScenarioError", "SweepSpecError", "expand", "main", "parse_param", "run_sweep"]

@@ -35,7 +35,7 @@ def test_sweep_records_failures_and_resumes(client, fmu_dir, tmp_path):
     runs = expand(specs, sc, fmu_dir, samples=2, rng_seed=3, stop_time=5.0)
     assert len(runs) == 6
     res = run_sweep(sc, runs, tmp_path, client, fmu_dir, stop_time=5.0)
-    assert (res.total, res.done, res.skipped, res.failed) == (6, 6, 0, 2)
+    assert (res.total, res.done, res.skipped, res.failed, res.failed_total) == (6, 6, 0, 2, 2)
     table = rows(tmp_path / "sweep.csv")
     assert sorted(r["run_id"] for r in table) == sorted(r["run_id"] for r in runs)
     bad = [r for r in table if r["controller.K_c"] == "-1.0"]
@@ -45,7 +45,7 @@ def test_sweep_records_failures_and_resumes(client, fmu_dir, tmp_path):
     assert len(good) == 4 and all(float(r["control_effort"]) > 0 for r in good)
     # the same sweep again: nothing to redo
     again = run_sweep(sc, runs, tmp_path, client, fmu_dir, stop_time=5.0)
-    assert (again.done, again.skipped) == (0, 6)
+    assert (again.done, again.skipped, again.failed, again.failed_total) == (0, 6, 0, 2)
     assert len(rows(tmp_path / "sweep.csv")) == 6
     assert [p.name for p in write_plots(tmp_path / "sweep.csv", tmp_path)] == [
         "settling_vs_effort.png",
