@@ -147,10 +147,48 @@ def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop:
     return hashlib.sha1(key.encode()).hexdigest()[:16]
 
 
+def check_targets(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> None:
+    """Check that every swept ``instance.name`` is a parameter or input of its FMU.
+
+    The model descriptions of the scenario's FMUs (``fmu_dir`` unless swapped) are the
+    source, as for ``run --set``; raises :class:`SweepSpecError` naming the first
+    target that is not there, before any work is sent.
+    """
+    from fmpy import read_model_description
+
+    fmus = system_for(scenario, fmu_dir).fmus
+    variables: dict[str, dict[str, str]] = {}
+    models: dict[str, str] = {}
+    for t in targets:
+        inst, _, name = t.partition(".")
+        if inst not in fmus:
+            raise SweepSpecError(
+                f"--param {t}: the scenario {scenario.name} has no instance '{inst}' "
+                f"(instances: {', '.join(fmus)})"
+            )
+        if inst not in variables:
+            try:
+                md = read_model_description(str(fmus[inst]))
+            except Exception as err:  # noqa: BLE001 - fmpy raises plain Exception
+                raise SweepSpecError(f"instance {inst}: {fmus[inst]} is not a readable FMU "
+                                     f"({err})") from None  # fmt: skip
+            variables[inst] = {v.name: v.causality for v in md.modelVariables}
+            models[inst] = md.modelName
+        causality = variables[inst].get(name)
+        if causality is None:
+            raise SweepSpecError(
+                f"--param {t}: instance {inst} ({models[inst]}) has no variable '{name}'"
+            )
+        if causality not in ("parameter", "input"):
+            raise SweepSpecError(f"--param {t}: {t} has causality {causality}: expected one of "
+                                 "parameter, input")  # fmt: skip
+
+
 def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
     """Nominal value of each target: the scenario's, else the FMU's default."""
     from .monolithic import fmu_parameter_defaults
 
+    fmus = system_for(scenario, fmu_dir).fmus
     defaults = {}
     out = {}
     for t in targets:
@@ -159,7 +197,7 @@ def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) ->
             out[t] = float(scenario.parameters[inst][name])
             continue
         if inst not in defaults:
-            defaults[inst] = fmu_parameter_defaults(fmu_dir / f"{FMU_NAMES[inst]}.fmu")
+            defaults[inst] = fmu_parameter_defaults(fmus[inst])
         if name not in defaults[inst]:
             raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
         out[t] = float(defaults[inst][name])
@@ -504,6 +542,7 @@ def main(args: argparse.Namespace) -> int:
     build_all(fmu_dir, only_stale=True)
     specs = [parse_param(p) for p in args.param]
     seeds = list(range(args.seeds)) if args.seeds is not None else None
+    check_targets(scenario, fmu_dir, [s.target for s in specs] + ["plant.noise_seed"] * bool(seeds))
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
 
@@ -536,4 +575,12 @@ def main(args: argparse.Namespace) -> int:
     return 1 if res.failed_total else 0
 
 
-__all__ = ["ScenarioError", "SweepSpecError", "expand", "main", "parse_param", "run_sweep"]
+__all__ = [
+    "ScenarioError",
+    "SweepSpecError",
+    "check_targets",
+    "expand",
+    "main",
+    "parse_param",
+    "run_sweep",
+]

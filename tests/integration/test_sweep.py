@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import csv
 import os
+import re
 import signal
 import threading
 import time
 
 import pytest
 
+from glider_cosim.cli import main as cli_main
 from glider_cosim.scenario import load_scenario
 from glider_cosim.sweep import expand, make_client, parse_param, run_sweep, write_plots
 
@@ -90,3 +92,21 @@ def test_a_killed_worker_has_its_runs_retried(client, fmu_dir, tmp_path):
     assert all(r["status"] == "ok" for r in table)
     assert result["r"].failed == 0
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it
+
+
+@pytest.mark.parametrize(
+    ("param", "message"),
+    [
+        ("controller.K_x=1,2", r"--param controller.K_x: instance controller \(GliderController\) "
+         r"has no variable 'K_x'"),
+        ("plant.theta_g=1,2", r"--param plant.theta_g: plant.theta_g has causality output: "
+         r"expected one of parameter, input"),
+    ],
+)  # fmt: skip
+def test_unknown_targets_are_refused_before_any_work(fmu_dir, tmp_path, capsys, param, message):
+    out = tmp_path / "out"
+    code = cli_main(["sweep", "--param", param, "--fmu-dir", str(fmu_dir), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and re.search(message, err), err
+    assert not out.exists()  # nothing was sent, nothing written
