@@ -24,8 +24,10 @@ from __future__ import annotations
 import argparse
 import atexit
 import contextlib
+import copy
 import csv
 import hashlib
+import io
 import itertools
 import json
 import math
@@ -33,7 +35,7 @@ import os
 import re
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,8 +44,18 @@ import numpy as np
 
 from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
 from .metrics import compute_metrics
-from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
+from .runner import FMU_NAMES, ArrayRecorder, system_for
 from .scenario import INSTANCES, Scenario, ScenarioError, load_scenario
+from .sweep_cluster import (
+    DIST,
+    FmuBlob,
+    SweepClusterError,
+    check_workers,
+    local_fmu,
+    make_client,
+    package_version,
+    scatter_fmus,
+)
 from .sweep_store import SweepStore
 
 METRIC_KEYS = (
@@ -273,26 +285,55 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
     return params
 
 
+def _csv_text(columns: Sequence[str], data: np.ndarray) -> bytes:
+    """A trajectory as the CSV bytes ``run`` writes (17 significant digits)."""
+    buf = io.StringIO()
+    buf.write(",".join(columns) + "\n")
+    if len(data):
+        np.savetxt(buf, data, fmt="%.17g", delimiter=",")
+    return buf.getvalue().encode()
+
+
 def run_one(
-    scenario: Scenario, run: dict[str, Any], fmu_dir: str, stop_time: float | None = None,
-    trajectories: str | None = None,
+    scenario: Scenario, run: dict[str, Any], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False,
 ) -> dict[str, Any]:  # fmt: skip
     """Run one sweep point in this process, reusing a cached co-simulation.
 
-    Returns the result row (parameters, seed, status, message, metrics).
+    Parameters
+    ----------
+    scenario : Scenario
+    run : dict
+        ``{"run_id", "params", "seed"}`` (see :func:`expand`).
+    fmus : mapping
+        Instance -> FMU: an :class:`FmuBlob` (written once into this worker's cache) or a
+        path of this process.
+    stop_time : float, optional
+        Stop time, s (default the scenario's).
+    trajectories : bool
+        Record every output and return the trajectory as CSV bytes under
+        ``"trajectory"`` (written by the client).
+
+    Returns
+    -------
+    dict
+        The result row (parameters, seed, status, message, metrics).
     """
     _leave_worker_quietly()
-    key = (fmu_dir, scenario.source, scenario.name, scenario.feedback, scenario.observer,
-           bool(trajectories))  # fmt: skip
+    local = {inst: local_fmu(f) for inst, f in fmus.items()}
+    key = (tuple(sorted((i, str(p)) for i, p in local.items())), scenario.source, scenario.name,
+           scenario.feedback, scenario.observer, bool(trajectories))  # fmt: skip
     params = _full_parameters(scenario, run)
     stop = stop_time or scenario.stop_time
     row: dict[str, Any] = {"run_id": run["run_id"], "seed": run["seed"], **run["params"]}
-    rec: ArrayRecorder | CsvRecorder = ArrayRecorder()
+    rec = ArrayRecorder()
     sim = _SIMS.pop(key, None)
     status, message = "ok", ""
     try:
         if sim is None:
-            system = system_for(scenario, Path(fmu_dir))
+            here = copy.copy(scenario)
+            here.fmus = {inst: str(p) for inst, p in local.items()}
+            system = system_for(here, Path("."))
             if not trajectories:  # only what the metrics need
                 system.record = [
                     c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c
@@ -302,8 +343,6 @@ def run_one(
             sim.initialize()
         else:
             sim.reset(params, replace=True)  # the previous run's values must not linger
-        if trajectories:
-            rec = CsvRecorder(Path(trajectories) / f"{run['run_id']}.csv")
         n = round(stop / sim.step_size)
         rec.start(sim.columns)
         rec.row(sim.communication_point())
@@ -314,17 +353,11 @@ def run_one(
         status, message = "stopped", str(err)
     except (FMUCallError, MasterError, ValueError) as err:
         status, message = "error", str(err)
-    finally:
-        rec.close()
     if sim is not None and status == "ok":
         _SIMS[key] = sim  # reuse: reset next time
     elif sim is not None:
         sim.close()  # frees what is not fatal; a fatal instance is never called again
-    if isinstance(rec, CsvRecorder):
-        cols = sim.columns if sim is not None else []
-        data = np.loadtxt(rec.path, delimiter=",", skiprows=1, ndmin=2) if rec.n_rows else None
-    else:
-        cols, data = rec.columns, rec.array() if rec.rows else None
+    cols, data = rec.columns, rec.array() if rec.rows else None
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
         m = compute_metrics(cols, data, scenario, sim)
@@ -332,15 +365,34 @@ def run_one(
             err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
             m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
         row.update({k: m.get(k) for k in METRIC_KEYS})
+    if trajectories and cols:  # recording started: the rows up to a failure too
+        row["trajectory"] = _csv_text(cols, data if data is not None else np.empty((0, 0)))
     return row
 
 
 def run_many(
-    scenario: Scenario, runs: Sequence[dict[str, Any]], fmu_dir: str,
-    stop_time: float | None = None, trajectories: str | None = None,
+    scenario: Scenario, runs: Sequence[dict[str, Any]], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False, version: str | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
-    """Several sweep points in one task (amortises the scheduling overhead)."""
-    return [run_one(scenario, r, fmu_dir, stop_time, trajectories) for r in runs]
+    """Several sweep points in one task (amortises the scheduling overhead).
+
+    ``version``: the client's glider-cosim version; a worker with another one (one that
+    joined after the check at connect) refuses the task with :class:`SweepClusterError`.
+    """
+    if version is not None and (mine := package_version()) != version:
+        raise SweepClusterError(
+            f"worker {_worker_address()} has {DIST} {mine}, the client {DIST} {version}"
+        )
+    return [run_one(scenario, r, fmus, stop_time, trajectories) for r in runs]
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return f"process {os.getpid()}"
 
 
 # ----------------------------------------------------------------- client side
@@ -363,6 +415,15 @@ class SweepResult:
     @property
     def runs_per_s(self) -> float:
         return self.done / self.seconds if self.seconds > 0 else 0.0
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def run_sweep(
@@ -392,6 +453,8 @@ def run_sweep(
     if trajectories:
         traj = out / "trajectories"
         traj.mkdir(exist_ok=True)
+        for stale in traj.glob(".*.tmp"):  # left by a kill while writing
+            stale.unlink(missing_ok=True)
     t0 = time.perf_counter()
     failed = done = 0
     with SweepStore(out / "sweep.csv", cols, restart=restart) as store:
@@ -400,9 +463,10 @@ def run_sweep(
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
         chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
+        fmus = scatter_fmus(client, system_for(scenario, Path(fmu_dir)).fmus) if todo else {}
         futures = {
-            client.submit(run_many, scenario, c, str(fmu_dir), stop_time,
-                          str(traj) if traj else None, pure=False, retries=3): c
+            client.submit(run_many, scenario, c, fmus, stop_time, trajectories,
+                          package_version(), pure=False, retries=3): c
             for c in chunks
         }  # fmt: skip
         for fut in as_completed(list(futures)):
@@ -410,12 +474,17 @@ def run_sweep(
                 result = fut.result()
             except Exception as err:  # noqa: BLE001 - a task that failed on every retry
                 result = [{"run_id": r["run_id"], "seed": r["seed"], **r["params"],
-                           "status": "error", "message": f"task failed: {err!r}"}
+                           "status": "error", "message": f"task failed: {err}"}
                           for r in futures[fut]]  # fmt: skip
             for row in result:
-                if store.add(row):
-                    done += 1
-                    failed += row.get("status") != "ok"
+                text = row.pop("trajectory", None)
+                if row["run_id"] in store.rows:
+                    continue  # recorded already (a run listed twice)
+                if traj is not None and text is not None:
+                    _write_atomically(traj / f"{row['run_id']}.csv", text)
+                store.add(row)
+                done += 1
+                failed += row.get("status") != "ok"
             store.flush()
             if progress:
                 progress(done, len(todo), failed, time.perf_counter() - t0)
@@ -488,17 +557,6 @@ def write_plots(path: Path, out: Path) -> list[Path]:
     return files
 
 
-def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
-    """A Dask client: an existing cluster, or a local one of worker processes."""
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        return Client(scheduler, timeout="20s")
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=50)  # fmt: skip
-    return Client(cluster)
-
-
 def add_parser(sub: Any) -> None:
     """Add the ``sweep`` sub-command to the CLI's sub-parsers."""
     s = sub.add_parser("sweep", help="parameter sweep / Monte Carlo on Dask",
@@ -519,6 +577,7 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     s.add_argument("--restart", action="store_true", help="ignore results already in --out")
     s.add_argument("--no-plots", action="store_true")
+    s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -553,8 +612,11 @@ def main(args: argparse.Namespace) -> int:
             sys.stderr.write("\n")
         sys.stderr.flush()
 
-    client = make_client(args.workers, args.scheduler)
+    client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:
+        check_workers(client)
+        if args.dashboard:
+            print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
         res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
                         trajectories=args.trajectories, restart=args.restart,
                         progress=progress)  # fmt: skip
@@ -579,6 +641,8 @@ __all__ = [
     "ScenarioError",
     "SweepSpecError",
     "check_targets",
+    "check_workers",
+    "make_client",
     "expand",
     "main",
     "parse_param",

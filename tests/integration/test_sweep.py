@@ -2,18 +2,22 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import re
 import signal
+import socket
 import threading
 import time
+import warnings
 
 import pytest
 
 from glider_cosim.cli import main as cli_main
 from glider_cosim.scenario import load_scenario
-from glider_cosim.sweep import expand, make_client, parse_param, run_sweep, write_plots
+from glider_cosim.sweep import expand, make_client, parse_param, run_many, run_sweep, write_plots
+from glider_cosim.sweep_cluster import SweepClusterError, check_workers, package_version
 
 pytestmark = pytest.mark.integration
 
@@ -110,3 +114,51 @@ def test_unknown_targets_are_refused_before_any_work(fmu_dir, tmp_path, capsys, 
     assert code == 2
     assert err.count("\n") == 1 and re.search(message, err), err
     assert not out.exists()  # nothing was sent, nothing written
+
+
+def test_workers_are_checked_for_the_clients_version(client):
+    mine = package_version()
+    assert mine and set(check_workers(client).values()) == {mine}
+    with pytest.raises(SweepClusterError, match=rf"^worker tcp://\S+ has glider-cosim {mine}, "
+                       r"the client glider-cosim 9\.9\.9 \(and 1 more worker\(s\)\): install "
+                       r"glider-cosim 9\.9\.9 on every worker$"):  # fmt: skip
+        check_workers(client, version="9.9.9")
+    with pytest.raises(SweepClusterError, match=r"^worker tcp://\S+ has no glider-cosim-absent "
+                       r"installed, the client glider-cosim-absent 1\.0"):  # fmt: skip
+        check_workers(client, version="1.0", dist="glider-cosim-absent")
+
+
+def test_a_worker_that_joined_with_another_version_refuses_its_tasks(client):
+    """Workers joining after the check at connect are checked by every task."""
+    sc = load_scenario(None)
+    fut = client.submit(run_many, sc, [], {}, None, False, "9.9.9", pure=False)
+    with pytest.raises(SweepClusterError, match=r"has glider-cosim \S+, the client glider-cosim "
+                       r"9\.9\.9"):  # fmt: skip
+        fut.result()
+
+
+def test_no_dashboard_and_no_port_warning_unless_asked(fmu_dir, tmp_path, capfd):
+    with socket.socket() as s:
+        with contextlib.suppress(OSError):  # else another cluster holds it: the same case
+            s.bind(("", 8787))
+            s.listen()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            c = make_client(1)
+            try:
+                assert c.cluster.scheduler.http_server.port != 8787
+                app = c.cluster.scheduler.http_application
+                rules = app.default_router.rules + app.wildcard_router.rules
+                routes = {getattr(r.matcher, "regex", re.compile("")).pattern for r in rules}
+                assert "/health$" in routes and "/status$" not in routes  # no dashboard
+            finally:
+                c.close()
+                c.cluster.close()
+        assert not [w for w in caught if "already in use" in str(w.message)]
+        code = cli_main(["sweep", "--param", "controller.K_c=10", "--stop-time", "1",
+                         "--workers", "1", "--fmu-dir", str(fmu_dir), "--out", str(tmp_path),
+                         "--no-plots", "--dashboard"])  # fmt: skip
+    out, err = capfd.readouterr()
+    assert code == 0
+    assert re.search(r"^sweep: Dask dashboard at http://\S+:\d+/status$", out, re.M), out
+    assert "already in use" not in err
