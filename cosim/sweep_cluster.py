@@ -3,7 +3,7 @@
 Workers share nothing with the client but the network:
 
 - the FMUs travel through Dask: the client reads each file once and scatters its bytes
-  under a key named by its SHA-256 (``glider-fmu-<sha256>``, replicated to every
+  under a key named by its SHA-256 (``glider-fmu-<sha256>-<tag>``, replicated to every
   worker; a worker that joins later gets them from a peer); each worker writes them once
   into its own local directory (``<worker local dir>/glider-cosim-fmus/<sha256>/``);
 - trajectories come back in the task results and are written by the client;
@@ -17,6 +17,7 @@ import hashlib
 import importlib.metadata
 import os
 import tempfile
+import uuid
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -135,9 +136,12 @@ class FmuBlob:
 def scatter_fmus(client: Any, paths: Mapping[str, Path]) -> dict[str, Any]:
     """Send the FMUs to every worker once: instance -> future of its :class:`FmuBlob`."""
     blobs = {inst: FmuBlob.read(p) for inst, p in paths.items()}
-    by_key = {f"glider-fmu-{b.sha256}": b for b in blobs.values()}
+    # one key per call: a key released by the previous sweep and scattered again at once
+    # can be dropped by the scheduler's late release ("lost dependencies")
+    tag = uuid.uuid4().hex[:12]
+    by_key = {f"glider-fmu-{b.sha256}-{tag}": b for b in blobs.values()}
     futures = client.scatter(by_key, broadcast=True, hash=False)
-    return {inst: futures[f"glider-fmu-{b.sha256}"] for inst, b in blobs.items()}
+    return {inst: futures[f"glider-fmu-{b.sha256}-{tag}"] for inst, b in blobs.items()}
 
 
 _CACHE: dict[str, Path] = {}  # sha256 -> local file, in this process
