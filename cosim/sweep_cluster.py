@@ -70,7 +70,8 @@ def make_client(workers: int = 2, scheduler: str | None = None, dashboard: bool 
 def check_workers(
     client: Any, version: str | None = None, dist: str = DIST, timeout: float = 30.0
 ) -> dict[str, str]:
-    """Check that every worker has ``dist`` at the client's version, before any run.
+    """Check that every worker and the scheduler have ``dist`` at the client's version,
+    before any run (the scheduler unpickles the tasks, so it needs the package too).
 
     Parameters
     ----------
@@ -90,7 +91,8 @@ def check_workers(
     Raises
     ------
     SweepClusterError
-        One line naming the first worker that differs and both versions.
+        One line naming the first worker (or the scheduler) that differs and both
+        versions.
     """
     want = version or package_version(dist) or "not installed"
     try:
@@ -104,18 +106,28 @@ def check_workers(
     if bad:
         addr, got = sorted(bad.items())[0]
         more = f" (and {len(bad) - 1} more worker(s))" if len(bad) > 1 else ""
-        has = (
-            f"has no {dist} installed"
-            if isinstance(got, importlib.metadata.PackageNotFoundError)
-            else f"has {dist} {got}"
-            if isinstance(got, str)
-            else f"cannot report its {dist} version ({got!r})"
-        )
         raise SweepClusterError(
-            f"worker {addr} {has}, the client {dist} {want}{more}: install {dist} {want} "
-            "on every worker"
+            f"worker {addr} {_has(dist, got)}, the client {dist} {want}{more}: install "
+            f"{dist} {want} on every worker"
+        )
+    try:
+        got = client.run_on_scheduler(importlib.metadata.version, dist)
+    except importlib.metadata.PackageNotFoundError as err:
+        got = err
+    if got != want:
+        raise SweepClusterError(
+            f"scheduler {client.scheduler.address} {_has(dist, got)}, the client {dist} "
+            f"{want}: the scheduler unpickles the tasks, install {dist} {want} there too"
         )
     return found
+
+
+def _has(dist: str, got: object) -> str:
+    if isinstance(got, importlib.metadata.PackageNotFoundError):
+        return f"has no {dist} installed"
+    if isinstance(got, str):
+        return f"has {dist} {got}"
+    return f"cannot report its {dist} version ({got!r})"
 
 
 # ------------------------------------------------------------------ FMUs on workers

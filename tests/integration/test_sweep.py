@@ -173,3 +173,22 @@ def test_sweeps_back_to_back_on_one_client(client, fmu_dir, tmp_path):
     for i in range(15):
         res = run_sweep(sc, runs, tmp_path / f"s{i}", client, fmu_dir, stop_time=0.1, chunk=1)
         assert res.failed == 0, rows(res.path)[0]["message"]
+
+
+def test_the_scheduler_is_checked_too(client, monkeypatch):
+    """The local cluster's scheduler runs in this process: give it another version."""
+    import importlib.metadata
+
+    mine = package_version()
+    real = importlib.metadata.distribution
+
+    class Old:
+        version = "0.0.1"
+
+    # version() looks distribution() up at call time; the workers (other processes) and
+    # the function sent to them (importlib.metadata.version, by reference) are unchanged
+    monkeypatch.setattr(importlib.metadata, "distribution",
+                        lambda d: Old() if d == "glider-cosim" else real(d))  # fmt: skip
+    with pytest.raises(SweepClusterError, match=r"^scheduler tcp://\S+ has glider-cosim 0\.0\.1, "
+                       rf"the client glider-cosim {mine}: the scheduler unpickles"):  # fmt: skip
+        check_workers(client, version=mine)
