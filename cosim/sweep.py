@@ -17,6 +17,11 @@ Each Dask worker keeps one co-simulation per scenario and resets it between runs
 (pythonfmu's reset restores the defaults, so every run sets its full parameter set); an
 instance that failed is discarded and replaced. A failed run is recorded with its status
 and message; tasks of a worker that dies are retried elsewhere by Dask.
+
+Modules by purpose: :mod:`.sweep_spec` (specs, the list of runs, the up-front name
+check), :mod:`.sweep_store` (``sweep.csv``, safe to kill), :mod:`.sweep_cluster`
+(clients, version check, FMUs sent to workers), :mod:`.sweep_plots`; this module holds
+the worker-side run, the client loop and the CLI.
 """
 
 from __future__ import annotations
