@@ -192,3 +192,14 @@ def test_the_scheduler_is_checked_too(client, monkeypatch):
     with pytest.raises(SweepClusterError, match=r"^scheduler tcp://\S+ has glider-cosim 0\.0\.1, "
                        rf"the client glider-cosim {mine}: the scheduler unpickles"):  # fmt: skip
         check_workers(client, version=mine)
+
+
+def test_the_exit_code_after_a_resume_counts_earlier_failures(fmu_dir, tmp_path, capsys):
+    args = ["sweep", "--param", "controller.K_c=10,-1", "--stop-time", "1", "--workers", "1",
+            "--fmu-dir", str(fmu_dir), "--out", str(tmp_path), "--no-plots"]  # fmt: skip
+    assert cli_main(args) == 1
+    assert "2 run now, 1 failed" in capsys.readouterr().out
+    assert cli_main(args) == 1  # nothing run now, the failure is in sweep.csv
+    assert "(2 already done), 0 run now, 0 failed, 0.00 runs/s; 1 of 2 failed overall" in (
+        capsys.readouterr().out
+    )
