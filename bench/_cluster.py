@@ -34,6 +34,14 @@ class DaskCluster:
         self.base = Path(self._tmp.name)
 
     def __enter__(self) -> DaskCluster:
+        try:
+            self._start_all()
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def _start_all(self) -> None:
         sched_file = self.base / "scheduler.json"
         self.scheduler = self._start([sys.executable, "-m", "distributed.cli.dask_scheduler",
                                       "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
@@ -57,7 +65,6 @@ class DaskCluster:
             else:
                 cmd = ["sh", "-c", worker]
             self._start(cmd)
-        return self
 
     def _start(self, cmd: list[str]) -> subprocess.Popen:
         p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -78,6 +80,8 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    # SIGTERM leaves through the context managers, which kill the cluster's processes
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     fmu_dir = Path(args.fmu_dir).resolve()
     build_all(fmu_dir, only_stale=True)
     rates: dict[str, list[float]] = {"local1": [], "local2": [], "ext": [], "ext_traj": []}

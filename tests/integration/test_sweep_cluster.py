@@ -69,7 +69,9 @@ class Cluster:
 
     def __init__(self, base: Path, hidden: list[Path]):
         self.base, self.hidden, self.procs = base, hidden, []
-        sched_file = base / "scheduler.json"
+
+    def start(self) -> None:
+        sched_file = self.base / "scheduler.json"
         self._start("scheduler", [sys.executable, "-m", "distributed.cli.dask_scheduler",
                                   "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
                                   "--scheduler-file", str(sched_file)])  # fmt: skip
@@ -77,6 +79,7 @@ class Cluster:
         while not sched_file.exists() and time.time() < deadline:
             time.sleep(0.05)
         time.sleep(0.1)  # the file is written in one go, but give it a moment
+        assert sched_file.exists(), (self.base / "scheduler.log").read_text()
         self.address = json.loads(sched_file.read_text())["address"]
         for i in range(2):
             self.start_worker(f"w{i}")
@@ -136,6 +139,7 @@ def cluster(tmp_path_factory, fmu_dir):
     c = Cluster(base, hidden)
     c.out = out
     try:
+        c.start()
         from distributed import Client
 
         with Client(c.address, timeout="20s") as client:
