@@ -1,16 +1,29 @@
-"""Benchmark: runs/s of the default 60 s scenario on a local Dask cluster of 1 and 2
-worker processes (K_c list), and the scaling efficiency from 1 to 2 workers.
+"""Benchmark: runs/s of the default 60 s scenario (K_c list) on a local Dask cluster of 1
+and 2 worker processes, and on a cluster started the Dask way in the same run
+(``dask scheduler`` + 2 ``dask worker`` processes in private mount namespaces, FMUs sent
+through Dask, as on other machines); the scheduler's per-task overhead (no-op tasks, and
+the scheduler's CPU time per task of the sweep); the client's CPU time per run, with and
+without ``--trajectories``.
 
-Usage: python bench/sweep.py [--runs 24] [--json]
+The paths run interleaved for ``--rounds`` rounds (the machine's load drifts); the
+scheduler's CPU time is read from /proc: its idle rate (no workers; 2 workers and a client)
+is measured and subtracted from the no-op tasks' figure.
+
+Usage: python bench/sweep.py [--runs 48] [--rounds 3] [--noop 2000] [--json]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
+import statistics
+import sys
 import tempfile
+import time
 from pathlib import Path
 
+from _cluster import DaskCluster
 from _common import emit
 
 from glider_cosim.build import build_all
@@ -18,44 +31,110 @@ from glider_cosim.scenario import load_scenario
 from glider_cosim.sweep import expand, make_client, parse_param, run_sweep
 
 
-def rate(workers: int, runs: int, fmu_dir: Path) -> float:
+def _noop(i: int) -> int:
+    return i
+
+
+def rate(client, workers: int, runs: int, fmu_dir: Path, trajectories: bool = False,
+         scheduler_cpu=lambda: 0.0) -> dict:  # fmt: skip
+    """Timed sweep of ``runs`` 60 s runs after a warm-up that loads the FMUs everywhere;
+    ``scheduler_cpu()``: the scheduler's CPU time, s (measured around the timed sweep)."""
     sc = load_scenario(None)
-    specs = [parse_param(f"controller.K_c=8:40:{runs}")]
-    points = expand(specs, sc, fmu_dir)
-    client = make_client(workers)
-    try:
-        client.wait_for_workers(workers)
-        with tempfile.TemporaryDirectory() as tmp:
-            warm = expand([parse_param("controller.K_c=10")], sc, fmu_dir, stop_time=1.0)
-            for w in range(workers):  # load the FMUs in every worker first
-                warm[0]["run_id"] = f"warm{w}"
-                run_sweep(sc, warm, Path(tmp) / f"w{w}", client, fmu_dir, stop_time=1.0)
-            res = run_sweep(sc, points, Path(tmp), client, fmu_dir)
-        assert res.failed == 0, "a run failed"
-        return res.runs_per_s
-    finally:
-        client.close()
-        client.cluster.close()
+    points = expand([parse_param(f"controller.K_c=8:40:{runs}")], sc, fmu_dir)
+    client.wait_for_workers(workers, timeout=60)
+    with tempfile.TemporaryDirectory() as tmp:
+        warm = expand([parse_param(f"controller.K_c=9:11:{4 * workers}")], sc, fmu_dir,
+                      stop_time=1.0)  # fmt: skip
+        run_sweep(sc, warm, Path(tmp) / "warm", client, fmu_dir, stop_time=1.0, chunk=1)
+        cpu0, s0 = time.process_time(), scheduler_cpu()
+        res = run_sweep(sc, points, Path(tmp) / "timed", client, fmu_dir,
+                        trajectories=trajectories)  # fmt: skip
+        cpu, sched = time.process_time() - cpu0, scheduler_cpu() - s0
+        if res.failed or res.done != runs:
+            raise RuntimeError(f"{res.failed} of {runs} runs failed, see {res.path}: "
+                               + res.path.read_text()[:1000])  # fmt: skip
+    tasks = -(-runs // min(4, -(-runs // (2 * workers))))  # as run_sweep chunks them
+    return {"runs_per_s": res.runs_per_s, "client_cpu_ms_per_run": 1e3 * cpu / runs,
+            "scheduler_cpu_ms_per_task": 1e3 * sched / tasks, "tasks": tasks,
+            "seconds": res.seconds}  # fmt: skip
+
+
+def _idle(cpu_seconds, seconds: float = 6.0) -> float:
+    """CPU time per second of a process doing nothing but its housekeeping."""
+    s0, t0 = cpu_seconds(), time.perf_counter()
+    time.sleep(seconds)
+    return (cpu_seconds() - s0) / (time.perf_counter() - t0)
+
+
+def _median(xs: list[float]) -> float:
+    return statistics.median(xs)
 
 
 def main() -> None:
+    from distributed import Client, wait
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=24)
+    ap.add_argument("--runs", type=int, default=48)
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of each path")
+    ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the overhead")
     ap.add_argument("--fmu-dir", default="fmus")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
+    # SIGTERM leaves through the context managers, which kill the cluster's processes
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     fmu_dir = Path(args.fmu_dir).resolve()
     build_all(fmu_dir, only_stale=True)
-    r1 = rate(1, args.runs, fmu_dir)
-    r2 = rate(2, args.runs, fmu_dir)
+    rates: dict[str, list[float]] = {"local1": [], "local2": [], "ext": [], "ext_traj": []}
+    client_ms: dict[str, list[float]] = {"ext": [], "ext_traj": []}
+    sched_pct: list[float] = []
+    with DaskCluster(0, hidden=[]) as alone:  # the scheduler's own idle load
+        idle0 = _idle(lambda: alone.cpu_seconds(alone.scheduler.pid))
+    with DaskCluster(2, hidden=[fmu_dir]) as cluster, Client(cluster.address) as ext:
+        cpu = lambda: cluster.cpu_seconds(cluster.scheduler.pid)  # noqa: E731
+        ext.wait_for_workers(2, timeout=60)
+        idle = _idle(cpu)  # with 2 workers and a client: + their heartbeats
+        for _ in range(args.rounds):  # interleaved: the machine's load drifts
+            for n in (1, 2):  # the local cluster's scheduler runs in this process: started
+                local = make_client(n)  # and closed here, so the client's CPU time below
+                try:  # is the client's alone
+                    rates[f"local{n}"].append(rate(local, n, args.runs, fmu_dir)["runs_per_s"])
+                finally:
+                    local.close()
+                    local.cluster.close()
+            r = rate(ext, 2, args.runs, fmu_dir, scheduler_cpu=cpu)
+            rates["ext"].append(r["runs_per_s"])
+            client_ms["ext"].append(r["client_cpu_ms_per_run"])
+            sched_pct.append(r["scheduler_cpu_ms_per_task"] * r["tasks"] / (10 * r["seconds"]))
+            r = rate(ext, 2, args.runs, fmu_dir, trajectories=True)
+            rates["ext_traj"].append(r["runs_per_s"])
+            client_ms["ext_traj"].append(r["client_cpu_ms_per_run"])
+        s0, t0 = cpu(), time.perf_counter()
+        wait(ext.map(_noop, range(args.noop), pure=False))
+        wall = time.perf_counter() - t0
+        noop_ms = 1e3 * (cpu() - s0 - idle * wall) / args.noop
+        namespaced = cluster.namespaced
+    best = {k: max(v) for k, v in rates.items()}
     result = {
         "runs": args.runs,
+        "rounds": args.rounds,
         "scenario": "default, 60 s (3000 macro steps)",
-        "runs_per_s_1_worker": round(r1, 2),
-        "runs_per_s_2_workers": round(r2, 2),
-        "runs_per_s_per_core": round(r2 / 2, 2),
-        "scaling_efficiency": round(r2 / (2 * r1), 3),
+        "runs_per_s_1_worker": [round(x, 2) for x in rates["local1"]],
+        "runs_per_s_2_workers": [round(x, 2) for x in rates["local2"]],
+        "runs_per_s_external_2_workers": [round(x, 2) for x in rates["ext"]],
+        "runs_per_s_external_trajectories": [round(x, 2) for x in rates["ext_traj"]],
+        "external_namespaced_workers": namespaced,
+        "best_scaling_efficiency": round(best["local2"] / (2 * best["local1"]), 3),
+        "best_external_vs_local": round(best["ext"] / best["local2"], 3),
+        "median_external_vs_local": round(_median(rates["ext"]) / _median(rates["local2"]), 3),
+        "client_cpu_ms_per_run": round(_median(client_ms["ext"]), 2),
+        "client_cpu_ms_per_run_trajectories": round(_median(client_ms["ext_traj"]), 2),
+        "scheduler_idle_cpu_pct_no_workers": round(100 * idle0, 2),
+        "scheduler_idle_cpu_pct_2_workers": round(100 * idle, 2),
+        "scheduler_cpu_pct_during_sweep": round(_median(sched_pct), 2),
+        "noop_tasks_per_s": round(args.noop / wall, 1),
+        "scheduler_cpu_ms_per_noop_task": round(noop_ms, 3),
         "cpus": os.cpu_count(),
+        "load_avg_1min": round(os.getloadavg()[0], 2),
     }
     emit(result, args.json)
 

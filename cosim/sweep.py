@@ -17,20 +17,23 @@ Each Dask worker keeps one co-simulation per scenario and resets it between runs
 (pythonfmu's reset restores the defaults, so every run sets its full parameter set); an
 instance that failed is discarded and replaced. A failed run is recorded with its status
 and message; tasks of a worker that dies are retried elsewhere by Dask.
+
+Modules by purpose: :mod:`.sweep_spec` (specs, the list of runs, the up-front name
+check), :mod:`.sweep_store` (``sweep.csv``, safe to kill), :mod:`.sweep_cluster`
+(clients, version check, FMUs sent to workers), :mod:`.sweep_plots`; this module holds
+the worker-side run, the client loop and the CLI.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import hashlib
-import itertools
-import json
+import copy
+import io
 import math
-import re
+import os
 import sys
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,15 +42,35 @@ import numpy as np
 
 from .master import CoSimulation, FMUCallError, FMUStopped, MasterError
 from .metrics import compute_metrics
-from .runner import FMU_NAMES, ArrayRecorder, CsvRecorder, system_for
+from .runner import ArrayRecorder, system_for
 from .scenario import (
-    INSTANCES,
     Scenario,
     ScenarioError,
     has_our_observer,
     load_scenario,
     with_sampling,
 )
+from .sweep_cluster import (
+    DIST,
+    FmuBlob,
+    SweepClusterError,
+    check_workers,
+    local_fmu,
+    make_client,
+    package_version,
+    scatter_fmus,
+)
+from .sweep_plots import write_plots
+from .sweep_spec import (
+    ParamSpec,
+    SweepSpecError,
+    check_targets,
+    expand,
+    nominal_values,
+    parse_param,
+    run_id,
+)
+from .sweep_store import SweepStore
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
@@ -55,146 +78,6 @@ METRIC_KEYS = (
     "outcome", "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s", "in_band_s",
 )  # fmt: skip
 METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_PCT = rf"({_NUM})(%?)"
-
-
-class SweepSpecError(ValueError):
-    """A ``--param`` spec or sweep option is malformed (the message names it)."""
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One swept parameter: a fixed list of values, or a random distribution."""
-
-    target: str  # instance.name
-    values: tuple[float, ...] = ()
-    dist: str = ""  # "uniform" | "normal"
-    args: tuple[tuple[float, bool], ...] = ()  # (value, is_percent)
-
-    @property
-    def random(self) -> bool:
-        return bool(self.dist)
-
-    def draw(self, nominal: float, rng: np.random.Generator) -> float:
-        def val(a: tuple[float, bool]) -> float:
-            x, pct = a
-            return nominal * (1 + x / 100) if pct else x
-
-        if self.dist == "uniform":
-            return float(rng.uniform(val(self.args[0]), val(self.args[1])))
-        sd = abs(nominal) * self.args[0][0] / 100 if self.args[0][1] else self.args[0][0]
-        return float(rng.normal(nominal, sd))
-
-
-def _value(text: str, where: str) -> float:
-    text = text.strip()
-    m = re.fullmatch(rf"({_NUM})\s*deg", text)
-    if m:
-        return math.radians(float(m.group(1)))
-    try:
-        return float(text)
-    except ValueError:
-        raise SweepSpecError(f"{where}: {text!r} is not a number (or 'X deg')") from None
-
-
-def parse_param(item: str) -> ParamSpec:
-    """Parse ``INSTANCE.NAME=SPEC`` (grammar in the module docstring)."""
-    where = f"--param {item!r}"
-    target, sep, spec = item.partition("=")
-    inst, dot, name = target.strip().partition(".")
-    if not sep or not dot or inst not in INSTANCES or not name:
-        raise SweepSpecError(
-            f"{where}: expected INSTANCE.NAME=SPEC with INSTANCE one of {', '.join(INSTANCES)}"
-        )
-    spec = spec.strip()
-    target = f"{inst}.{name}"
-    m = re.fullmatch(r"(uniform|normal)\(\s*(.*?)\s*\)", spec)
-    if m:
-        parts = [p.strip() for p in m.group(2).split(",")]
-        want = 2 if m.group(1) == "uniform" else 1
-        if len(parts) != want:
-            raise SweepSpecError(
-                f"{where}: {m.group(1)} takes {want} argument(s), e.g. "
-                + ("uniform(-20%,+20%)" if want == 2 else "normal(20%)")
-            )
-        args = []
-        for p in parts:
-            pm = re.fullmatch(_PCT, p)
-            if not pm:
-                raise SweepSpecError(f"{where}: {p!r} is not a number or a percentage")
-            args.append((float(pm.group(1)), pm.group(2) == "%"))
-        if m.group(1) == "normal" and args[0][0] < 0:
-            raise SweepSpecError(f"{where}: the standard deviation must be >= 0")
-        return ParamSpec(target, dist=m.group(1), args=tuple(args))
-    if ":" in spec:
-        parts = spec.split(":")
-        if len(parts) != 3:
-            raise SweepSpecError(f"{where}: a range is START:STOP:NUM, e.g. 2:20:10")
-        start, stop = _value(parts[0], where), _value(parts[1], where)
-        try:
-            num = int(parts[2])
-        except ValueError:
-            raise SweepSpecError(f"{where}: NUM {parts[2]!r} must be a whole number") from None
-        if num < 1:
-            raise SweepSpecError(f"{where}: NUM must be >= 1")
-        return ParamSpec(target, values=tuple(float(v) for v in np.linspace(start, stop, num)))
-    values = tuple(_value(v, where) for v in spec.split(",") if v.strip())
-    if not values:
-        raise SweepSpecError(f"{where}: no values")
-    return ParamSpec(target, values=values)
-
-
-def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop: float) -> str:
-    """Deterministic id of a run (resume key)."""
-    key = json.dumps([scenario.name, scenario.source, stop, seed, sorted(params.items())])
-    return hashlib.sha1(key.encode()).hexdigest()[:16]
-
-
-def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
-    """Nominal value of each target: the scenario's, else the FMU's default."""
-    from .monolithic import fmu_parameter_defaults
-
-    defaults = {}
-    out = {}
-    for t in targets:
-        inst, _, name = t.partition(".")
-        if name in scenario.parameters.get(inst, {}):
-            out[t] = float(scenario.parameters[inst][name])
-            continue
-        if inst not in defaults:
-            defaults[inst] = fmu_parameter_defaults(fmu_dir / f"{FMU_NAMES[inst]}.fmu")
-        if name not in defaults[inst]:
-            raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
-        out[t] = float(defaults[inst][name])
-    return out
-
-
-def expand(
-    specs: Sequence[ParamSpec],
-    scenario: Scenario,
-    fmu_dir: Path,
-    samples: int = 10,
-    seeds: Sequence[int] | None = None,
-    rng_seed: int = 0,
-    stop_time: float | None = None,
-) -> list[dict[str, Any]]:
-    """The list of runs: ``{"run_id", "params", "seed"}``."""
-    grid = [s for s in specs if not s.random]
-    rand = [s for s in specs if s.random]
-    nominal = nominal_values(scenario, fmu_dir, [s.target for s in rand])
-    rng = np.random.default_rng(rng_seed)
-    stop = stop_time or scenario.stop_time
-    runs = []
-    for combo in itertools.product(*(s.values for s in grid)):
-        base = {s.target: v for s, v in zip(grid, combo, strict=True)}
-        for _ in range(samples if rand else 1):
-            params = dict(base)
-            params.update({s.target: s.draw(nominal[s.target], rng) for s in rand})
-            for seed in seeds if seeds is not None else [None]:
-                runs.append({"run_id": run_id(params, seed, scenario, stop), "params": params,
-                             "seed": seed})  # fmt: skip
-    return runs
 
 
 # ----------------------------------------------------------------- worker side
@@ -211,25 +94,54 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
     return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
 
 
+def _csv_text(columns: Sequence[str], data: np.ndarray) -> bytes:
+    """A trajectory as the CSV bytes ``run`` writes (17 significant digits)."""
+    buf = io.StringIO()
+    buf.write(",".join(columns) + "\n")
+    if len(data):
+        np.savetxt(buf, data, fmt="%.17g", delimiter=",")
+    return buf.getvalue().encode()
+
+
 def run_one(
-    scenario: Scenario, run: dict[str, Any], fmu_dir: str, stop_time: float | None = None,
-    trajectories: str | None = None,
+    scenario: Scenario, run: dict[str, Any], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False,
 ) -> dict[str, Any]:  # fmt: skip
     """Run one sweep point in this process, reusing a cached co-simulation.
 
-    Returns the result row (parameters, seed, status, message, metrics).
+    Parameters
+    ----------
+    scenario : Scenario
+    run : dict
+        ``{"run_id", "params", "seed"}`` (see :func:`expand`).
+    fmus : mapping
+        Instance -> FMU: an :class:`FmuBlob` (written once into this worker's cache) or a
+        path of this process.
+    stop_time : float, optional
+        Stop time, s (default the scenario's).
+    trajectories : bool
+        Record every output and return the trajectory as CSV bytes under
+        ``"trajectory"`` (written by the client).
+
+    Returns
+    -------
+    dict
+        The result row (parameters, seed, status, message, metrics).
     """
-    key = (fmu_dir, scenario.source, scenario.name, scenario.feedback, scenario.observer,
-           bool(trajectories))  # fmt: skip
+    local = {inst: local_fmu(f) for inst, f in fmus.items()}
+    key = (tuple(sorted((i, str(p)) for i, p in local.items())), scenario.source, scenario.name,
+           scenario.feedback, scenario.observer, bool(trajectories))  # fmt: skip
     params = _full_parameters(scenario, run)
     stop = stop_time or scenario.stop_time
     row: dict[str, Any] = {"run_id": run["run_id"], "seed": run["seed"], **run["params"]}
-    rec: ArrayRecorder | CsvRecorder = ArrayRecorder()
+    rec = ArrayRecorder()
     sim = _SIMS.pop(key, None)
     status, message = "ok", ""
     try:
         if sim is None:
-            system = system_for(scenario, Path(fmu_dir))
+            here = copy.copy(scenario)
+            here.fmus = {inst: str(p) for inst, p in local.items()}
+            system = system_for(here, Path("."))
             if not trajectories:  # only what the metrics need
                 system.record = [
                     c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c
@@ -239,8 +151,6 @@ def run_one(
             sim.initialize()
         else:
             sim.reset(params, replace=True)  # the previous run's values must not linger
-        if trajectories:
-            rec = CsvRecorder(Path(trajectories) / f"{run['run_id']}.csv")
         n = round(stop / sim.step_size)
         rec.start(sim.columns)
         rec.row(sim.communication_point())
@@ -251,17 +161,11 @@ def run_one(
         status, message = "stopped", str(err)
     except (FMUCallError, MasterError, ValueError) as err:
         status, message = "error", str(err)
-    finally:
-        rec.close()
     if sim is not None and status == "ok":
         _SIMS[key] = sim  # reuse: reset next time
     elif sim is not None:
         sim.close()  # frees what is not fatal; a fatal instance is never called again
-    if isinstance(rec, CsvRecorder):
-        cols = sim.columns if sim is not None else []
-        data = np.loadtxt(rec.path, delimiter=",", skiprows=1, ndmin=2) if rec.n_rows else None
-    else:
-        cols, data = rec.columns, rec.array() if rec.rows else None
+    cols, data = rec.columns, rec.array() if rec.rows else None
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
         m = compute_metrics(cols, data, scenario, sim, status)
@@ -269,28 +173,44 @@ def run_one(
             err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
             m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
         row.update({k: m.get(k) for k in METRIC_KEYS})
+    if trajectories and cols:  # recording started: the rows up to a failure too
+        row["trajectory"] = _csv_text(cols, data if data is not None else np.empty((0, 0)))
     return row
 
 
 def run_many(
-    scenario: Scenario, runs: Sequence[dict[str, Any]], fmu_dir: str,
-    stop_time: float | None = None, trajectories: str | None = None,
+    scenario: Scenario, runs: Sequence[dict[str, Any]], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False, version: str | None = None,
 ) -> list[dict[str, Any]]:  # fmt: skip
-    """Several sweep points in one task (amortises the scheduling overhead)."""
-    return [run_one(scenario, r, fmu_dir, stop_time, trajectories) for r in runs]
+    """Several sweep points in one task (amortises the scheduling overhead).
+
+    ``version``: the client's glider-cosim version; a worker with another one (one that
+    joined after the check at connect) refuses the task with :class:`SweepClusterError`.
+    """
+    if version is not None and (mine := package_version()) != version:
+        raise SweepClusterError(
+            f"worker {_worker_address()} has {DIST} {mine}, the client {DIST} {version}"
+        )
+    return [run_one(scenario, r, fmus, stop_time, trajectories) for r in runs]
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return f"process {os.getpid()}"
 
 
 # ----------------------------------------------------------------- client side
-def _read_done(path: Path) -> set[str]:
-    if not path.exists():
-        return set()
-    with open(path, newline="") as f:
-        return {r["run_id"] for r in csv.DictReader(f) if r.get("run_id")}
-
-
 @dataclass
 class SweepResult:
-    """Summary of a sweep: counts and the results file."""
+    """Summary of a sweep: counts and the results file.
+
+    ``failed`` counts the runs that failed in this call, ``failed_total`` every run of
+    the sweep recorded as failed in the file (earlier calls included: the exit code).
+    """
 
     total: int
     done: int
@@ -298,10 +218,20 @@ class SweepResult:
     failed: int
     seconds: float
     path: Path
+    failed_total: int = 0
 
     @property
     def runs_per_s(self) -> float:
         return self.done / self.seconds if self.seconds > 0 else 0.0
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def run_sweep(
@@ -318,34 +248,33 @@ def run_sweep(
     chunk: int = 4,
 ) -> SweepResult:
     """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
-    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped)."""
+    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
+    runs with the same id are run once; see :mod:`glider_cosim.sweep_store`)."""
     from distributed import as_completed
 
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "sweep.csv"
-    if restart and path.exists():
-        path.unlink()
-    done_ids = _read_done(path)
-    todo = [r for r in runs if r["run_id"] not in done_ids]
+    unique = list({r["run_id"]: r for r in runs}.values())
+    ids = [r["run_id"] for r in unique]
+    param_cols = sorted({k for r in unique for k in r["params"]})
+    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
     traj = None
     if trajectories:
         traj = out / "trajectories"
         traj.mkdir(exist_ok=True)
-    param_cols = sorted({k for r in runs for k in r["params"]})
-    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
-    new_file = not path.exists()
+        for stale in traj.glob(".*.tmp"):  # left by a kill while writing
+            stale.unlink(missing_ok=True)
     t0 = time.perf_counter()
     failed = done = 0
-    with open(path, "a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
-        if new_file:
-            writer.writeheader()
+    with SweepStore(out / "sweep.csv", cols, restart=restart) as store:
+        done_ids = store.done()
+        todo = [r for r in unique if r["run_id"] not in done_ids]
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
         chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
+        fmus = scatter_fmus(client, system_for(scenario, Path(fmu_dir)).fmus) if todo else {}
         futures = {
-            client.submit(run_many, scenario, c, str(fmu_dir), stop_time,
-                          str(traj) if traj else None, pure=False, retries=3): c
+            client.submit(run_many, scenario, c, fmus, stop_time, trajectories,
+                          package_version(), pure=False, retries=3): c
             for c in chunks
         }  # fmt: skip
         for fut in as_completed(list(futures)):
@@ -353,100 +282,23 @@ def run_sweep(
                 result = fut.result()
             except Exception as err:  # noqa: BLE001 - a task that failed on every retry
                 result = [{"run_id": r["run_id"], "seed": r["seed"], **r["params"],
-                           "status": "error", "message": f"task failed: {err!r}"}
+                           "status": "error", "message": f"task failed: {err}"}
                           for r in futures[fut]]  # fmt: skip
             for row in result:
-                writer.writerow(row)
+                text = row.pop("trajectory", None)
+                if row["run_id"] in store.rows:
+                    continue  # recorded already (a run listed twice)
+                if traj is not None and text is not None:
+                    _write_atomically(traj / f"{row['run_id']}.csv", text)
+                store.add(row)
                 done += 1
                 failed += row.get("status") != "ok"
-            f.flush()
+            store.flush()
             if progress:
                 progress(done, len(todo), failed, time.perf_counter() - t0)
-    return SweepResult(len(runs), done, len(runs) - len(todo), failed,
-                       time.perf_counter() - t0, path)  # fmt: skip
-
-
-def write_plots(path: Path, out: Path) -> list[Path]:
-    """Plots that apply to the swept parameters (PNG beside the results)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        return []
-
-    def num(r: dict, k: str) -> float:
-        try:
-            return float(r[k])
-        except (KeyError, TypeError, ValueError):
-            return math.nan
-
-    params = [k for k in rows[0] if "." in k]
-    files = []
-    if "controller.K_c" in params:
-        ok = [r for r in rows if r["status"] == "ok" and r["settling_time_s"] not in ("", None)]
-        fig, ax = plt.subplots(figsize=(6, 4))
-        sc = ax.scatter([num(r, "control_effort") for r in ok],
-                        [num(r, "settling_time_s") for r in ok],
-                        c=[num(r, "controller.K_c") for r in ok], cmap="viridis")  # fmt: skip
-        fig.colorbar(sc, label="K_c")
-        ax.set(xlabel="control effort [rad s]", ylabel="settling time [s]",
-               title="Settling time against control effort (Sec. 3.3 trade-off)")  # fmt: skip
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "settling_vs_effort.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
-    if len(params) >= 2:
-        a, b = params[:2]
-        good = [r["status"] == "ok" and r["settling_time_s"] not in ("", None) for r in rows]
-        fig, ax = plt.subplots(figsize=(6, 4))
-        for flag, colour, label in ((True, "tab:green", "settles"),
-                                    (False, "tab:red", "does not settle / fails")):  # fmt: skip
-            pts = [(num(r, a), num(r, b)) for r, g in zip(rows, good, strict=True) if g == flag]
-            if pts:
-                ax.scatter(*zip(*pts, strict=True), c=colour, label=label, s=18)
-        ax.set(xlabel=a, ylabel=b, title="Stability boundary")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "stability_boundary.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
-    if "plant.noise_std" in params:
-        pts = [(num(r, "plant.noise_std"), num(r, "estimation_rms_rad")) for r in rows]
-        fig, ax = plt.subplots(figsize=(6, 4))
-        ax.scatter(*zip(*pts, strict=True), s=18)
-        ax.set(xlabel="sensor noise std [rad]", ylabel="estimation error RMS [rad]",
-               title="Estimation error against sensor noise")  # fmt: skip
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "estimation_vs_noise.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
-    return files
-
-
-def make_client(workers: int = 2, scheduler: str | None = None) -> Any:
-    """A Dask client: an existing cluster, or a local one of worker processes."""
-    import dask
-    from distributed import Client, LocalCluster
-
-    from .tempdirs import new_temp_dir
-
-    if scheduler:
-        return Client(scheduler, timeout="20s")
-    # workers inherit GLIDER_COSIM_TMP: their extractions and Dask's scratch space are
-    # removed with this process's temporary folder
-    scratch = str(new_temp_dir("dask_"))
-    dask.config.set({"temporary-directory": scratch})
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=50,
-                           local_directory=scratch)  # fmt: skip
-    return Client(cluster)
+        failed_total = store.failed(ids)
+    return SweepResult(len(unique), done, len(unique) - len(todo), failed,
+                       time.perf_counter() - t0, store.path, failed_total)  # fmt: skip
 
 
 def add_parser(sub: Any) -> None:
@@ -470,10 +322,12 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     s.add_argument("--restart", action="store_true", help="ignore results already in --out")
     s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run the ``sweep`` sub-command; 0 all ok, 1 some runs failed."""
+    """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
+    call or an earlier one recorded in ``sweep.csv``)."""
     from .build import build_all
 
     if not args.param and args.seeds is None:
@@ -492,6 +346,7 @@ def main(args: argparse.Namespace) -> int:
     build_all(fmu_dir, only_stale=True)
     specs = [parse_param(p) for p in args.param]
     seeds = list(range(args.seeds)) if args.seeds is not None else None
+    check_targets(scenario, fmu_dir, [s.target for s in specs] + ["plant.noise_seed"] * bool(seeds))
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
 
@@ -502,8 +357,11 @@ def main(args: argparse.Namespace) -> int:
             sys.stderr.write("\n")
         sys.stderr.flush()
 
-    client = make_client(args.workers, args.scheduler)
+    client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:
+        check_workers(client)
+        if args.dashboard:
+            print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
         res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
                         trajectories=args.trajectories, restart=args.restart,
                         progress=progress)  # fmt: skip
@@ -519,8 +377,28 @@ def main(args: argparse.Namespace) -> int:
     if not args.no_plots:
         write_plots(res.path, out)
     print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
-          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; results in {res.path}")  # fmt: skip
-    return 1 if res.failed else 0
+          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; {res.failed_total} of "
+          f"{res.total} failed overall; results in {res.path}")  # fmt: skip
+    return 1 if res.failed_total else 0
 
 
-__all__ = ["ScenarioError", "SweepSpecError", "expand", "main", "parse_param", "run_sweep"]
+__all__ = [
+    "FmuBlob",
+    "ParamSpec",
+    "ScenarioError",
+    "SweepClusterError",
+    "SweepResult",
+    "SweepSpecError",
+    "check_targets",
+    "check_workers",
+    "expand",
+    "main",
+    "make_client",
+    "nominal_values",
+    "parse_param",
+    "run_id",
+    "run_many",
+    "run_one",
+    "run_sweep",
+    "write_plots",
+]
