@@ -52,6 +52,7 @@ from fmpy.fmi2 import (
 
 from glider_fmi.compile import PYTHON_CONFIG_FILE
 
+from .fastloop import FastLoop
 from .inputs.archives import InputFileError, read_fmu, safe_extract
 from .inputs.text import one_line, quote
 from .tempdirs import new_temp_dir
@@ -206,6 +207,12 @@ class Recorder(Protocol):
     def row(self, values: Sequence[float]) -> None: ...
 
     def close(self) -> None: ...
+
+
+def _tuple_getter(keys: Sequence[str]) -> Callable[[dict], tuple]:
+    """``d -> tuple(d[k] for k in keys)``, as one C-level call."""
+    get = operator.itemgetter(*keys)
+    return get if len(keys) > 1 else (lambda d: (get(d),))
 
 
 class _Group:
@@ -730,11 +737,16 @@ class CoSimulation:
             ops += [(False, *w) for w in self._writers[n]]
             ops += [(True, *r) for r in self._readers[n]]
         ops += [(False, *w) for n in self._plain for w in self._writers[n]]
-        self._exchange_ops = ops
+        # a write's values come from the value table in one call (a tuple for a slice)
+        self._exchange_ops = [(*op, None if op[0] else _tuple_getter(op[-1])) for op in ops]
         self._steppers = [
             (inst, inst.call_dll().fmi2DoStep, ctypes.c_void_p(inst.slave.component))
             for inst in self.instances.values()
         ]
+        # the same calls from C, one ctypes call per exchange and per step (if possible)
+        hold_gil = all(isinstance(i.call_dll(), ctypes.PyDLL) for i in self.instances.values())
+        self._fast = FastLoop.plan(self._exchange_ops, self._steppers, hold_gil)
+        self._reads = [(op[8], op[7]) for op in self._exchange_ops if op[0]]
         self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
 
     def _drive(self, t: float) -> None:
@@ -764,15 +776,22 @@ class CoSimulation:
 
     def _exchange(self) -> None:
         vals = self.values
-        for read, inst, fn, call, comp, vr, n, value, names in self._exchange_ops:
+        if self._fast is not None:
+            i, status = self._fast.exchange()
+            if i >= 0:
+                op = self._exchange_ops[i]
+                self._raise(op[1], op[3], status)
+            for names, value in self._reads:
+                vals.update(zip(names, value[:]))
+            return
+        for read, inst, fn, call, comp, vr, n, value, names, sources in self._exchange_ops:
             if read:
                 status = fn(comp, vr, n, value)
                 if status > 1:
                     self._raise(inst, call, status)
-                vals.update(zip(names, value))
+                vals.update(zip(names, value[:]))  # the array as a list, in one call
             else:
-                for i, src in enumerate(names):
-                    value[i] = vals[src]
+                value[:] = sources(vals)
                 status = fn(comp, vr, n, value)
                 if status > 1:
                     self._raise(inst, call, status)
@@ -815,6 +834,12 @@ class CoSimulation:
         """Step every instance from ``t_k`` to ``t_k + h``."""
         t = ctypes.c_double(self.t0 + self.k * self.step_size)
         h = self._c_step
+        if self._fast is not None:
+            i, status = self._fast.step(t, h)
+            if i >= 0:
+                self._raise(self._steppers[i][0], "fmi2DoStep", status)
+            self.k += 1
+            return
         for inst, fn, comp in self._steppers:
             status = fn(comp, t, h, _C_TRUE)
             if status > 1:

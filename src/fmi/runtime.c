@@ -54,7 +54,7 @@
     X(PyList_Insert) X(PyList_SetSlice) X(PySequence_Size) X(PySequence_GetItem)          \
     X(PySequence_Contains) X(PyLong_FromLong) X(PyLong_AsLong) X(PyFloat_FromDouble)      \
     X(PyFloat_AsDouble) X(PyBool_FromLong) X(PyObject_IsTrue) X(PyBytes_FromStringAndSize) \
-    X(PyBytes_AsStringAndSize) X(PyDict_New) X(PyDict_SetItemString) X(PyTuple_New)        \
+    X(PyBytes_AsStringAndSize) X(PyDict_New) X(PyDict_SetItemString) X(PyTuple_New) X(PyTuple_SetItem)        \
     X(PySys_GetObject) X(PySys_SetObject) X(PyObject_GetIter) X(PyIter_Next)
 
 #define DECLARE(name) static __typeof__(&name) p##name;
@@ -191,8 +191,8 @@ typedef struct FmuState {
 
 typedef enum { T_REAL = 'R', T_INTEGER = 'I', T_BOOLEAN = 'B', T_STRING = 'S' } VarType;
 
-/* The value-reference list last passed for a call, reused while the host passes the
- * same references (slaves must not modify the list they get). */
+/* The value-reference tuple last passed for a call, reused while the host passes the
+ * same references. */
 typedef struct {
     size_t n;
     fmi2ValueReference *vr;
@@ -895,16 +895,17 @@ static fmi2Status check_refs(Ctx *x, const fmi2ValueReference vr[], size_t nvr,
     return fmi2OK;
 }
 
+/* The references as a tuple: immutable, so a slave may key a cache on its identity. */
 static PyObject *ref_list(const fmi2ValueReference vr[], size_t nvr) {
-    PyObject *l = pPyList_New((Py_ssize_t)nvr);
+    PyObject *l = pPyTuple_New((Py_ssize_t)nvr);
     for (size_t i = 0; l && i < nvr; ++i) {
         PyObject *o = pPyLong_FromLong((long)vr[i]);
-        if (!o || pPyList_SetItem(l, (Py_ssize_t)i, o)) CLEAR(l);
+        if (!o || pPyTuple_SetItem(l, (Py_ssize_t)i, o)) CLEAR(l);
     }
     return l;
 }
 
-/* The references as a Python list (new reference), from the call's cache if unchanged. */
+/* The references as a Python tuple (new reference), from the call's cache if unchanged. */
 static PyObject *call_refs(Instance *inst, int call, const fmi2ValueReference vr[], size_t nvr) {
     RefCache *rc = &inst->refs[call];
     if (rc->list && rc->n == nvr && !memcmp(rc->vr, vr, nvr * sizeof *vr)) {

@@ -78,6 +78,14 @@ _UNITS: dict[str, dict[str, str]] = {
 _DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad.s": ("deg.s", DEG)}
 
 
+def _tuple_attrgetter(names: Sequence[str]) -> Any:
+    """``obj -> tuple(getattr(obj, n) for n in names)``, as one C-level call."""
+    if not names:
+        return lambda obj: ()
+    get = operator.attrgetter(*names)
+    return get if len(names) > 1 else (lambda obj: (get(obj),))
+
+
 class GliderSlave(Fmi2Slave):
     """Base of the glider slaves: declare :attr:`VARIABLES`, implement :meth:`initialize`
     and :meth:`step`; list :attr:`FEEDTHROUGH` (output -> inputs it depends on directly).
@@ -138,6 +146,8 @@ class GliderSlave(Fmi2Slave):
         }
         self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
         self._get_cache: dict[tuple[int, ...], Any] = {}
+        self._last_get: tuple[Any, Any] = (None, None)  # (references tuple, its getter)
+        self._input_values = _tuple_attrgetter(self._inputs)
 
     # ------------------------------------------------------------------ XML
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:  # noqa: D401
@@ -203,6 +213,8 @@ class GliderSlave(Fmi2Slave):
 
     def check_inputs(self) -> None:
         """Refuse non-finite inputs at a step."""
+        if all(map(math.isfinite, self._input_values(self))):
+            return
         for name in self._inputs:
             value = getattr(self, name)
             if not math.isfinite(value):
@@ -212,7 +224,10 @@ class GliderSlave(Fmi2Slave):
                 )
 
     # fast paths for the hot get/set calls (pythonfmu's generic ones check every type)
-    def get_real(self, vrs: list[int]) -> Sequence[float]:
+    def get_real(self, vrs: Sequence[int]) -> Sequence[float]:
+        last_key, last = self._last_get
+        if vrs is last_key:  # the runtime passes the same tuple while the references repeat
+            return last(self)
         key = tuple(vrs)
         fast = self._get_cache.get(key)
         if fast is None:
@@ -229,6 +244,8 @@ class GliderSlave(Fmi2Slave):
                 gs = tuple(getters[vr] for vr in key)
                 fast = lambda obj: [g() for g in gs]  # noqa: E731
             self._get_cache[key] = fast
+        if type(vrs) is tuple:  # immutable: its identity can stand for its contents
+            self._last_get = (vrs, fast)
         return fast(self)  # a sequence (the runtime takes any)
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
