@@ -147,6 +147,7 @@ class GliderSlave(Fmi2Slave):
         self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
         self._get_cache: dict[tuple[int, ...], Any] = {}
         self._last_get: tuple[Any, Any] = (None, None)  # (references tuple, its getter)
+        self._last_set: tuple[Any, tuple[str, ...]] = (None, ())  # (references, input names)
         self._input_values = _tuple_attrgetter(self._inputs)
 
     # ------------------------------------------------------------------ XML
@@ -248,8 +249,15 @@ class GliderSlave(Fmi2Slave):
             self._last_get = (vrs, fast)
         return fast(self)  # a sequence (the runtime takes any)
 
-    def set_real(self, vrs: list[int], values: list[float]) -> None:
+    def set_real(self, vrs: Sequence[int], values: Sequence[float]) -> None:
+        last_key, names = self._last_set
+        if vrs is last_key and len(values) == len(names):  # the same inputs as last time
+            for name, value in zip(names, values):
+                setattr(self, name, value)
+            return
         inputs = self._real_inputs
+        if type(vrs) is tuple and all(vr in inputs for vr in vrs):
+            self._last_set = (vrs, tuple(inputs[vr] for vr in vrs))
         for vr, value in zip(vrs, values, strict=True):
             name = inputs.get(vr)
             if name is not None:
