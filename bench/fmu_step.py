@@ -94,8 +94,9 @@ def direct_ns(name: str, inputs: dict[str, float], n: int) -> dict[str, float]:
     """ns per call of the slave's do_step, get_real and set_real, called in Python."""
     s = _slave(name)
     vr = {v.name: vr for vr, v in s.vars.items()}
-    set_vrs, set_vals = [vr[k] for k in inputs], list(inputs.values())
-    get_vrs = [vr[k] for k in READ[name]]
+    # tuples, as the runtime passes them (the slaves key their caches on them)
+    set_vrs, set_vals = tuple(vr[k] for k in inputs), list(inputs.values())
+    get_vrs = tuple(vr[k] for k in READ[name])
     s.setup_experiment(0.0, None, None)
     s.set_real(set_vrs, set_vals)
     s.enter_initialization_mode()
