@@ -157,3 +157,20 @@ def test_extractions_are_reused_within_a_process(fmu_dir):
     from glider_cosim.tempdirs import temp_root
 
     assert Path(a).is_relative_to(temp_root())
+
+
+def test_cli_run_with_plots_writes_nothing_in_home(fmu_dir, tmp_path):
+    """matplotlib's font cache goes to the run's temporary folder, not ``~/.cache``."""
+    home = tmp_path / "home"
+    home.mkdir()
+    env = private_env(tmp_path / "t") | {"HOME": str(home)}
+    env.pop("MPLCONFIGDIR", None)
+    env.pop("XDG_CACHE_HOME", None)
+    env.pop("XDG_CONFIG_HOME", None)
+    p = subprocess.run([sys.executable, "-c", CLI, "run", "--fmu-dir", str(fmu_dir), "--out",
+                        str(tmp_path / "o"), "--stop-time", "2"], capture_output=True, text=True,
+                       env=env, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "o" / "pitch.png").is_file()
+    assert list(home.rglob("*")) == []
+    assert list((tmp_path / "t").iterdir()) == []
