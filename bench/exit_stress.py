@@ -29,9 +29,16 @@ assert r.status == "ok", r.message
 """
 
 
+FAILURES: list[dict[str, object]] = []  # the first few runs that did not exit 0
+
+
 def _codes(commands: list[list[str]], jobs: int) -> dict[str, int]:
     def one(cmd: list[str]) -> int:
-        return subprocess.run(cmd, capture_output=True, timeout=600).returncode
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        if p.returncode != 0 and len(FAILURES) < 5:
+            FAILURES.append({"command": cmd[1:], "exit": p.returncode,
+                             "stderr": p.stderr[-1500:]})  # fmt: skip
+        return p.returncode
 
     with ThreadPoolExecutor(jobs) as pool:
         counts = collections.Counter(pool.map(one, commands))
@@ -68,6 +75,7 @@ def main() -> None:
         api = [[sys.executable, "-c", API_SCRIPT.format(fmu_dir=args.fmu_dir)]] * args.cli
         result["api_exit_codes"] = _codes(api, args.jobs)
     result["seconds"] = round(time.perf_counter() - t0, 1)
+    result["failures"] = FAILURES
     counts = [v for k, v in result.items() if k.endswith("_exit_codes")]
     if not args.json:
         for k, v in result.items():
