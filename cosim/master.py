@@ -209,7 +209,7 @@ class Recorder(Protocol):
     def close(self) -> None: ...
 
 
-def _tuple_getter(keys: Sequence[str]) -> Callable[[dict], tuple]:
+def _tuple_getter(keys: Sequence[Any]) -> Callable[[Any], tuple]:
     """``d -> tuple(d[k] for k in keys)``, as one C-level call."""
     get = operator.itemgetter(*keys)
     return get if len(keys) > 1 else (lambda d: (get(d),))
@@ -580,6 +580,7 @@ class CoSimulation:
             vrs = [inst.vars[VarRef.parse(r).variable].valueReference for r in refs]
             self._driven.append((inst, _Group(vrs, "Real"), refs))
         self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
+        self._record = list(record)
         getter = operator.itemgetter(*record) if record else (lambda v: ())
         self._row_getter = getter if len(record) != 1 else (lambda v: (getter(v),))
         self.values: dict[str, float] = dict.fromkeys(needed, 0.0)
@@ -747,6 +748,13 @@ class CoSimulation:
         hold_gil = all(isinstance(i.call_dll(), ctypes.PyDLL) for i in self.instances.values())
         self._fast = FastLoop.plan(self._exchange_ops, self._steppers, hold_gil)
         self._reads = [(op[8], op[7]) for op in self._exchange_ops if op[0]]
+        # the recorded row straight from the read arrays (no value table) when possible
+        flat = [name for names, _ in self._reads for name in names]
+        pos = {name: i for i, name in enumerate(flat)}
+        self._row_from_reads = None
+        if self._fast is not None and self._record and all(r in pos for r in self._record):
+            self._row_from_reads = _tuple_getter([pos[r] for r in self._record])
+        self._read_arrays = [value for _, value in self._reads]
         self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
 
     def _drive(self, t: float) -> None:
@@ -824,6 +832,15 @@ class CoSimulation:
         """Exchange values at ``t_k`` (events included) and return the recorded row."""
         t = self.t0 + self.k * self.step_size
         self._drive(t)
+        if self._row_from_reads is not None and not self._pending_events:
+            i, status = self._fast.exchange()
+            if i >= 0:
+                op = self._exchange_ops[i]
+                self._raise(op[1], op[3], status)
+            flat: list[float] = []
+            for value in self._read_arrays:
+                flat += value[:]
+            return (t, *self._row_from_reads(flat))
         self._exchange()
         if self._events(t):
             self._drive(t)
