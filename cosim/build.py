@@ -141,12 +141,16 @@ def package_slave(
     with tempfile.TemporaryDirectory(prefix="glider_fmi_cfg_") as tmp:
         config = Path(tmp) / runtime.PYTHON_CONFIG_FILE
         config.write_text(runtime.python_config())
-        fmu = Path(
+        staged = Path(
             FmuBuilder.build_FMU(
-                script, dest=out, project_files=[*project_files, config], **options
+                script, dest=Path(tmp), project_files=[*project_files, config], **options
             )
         )
-    _replace_binaries(fmu, fmu.stem, binary)
+        _replace_binaries(staged, staged.stem, binary)
+        fmu = out / staged.name
+        # into place in one step: a process reading the FMU meanwhile sees old or new
+        shutil.copyfile(staged, fmu.with_name(fmu.name + ".part"))
+        fmu.with_name(fmu.name + ".part").replace(fmu)
     return fmu
 
 

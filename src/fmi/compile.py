@@ -11,6 +11,7 @@ by :func:`python_config`.
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import importlib.util
 import os
 import shutil
@@ -132,13 +133,20 @@ def libpython() -> Path:
 
 
 def site_dirs() -> list[str]:
-    """Folders a started interpreter adds with ``site.addsitedir``: those holding the
-    packages the slaves import, then this interpreter's site-packages."""
+    """Folders a started interpreter adds with ``site.addsitedir``: those the packages the
+    slaves import are installed in, then this interpreter's site-packages.
+
+    From the installed distributions, not from where the modules were imported: in a
+    process that ran our FMUs, ``pythonfmu`` comes from an FMU's ``resources/`` (a
+    temporary folder), which must not end up in an FMU (nor change its build hash).
+    """
     dirs = []
     for name in PYTHON_PACKAGES:
-        spec = importlib.util.find_spec(name)
-        if spec is not None and spec.origin:
-            dirs.append(str(Path(spec.origin).resolve().parent.parent))
+        try:
+            dist = importlib.metadata.distribution(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+        dirs.append(str(Path(str(dist.locate_file(""))).resolve()))
     scheme = sysconfig.get_paths()
     dirs += [scheme["purelib"], scheme["platlib"]]
     dirs += [p for p in sys.path if p.endswith(("site-packages", "dist-packages"))]

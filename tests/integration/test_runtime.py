@@ -478,3 +478,27 @@ def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging, tmp_path,
     printed = capsys.readouterr().out.splitlines()
     errors = [line.removeprefix("[ERROR] ") for line in printed if line.startswith("[ERROR] ")]
     assert len(errors) == 1 and errors[0].startswith(f"{call}: {expected}"), errors
+
+
+CURRENT_AFTER_RUN = """
+import sys
+from pathlib import Path
+from glider_cosim.build import COMPONENTS, is_current
+from glider_cosim.runner import simulate
+fmus = Path(sys.argv[1])
+r = simulate("default", None, fmu_dir=fmus, build=False, stop_time=0.2)
+import pythonfmu
+print("pythonfmu from", pythonfmu.__file__)
+print("current", all(is_current(fmus / f"{c.name}.fmu", c) for c in COMPONENTS), r.status)
+"""
+
+
+def test_fmus_stay_current_in_a_process_that_ran_them(fmu_dir):
+    """The build hash does not depend on what the process imported from FMUs (pythonfmu
+    from an FMU's resources/ once made every later build check rebuild the FMUs, and a
+    concurrent reader then saw a half-written archive)."""
+    p = subprocess.run([sys.executable, "-c", CURRENT_AFTER_RUN, str(fmu_dir)],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "/resources/pythonfmu/" in p.stdout  # imported from an FMU there (the trap)
+    assert "current True ok" in p.stdout
