@@ -41,3 +41,23 @@ int glider_step(void *const *fns, void *const *comps, int n, double t, double h,
     }
     return -1;
 }
+
+/* Rows of `ncol` doubles as CSV lines, each value as Python's '%.17g' writes it ("nan"
+ * for every NaN). Returns the number of bytes written to out, or -1 if out is too small. */
+#include <math.h>
+#include <stdio.h>
+
+long glider_format_rows(const double *values, int nrows, int ncol, char *out, long size) {
+    long used = 0;
+    for (int r = 0; r < nrows; ++r) {
+        for (int c = 0; c < ncol; ++c) {
+            double v = values[(long)r * ncol + c];
+            int n = isnan(v) ? snprintf(out + used, (size_t)(size - used), "nan")
+                             : snprintf(out + used, (size_t)(size - used), "%.17g", v);
+            if (n < 0 || used + n + 1 >= size) return -1;
+            used += n;
+            out[used++] = c + 1 < ncol ? ',' : '\n';
+        }
+    }
+    return used;
+}

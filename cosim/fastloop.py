@@ -36,6 +36,13 @@ class _Op(ctypes.Structure):
     ]
 
 
+def library() -> ctypes.CDLL | None:
+    """The compiled helper for code that only formats (no FMI calls), or None."""
+    if os.environ.get(ENV, "1") == "0":
+        return None
+    return _library(True)
+
+
 def _library(hold_gil: bool) -> ctypes.CDLL | None:
     """The compiled helper (``PyDLL`` when the FMUs run Python under the GIL anyway)."""
     if hold_gil in _LIB:
@@ -51,6 +58,7 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         subprocess.run(cmd, check=True, capture_output=True, timeout=120)
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
+        lib.glider_format_rows.restype = ctypes.c_long
     except (OSError, subprocess.SubprocessError, RuntimeBuildError):
         lib = None  # the Python loop runs instead
     _LIB[hold_gil] = lib

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import json
 import logging
 import math
@@ -105,25 +106,64 @@ class ArrayRecorder:
 
 
 class CsvRecorder:
-    """Streams rows to a CSV file (constant memory); ``close`` flushes."""
+    """Streams rows to a CSV file (constant memory); ``close`` flushes.
+
+    Values are written with 17 significant digits (``%.17g``: every float64 reads back
+    bit for bit). Where the C helper of :mod:`glider_cosim.fastloop` is available, rows
+    are collected in blocks of :attr:`BLOCK` and formatted there (the same text as
+    Python's ``%`` formatting, about half the time); otherwise in Python.
+    """
+
+    BLOCK = 128  # rows formatted at once by the C helper
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self._f = None
         self.n_rows = 0
+        self._lib = None
+        self._pending = 0
 
     def start(self, columns: Sequence[str]) -> None:
-        self._f = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115
-        self._f.write(",".join(columns) + "\n")
-        # 17 significant digits: every float64 reads back bit for bit
+        from .fastloop import library
+
+        self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
+        self._f.write((",".join(columns) + "\n").encode())
+        self._ncol = len(columns)
         self._fmt = ",".join(["%.17g"] * len(columns)) + "\n"
+        self._lib = library() if columns else None
+        if self._lib is not None:
+            self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
+            self._buf = ctypes.create_string_buffer(self.BLOCK * self._ncol * 26 + 16)
 
     def row(self, values: Sequence[float]) -> None:
-        self._f.write(self._fmt % (values if isinstance(values, tuple) else tuple(values)))
+        if self._lib is None:
+            self._f.write((self._fmt % tuple(values)).encode())
+        else:
+            i = self._pending * self._ncol
+            self._block[i : i + self._ncol] = values
+            self._pending += 1
+            if self._pending == self.BLOCK:
+                self._flush()
         self.n_rows += 1
+
+    def _flush(self) -> None:
+        if not self._pending:
+            return
+        n = self._lib.glider_format_rows(self._block, self._pending, self._ncol, self._buf,
+                                         len(self._buf))  # fmt: skip
+        if n < 0:  # cannot happen (26 bytes a value suffice), but never lose rows
+            rows = self._block[: self._pending * self._ncol]
+            text = "".join(self._fmt % tuple(rows[k : k + self._ncol])
+                           for k in range(0, len(rows), self._ncol))  # fmt: skip
+            self._f.write(text.encode())
+        else:
+            self._f.write(ctypes.string_at(self._buf, n))
+        self._pending = 0
 
     def close(self) -> None:
         if self._f is not None:
+            if self._lib is not None:
+                self._flush()
             self._f.close()
             self._f = None
 
