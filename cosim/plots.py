@@ -70,13 +70,19 @@ def _pitch(result: Any, out: Path) -> Path:
                  label="measured - true")  # fmt: skip
     if est is not None:
         ax2.plot(t, est - ref, lw=1.0, color="tab:orange", label=f"estimate - {ref_name}")
-    ax.set(title=_title(result, "Pitch"), ylabel="theta [deg]")
+    return _finish_pair(fig, (ax, ax2), _title(result, "Pitch"), "theta", out / "pitch.png")
+
+
+def _finish_pair(fig: Any, axes: tuple[Any, Any], title: str, name: str, path: Path) -> Path:
+    """Values above (``name`` in deg), differences below; grids, legends where labelled."""
+    ax, ax2 = axes
+    ax.set(title=title, ylabel=f"{name} [deg]")
     ax2.set(xlabel="time [s]", ylabel="difference [deg]")
-    for a in (ax, ax2):
+    for a in axes:
         a.grid(alpha=0.3)
         if a.get_legend_handles_labels()[0]:
             a.legend(loc="best", fontsize=8)
-    return _save(fig, out / "pitch.png")
+    return _save(fig, path)
 
 
 def _tail(result: Any, out: Path) -> Path:
@@ -91,13 +97,8 @@ def _tail(result: Any, out: Path) -> Path:
     if servo is not None:  # a swapped-in plant may have no servo output
         ax.plot(t, servo, lw=1.0, color="k", label="servo angle (sampled)")
         ax2.plot(t, cmd - servo, lw=1.0, color="tab:purple", label="command - servo")
-    ax.set(title=_title(result, "Tail angle"), ylabel="delta [deg]")
-    ax2.set(xlabel="time [s]", ylabel="difference [deg]")
-    for a in (ax, ax2):
-        a.grid(alpha=0.3)
-        if a.get_legend_handles_labels()[0]:
-            a.legend(loc="best", fontsize=8)
-    return _save(fig, out / "tail_angle.png")
+    return _finish_pair(fig, (ax, ax2), _title(result, "Tail angle"), "delta",
+                        out / "tail_angle.png")  # fmt: skip
 
 
 def _speed(result: Any, out: Path) -> Path:
