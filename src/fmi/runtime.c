@@ -83,7 +83,6 @@ static int g_python_ready = 0;
 static char g_python_error[4096];
 static char g_model[256]; /* model identifier: this binary's file name without .so */
 
-enum { SLAVE_METHODS_BEGIN = 0 };
 #define SLAVE_METHODS(X)                                                                   \
     X(M_SETUP, "setup_experiment") X(M_ENTER, "enter_initialization_mode")                 \
     X(M_EXIT, "exit_initialization_mode") X(M_STEP, "do_step") X(M_TERMINATE, "terminate") \
