@@ -103,7 +103,10 @@ def main() -> None:
                "--track-origins=yes", "--num-callers=30", f"--log-file={log}", sys.executable,
                str(FUZZ), str(args.seed), str(args.sequences),
                *(str(fmus[n]) for n in NAMES)]  # fmt: skip
-        env = {**os.environ, "PYTHONMALLOC": "malloc"}
+        # one BLAS thread: OpenBLAS's worker threads spin while they wait, and valgrind
+        # runs one thread at a time (a run was seen to crawl for 15 min in that wait)
+        env = {**os.environ, "PYTHONMALLOC": "malloc", "OPENBLAS_NUM_THREADS": "1",
+               "OMP_NUM_THREADS": "1"}  # fmt: skip
         p = subprocess.run(cmd, capture_output=True, text=True, env=env)
         done = p.stdout.rstrip().endswith("done")
         result = {"sequences_per_fmu": args.sequences, "seed": args.seed,
