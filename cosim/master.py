@@ -782,13 +782,17 @@ class CoSimulation:
             self._check(inst, "fmi2SetReal", inst.call_dll().fmi2SetReal(comp, g.vr, g.cn, g.value))
             self._driven_last[j] = new
 
+    def _fast_exchange(self) -> None:
+        """The planned exchange from C; raises for the call that failed."""
+        i, status = self._fast.exchange()
+        if i >= 0:
+            op = self._exchange_ops[i]
+            self._raise(op[1], op[3], status)
+
     def _exchange(self) -> None:
         vals = self.values
         if self._fast is not None:
-            i, status = self._fast.exchange()
-            if i >= 0:
-                op = self._exchange_ops[i]
-                self._raise(op[1], op[3], status)
+            self._fast_exchange()
             for names, value in self._reads:
                 vals.update(zip(names, value[:]))
             return
@@ -833,10 +837,7 @@ class CoSimulation:
         t = self.t0 + self.k * self.step_size
         self._drive(t)
         if self._row_from_reads is not None and not self._pending_events:
-            i, status = self._fast.exchange()
-            if i >= 0:
-                op = self._exchange_ops[i]
-                self._raise(op[1], op[3], status)
+            self._fast_exchange()
             flat: list[float] = []
             for value in self._read_arrays:
                 flat += value[:]

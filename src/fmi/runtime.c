@@ -895,7 +895,7 @@ static fmi2Status check_refs(Ctx *x, const fmi2ValueReference vr[], size_t nvr,
 }
 
 /* The references as a tuple: immutable, so a slave may key a cache on its identity. */
-static PyObject *ref_list(const fmi2ValueReference vr[], size_t nvr) {
+static PyObject *ref_tuple(const fmi2ValueReference vr[], size_t nvr) {
     PyObject *l = pPyTuple_New((Py_ssize_t)nvr);
     for (size_t i = 0; l && i < nvr; ++i) {
         PyObject *o = pPyLong_FromLong((long)vr[i]);
@@ -911,7 +911,7 @@ static PyObject *call_refs(Instance *inst, int call, const fmi2ValueReference vr
         INCREF(rc->list);
         return rc->list;
     }
-    PyObject *l = ref_list(vr, nvr);
+    PyObject *l = ref_tuple(vr, nvr);
     fmi2ValueReference *copy = l ? malloc(nvr * sizeof *vr) : NULL;
     if (!copy) return l; /* not cached */
     memcpy(copy, vr, nvr * sizeof *vr);
