@@ -1,6 +1,7 @@
 """Compile the FMI runtime and record the Python it starts in hosts without one.
 
-The runtime (``runtime.c``, next to this module) is compiled with the system C compiler
+The runtime (the FMI layer ``fmi2_layer.c`` with the Python back end ``backend_python.c``,
+next to this module) is compiled with the system C compiler
 against this interpreter's ``Python.h`` in limited-API mode (``Py_LIMITED_API`` 3.11)
 and the FMI 2.0 headers fmpy ships. It links no libpython: every Python function is
 resolved when the first FMU is instantiated, so one binary serves hosts on Python 3.11
@@ -20,7 +21,11 @@ import sys
 import sysconfig
 from pathlib import Path
 
-RUNTIME_SOURCE = Path(__file__).with_name("runtime.c")
+#: the FMI layer (one state machine, every FMU) and the Python back end
+LAYER_SOURCES = (Path(__file__).with_name("fmi2_layer.c"),)
+PYTHON_BACKEND_SOURCES = (Path(__file__).with_name("backend_python.c"),)
+RUNTIME_SOURCES = LAYER_SOURCES + PYTHON_BACKEND_SOURCES
+LAYER_HEADERS = (Path(__file__).with_name("fmi_layer.h"),)
 #: file in the FMU's resources/ naming the Python to start in a host without one
 PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"
 #: environment variable naming another such file (another Python installation)
@@ -73,12 +78,15 @@ def _include_dirs() -> list[str]:
 def compile_command(output: Path) -> list[str]:
     """The compiler command line that builds the runtime into ``output``."""
     includes = [f"-I{d}" for d in _include_dirs()]
-    return [find_compiler(), *CFLAGS, *includes, str(RUNTIME_SOURCE), "-o", str(output), *LIBS]
+    sources = [str(p) for p in RUNTIME_SOURCES]
+    return [find_compiler(), *CFLAGS, *includes, *sources, "-o", str(output), *LIBS]
 
 
 def runtime_fingerprint() -> str:
     """SHA-256 over the runtime's source and its compile flags (FMU staleness)."""
-    h = hashlib.sha256(RUNTIME_SOURCE.read_bytes())
+    h = hashlib.sha256()
+    for path in (*RUNTIME_SOURCES, *LAYER_HEADERS):
+        h.update(path.read_bytes())
     h.update(" ".join((*CFLAGS, *LIBS)).encode())
     return h.hexdigest()
 

@@ -1,0 +1,190 @@
+/* glider-cosim's FMI layer: what the one FMI 2.0 front end (fmi2_layer.c) and its back
+ * ends share.
+ *
+ * The layer owns everything FMI says about an instance: the registry of live instances,
+ * the state machine (CALL_TABLE: which call is allowed in which state), statuses, the
+ * messages of a call and when they reach the host's logger, value-reference checks, the
+ * FMU-state handles and their serialized framing. A back end knows only how to run one
+ * model: the Python back end (backend_python.c) hosts a pythonfmu slave in an embedded
+ * interpreter, the native back end (backend_native.c) calls a component's C model. The
+ * layer reaches a back end only through the table of functions `GliderBackend` that the
+ * back end defines (one per binary), the way the Reference-FMUs' shared code reaches a
+ * model through model.h.
+ *
+ * C99; no Python here. Written from the FMI 2.0.4 standard and fmpy's FMI headers.
+ */
+#ifndef GLIDER_FMI_LAYER_H
+#define GLIDER_FMI_LAYER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fmi2Functions.h"
+
+/* ------------------------------------------------------------------ the state machine */
+enum {
+    S_INSTANTIATED = 1 << 0,
+    S_INIT = 1 << 1,
+    S_STEP_COMPLETE = 1 << 2,
+    S_STEP_FAILED = 1 << 3, /* doStep returned fmi2Discard */
+    S_TERMINATED = 1 << 4,
+    S_ERROR = 1 << 5,
+    S_FATAL = 1 << 6
+};
+#define S_LIVE (S_INSTANTIATED | S_INIT | S_STEP_COMPLETE | S_STEP_FAILED | S_TERMINATED | S_ERROR)
+#define S_STEPPING (S_STEP_COMPLETE | S_STEP_FAILED)
+#define S_GETTABLE (S_INSTANTIATED | S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
+#define S_SETTABLE (S_INSTANTIATED | S_INIT | S_STEP_COMPLETE)
+
+/* Allowed states per call, after the FMI 2.0 co-simulation state table (getters are
+ * also accepted right after instantiation: they return the start values). */
+#define CALL_TABLE(X)                                                                     \
+    X(C_INSTANTIATE, "fmi2Instantiate", 0)                                                \
+    X(C_SET_DEBUG_LOGGING, "fmi2SetDebugLogging", S_LIVE)                                 \
+    X(C_SETUP_EXPERIMENT, "fmi2SetupExperiment", S_INSTANTIATED)                          \
+    X(C_ENTER_INIT, "fmi2EnterInitializationMode", S_INSTANTIATED)                        \
+    X(C_EXIT_INIT, "fmi2ExitInitializationMode", S_INIT)                                  \
+    X(C_TERMINATE, "fmi2Terminate", S_STEPPING)                                           \
+    X(C_RESET, "fmi2Reset", S_LIVE)                                                       \
+    X(C_FREE, "fmi2FreeInstance", S_LIVE | S_FATAL)                                       \
+    X(C_GET_REAL, "fmi2GetReal", S_GETTABLE)                                              \
+    X(C_GET_INTEGER, "fmi2GetInteger", S_GETTABLE)                                        \
+    X(C_GET_BOOLEAN, "fmi2GetBoolean", S_GETTABLE)                                        \
+    X(C_GET_STRING, "fmi2GetString", S_GETTABLE)                                          \
+    X(C_SET_REAL, "fmi2SetReal", S_SETTABLE)                                              \
+    X(C_SET_INTEGER, "fmi2SetInteger", S_SETTABLE)                                        \
+    X(C_SET_BOOLEAN, "fmi2SetBoolean", S_SETTABLE)                                        \
+    X(C_SET_STRING, "fmi2SetString", S_SETTABLE)                                          \
+    X(C_GET_FMU_STATE, "fmi2GetFMUstate", S_LIVE)                                         \
+    X(C_SET_FMU_STATE, "fmi2SetFMUstate", S_LIVE)                                         \
+    X(C_FREE_FMU_STATE, "fmi2FreeFMUstate", S_LIVE)                                       \
+    X(C_STATE_SIZE, "fmi2SerializedFMUstateSize", S_LIVE)                                 \
+    X(C_SERIALIZE, "fmi2SerializeFMUstate", S_LIVE)                                       \
+    X(C_DESERIALIZE, "fmi2DeSerializeFMUstate", S_LIVE)                                   \
+    X(C_DIRECTIONAL, "fmi2GetDirectionalDerivative", 0)                                   \
+    X(C_SET_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", 0)                          \
+    X(C_GET_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", 0)                        \
+    X(C_DO_STEP, "fmi2DoStep", S_STEP_COMPLETE)                                           \
+    X(C_CANCEL_STEP, "fmi2CancelStep", 0)                                                 \
+    X(C_GET_STATUS, "fmi2GetStatus", S_STEPPING | S_TERMINATED | S_ERROR)                 \
+    X(C_GET_REAL_STATUS, "fmi2GetRealStatus", S_STEPPING | S_TERMINATED | S_ERROR)        \
+    X(C_GET_INTEGER_STATUS, "fmi2GetIntegerStatus", S_STEPPING | S_TERMINATED | S_ERROR)  \
+    X(C_GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", S_STEPPING | S_TERMINATED | S_ERROR)  \
+    X(C_GET_STRING_STATUS, "fmi2GetStringStatus", S_STEPPING | S_TERMINATED | S_ERROR)
+#define CALL_ID(id, name, allowed) id,
+enum { CALL_TABLE(CALL_ID) C_COUNT };
+#undef CALL_ID
+
+typedef struct {
+    const char *name;
+    unsigned allowed;
+} CallSpec;
+extern const CallSpec GLIDER_CALLS[C_COUNT];
+
+/* ------------------------------------------------------------------ instances */
+#define MAX_CATEGORIES 64
+#define MODEL_ID_SIZE 256
+
+typedef enum { T_REAL = 'R', T_INTEGER = 'I', T_BOOLEAN = 'B', T_STRING = 'S' } VarType;
+
+typedef struct FmuState {
+    uint32_t magic;
+    struct FmuState *next;
+    void *value;      /* the back end's saved state */
+    void *bytes;      /* the back end's serialization, cached between Size and Serialize */
+    unsigned machine; /* the FMI state it was taken in */
+    double time;      /* last successful time */
+    int terminated;   /* the model had asked to stop */
+} FmuState;
+
+typedef struct Instance {
+    uint32_t magic;
+    struct Instance *next; /* registry of live instances */
+    char *name, *resources;
+    fmi2CallbackLogger logger;
+    fmi2ComponentEnvironment env;
+    int logging_on;
+    uint64_t cat_on, cat_off; /* debug categories on, categories switched off */
+    int ncat, cat_calls, cat_all, cat_error, cat_discard, cat_warning;
+    char *cat_names[MAX_CATEGORIES];
+    unsigned state;
+    double time;    /* time of the last successful step end (or start time) */
+    int terminated; /* the model stopped the simulation (fmi2Discard) */
+    int visible;
+    /* the variables, filled by the back end at instantiation: type and name per value
+     * reference (0 .. nvars-1), owned by the back end */
+    size_t nvars;
+    const char *var_type;
+    const char *const *var_names;
+    FmuState *states;
+    void *backend; /* the back end's per-instance data */
+} Instance;
+
+/* ------------------------------------------------------------------ a call */
+typedef struct {
+    fmi2Status status;
+    int category; /* index into the instance's categories, -1: none */
+    char *text;
+} Msg;
+
+typedef struct {
+    Instance *inst;
+    int call;
+    int token;      /* the back end's (e.g. the GIL state taken for this call) */
+    int have_token; /* the back end entered this call */
+    Msg *msgs;
+    size_t nmsgs, cap;
+} Ctx;
+
+/* A message of this call: kept, and passed to the host's logger when the call ends if
+ * the logging rules let it through (errors always). */
+void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ...);
+/* An error of this call: message "<call>: <what>"; returns fmi2Error. */
+fmi2Status glider_fail(Ctx *x, const char *fmt, ...);
+int glider_category_index(const Instance *inst, const char *name);
+/* Register the log categories of a model (FMI's standard ones and logFmiCalls). */
+void glider_set_categories(Instance *inst, const char *const names[], int n);
+char *glider_dup_text(const char *s);
+
+/* ------------------------------------------------------------------ a back end */
+typedef struct {
+    /* the model identifier (the binary's file name without its suffix) */
+    const char *(*model_identifier)(void);
+    /* make the back end usable in this process (once; thread-safe); 0 + err on failure,
+     * which fmi2Instantiate reports as fmi2Fatal */
+    int (*start)(const char *resources, char *err, size_t errsize);
+    /* take and give back what a call needs (the GIL); enter fails with a message when
+     * the back end cannot be called any more (Python finalizing) */
+    fmi2Status (*enter)(Ctx *x);
+    void (*leave)(Ctx *x);
+    /* instantiate: create the model, fill inst->nvars, var_type, var_names and the
+     * categories; reset: a fresh model with start values */
+    fmi2Status (*create)(Ctx *x);
+    fmi2Status (*reset)(Ctx *x);
+    /* free the model and every state's value (inside enter/leave when possible: alive
+     * says whether the back end can still be called) */
+    void (*destroy)(Instance *inst, int alive);
+    int (*alive)(void);
+    fmi2Status (*setup)(Ctx *x, int tolerance_defined, double tolerance, double start,
+                        int stop_defined, double stop);
+    /* fmi2EnterInitializationMode, fmi2ExitInitializationMode, fmi2Terminate */
+    fmi2Status (*transition)(Ctx *x, int call);
+    /* value access; references are checked against var_type by the layer */
+    fmi2Status (*get)(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr, void *out);
+    fmi2Status (*set)(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr,
+                      const void *values);
+    /* one communication step; *go_on = 0: the model stopped cleanly (fmi2Discard) */
+    fmi2Status (*step)(Ctx *x, double t, double h, int *go_on);
+    /* FMU state: save into s->value (replacing what is there), restore, release value and
+     * bytes, serialize (cached in s->bytes) and deserialize into s->value */
+    fmi2Status (*state_get)(Ctx *x, FmuState *s);
+    fmi2Status (*state_set)(Ctx *x, const FmuState *s);
+    void (*state_release)(FmuState *s, int alive);
+    fmi2Status (*state_bytes)(Ctx *x, FmuState *s, const char **data, size_t *n);
+    fmi2Status (*state_from_bytes)(Ctx *x, FmuState *s, const char *data, size_t n);
+} Backend;
+
+/* defined once per binary by its back end */
+extern const Backend GLIDER_BACKEND;
+
+#endif
