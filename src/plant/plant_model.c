@@ -9,6 +9,50 @@
 
 /* ---- Python number formatting ------------------------------------------------------- */
 
+/* At a power of two the round-trip interval is asymmetric: the correctly rounded p-digit
+ * string may miss it while its neighbour one unit in the last digit (on the wider side)
+ * round-trips, and that neighbour is what Python's shortest repr gives. If so, rewrite tmp
+ * (a "%.*e" string) to that neighbour and return 1. */
+static int py_repr_neighbor(char *tmp, double x)
+{
+    char cand[48];
+    char *e = strchr(tmp, 'e');
+    int step, last, i;
+    if (e == NULL || e == tmp) {
+        return 0;
+    }
+    last = (int)(e - tmp) - 1;
+    for (step = -1; step <= 1; step += 2) {
+        int carry = step;
+        memcpy(cand, tmp, strlen(tmp) + 1);
+        for (i = last; i >= 0 && carry != 0; i--) {
+            int d;
+            if (cand[i] < '0' || cand[i] > '9') {
+                continue;
+            }
+            d = cand[i] - '0' + carry;
+            carry = 0;
+            if (d < 0) {
+                d = 9;
+                carry = -1;
+            } else if (d > 9) {
+                d = 0;
+                carry = 1;
+            }
+            cand[i] = (char)('0' + d);
+        }
+        /* skip candidates whose leading digit over- or underflowed (fewer or more digits) */
+        if (carry != 0 || cand[cand[0] == '-' ? 1 : 0] == '0') {
+            continue;
+        }
+        if (strtod(cand, NULL) == x) {
+            memcpy(tmp, cand, strlen(cand) + 1);
+            return 1;
+        }
+    }
+    return 0;
+}
+
 void py_float_repr(double x, char *buf, size_t n)
 {
     char tmp[48];
@@ -31,7 +75,7 @@ void py_float_repr(double x, char *buf, size_t n)
     }
     for (p = 0; p < 17; p++) {
         snprintf(tmp, sizeof tmp, "%.*e", p, x);
-        if (strtod(tmp, NULL) == x) {
+        if (strtod(tmp, NULL) == x || py_repr_neighbor(tmp, x)) {
             break;
         }
     }
