@@ -150,6 +150,8 @@ def build(tmp_path_factory):
         "observer_linearization": (None, [ctypes.POINTER(CParams), ctypes.POINTER(CEq), D44]),
         "observer_riccati_solution": (ctypes.c_int, [ctypes.POINTER(CParams), D, D4, D44,
                                                      ctypes.c_char_p, ctypes.c_size_t]),
+        "riccati_solve_filter_care": (ctypes.c_int, [D * 16, D * 16, D * 16, D * 16,
+                                                     ctypes.c_char_p, ctypes.c_size_t]),
         "observer_gain": (ctypes.c_int, [ctypes.POINTER(CParams), D, D4, D4, ctypes.c_char_p,
                                          ctypes.c_size_t]),
         "observer_step": (ctypes.c_int, [D4, D, D, D, ctypes.POINTER(CParams), D4, D,
@@ -493,3 +495,27 @@ def test_pi_sequences_with_saturation_and_antiwindup(lib):
             lib.pi_update(ctypes.byref(c), err, h)
             assert c.integral == pi.integral
     assert saturated > 50 and held > 20  # saturation and the anti-windup branch are exercised
+
+
+def test_riccati_failure_messages(lib):
+    """Systems without a stabilizing solution: same stage and text in C and Python."""
+    from glider_observer.riccati import RiccatiError, solve_filter_care
+
+    def flat(M):
+        return (D * 16)(*(x for row in M for x in row))
+
+    eye = [[1.0 if i == j else 0.0 for j in range(4)] for i in range(4)]
+    cases = [
+        # undamped oscillator the measurement does not see: imaginary-axis eigenvalues
+        ([[0, 1, 0, 0], [-1, 0, 0, 0], [0, 0, -1, 0], [0, 0, 0, -2]], 2),
+        # unstable mode the measurement does not see (undetectable)
+        ([[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -2, 0], [0, 0, 0, -3]], 1),
+    ]
+    b = buf()
+    for A, k in cases:
+        A = [[float(a) for a in row] for row in A]
+        G = [[1.0 if i == j == k else 0.0 for j in range(4)] for i in range(4)]
+        with pytest.raises(RiccatiError) as err:
+            solve_filter_care(A, eye, G)
+        rc = lib.riccati_solve_filter_care(flat(A), flat(eye), flat(G), (D * 16)(), b, len(b))
+        assert rc == 1 and b.value.decode() == str(err.value)
