@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from glider_observer.riccati import RiccatiError, solve_filter_care
 from glider_plant.model import Equilibrium, State4, check_state, constants, equilibrium, rhs
 from glider_plant.params import GliderParams, ParameterError
 
@@ -63,20 +64,35 @@ def observer_gain(
     tuple of 4 floats
         ``H_o`` (units 1/s per rad of output error, per state).
     """
-    import numpy as np
-    from scipy.linalg import solve_continuous_are
-
     if not (math.isfinite(R) and R > 0.0):
         raise ParameterError(f"R = {R!r} is invalid: expected a finite value > 0")
     for name, q in zip(("Q_V", "Q_theta_g", "Q_alpha", "Q_omega2"), Q):
         if not (math.isfinite(q) and q > 0.0):
             raise ParameterError(f"{name} = {q!r} is invalid: expected a finite value > 0")
-    A = np.array(linearization(p))
-    C = np.array([C_O])
-    # A P + P A^T + Q - P C^T R^-1 C P = 0  <=>  CARE with (A^T, C^T)
-    P = solve_continuous_are(A.T, C.T, np.diag(Q), np.array([[R]]))
-    H = P @ C.T / R
-    return tuple(float(h) for h in H[:, 0])  # type: ignore[return-value]
+    P = riccati_solution(p, R, Q)
+    H = []
+    for i in range(4):
+        s = 0.0
+        for j in range(4):
+            s += P[i][j] * C_O[j]
+        H.append(s / R)
+    return (H[0], H[1], H[2], H[3])
+
+
+def riccati_solution(p: GliderParams, R: float, Q: Sequence[float]) -> list[list[float]]:
+    """``P`` of Eq. (36): ``A P + P A^T + Q - P C^T R^-1 C P = 0`` (R, Q already checked).
+
+    Pure Python (:mod:`glider_observer.riccati`); ``observer_model.c`` computes the same bits.
+    """
+    A = linearization(p)
+    Qm = [[float(Q[i]) if i == j else 0.0 for j in range(4)] for i in range(4)]
+    G = [[C_O[i] * C_O[j] / R for j in range(4)] for i in range(4)]
+    try:
+        return solve_filter_care(A, Qm, G)
+    except RiccatiError as err:
+        raise RiccatiError(
+            f"observer gain for R = {R!r}, Q = ({Q[0]!r}, {Q[1]!r}, {Q[2]!r}, {Q[3]!r}): {err}"
+        ) from None
 
 
 def observer_step(
