@@ -181,17 +181,38 @@ def build_component(c: Component, out: Path, binary: Path) -> Path:
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
-            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.so")
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.h", "*.so")
             shutil.copytree(pkg, dst, ignore=ignore)
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")
         project.append(stage / "glider_cosim_source.sha256")
+        (stage / "glider_cosim_flavor.txt").write_text("python\n")
+        project.append(stage / "glider_cosim_flavor.txt")
         return package_slave(
             script, out, binary, project, canGetAndSetFMUstate=True, canSerializeFMUstate=True
         )
 
 
-def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, Path]:
+#: the flavors of our FMUs: the Python reference (default) and the native C99 build
+FLAVORS = ("python", "native")
+#: where each flavor is built unless a folder is given
+DEFAULT_DIRS = {"python": Path("fmus"), "native": Path("fmus") / "native"}
+
+
+def folder_flavor(folder: Path | str) -> str | None:
+    """The flavor the FMUs in ``folder`` record (the first of ours found), or None."""
+    from .native import fmu_flavor
+
+    for c in COMPONENTS:
+        found = fmu_flavor(Path(folder) / f"{c.name}.fmu")
+        if found:
+            return found
+    return None
+
+
+def build_all(
+    out: Path | str = "fmus", only_stale: bool = False, flavor: str | None = None
+) -> dict[str, Path]:
     """Build GliderPlant, GliderObserver and GliderController into ``out``.
 
     Parameters
@@ -200,6 +221,9 @@ def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, P
         Output folder (created if missing).
     only_stale : bool
         Rebuild only FMUs that are missing or were built from other sources.
+    flavor : {"python", "native"} or None
+        Which build: None keeps the flavor the FMUs already in ``out`` record (so a folder
+        of native FMUs is never rebuilt as Python ones), Python if there are none.
 
     Returns
     -------
@@ -207,6 +231,14 @@ def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, P
         Model identifier -> path of the ``.fmu``.
     """
     out = Path(out)
+    if flavor is None:
+        flavor = folder_flavor(out) or "python"
+    if flavor not in FLAVORS:
+        raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
+    if flavor == "native":
+        from .native import build_native
+
+        return build_native(out, only_stale)
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     if todo:
@@ -216,3 +248,29 @@ def build_all(out: Path | str = "fmus", only_stale: bool = False) -> dict[str, P
             for c in todo:
                 result[c.name] = build_component(c, out, binary)
     return result
+
+
+def add_fmu_options(parser: Any) -> None:
+    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs."""
+    parser.add_argument(
+        "--fmu-dir",
+        default=None,
+        help="FMU folder, built if missing or stale in the flavor it holds (default: fmus, "
+        "or fmus/native with --flavor native)",
+    )
+    parser.add_argument(
+        "--flavor",
+        choices=FLAVORS,
+        default=None,
+        help="which FMUs: the Python reference or the native C99 build (default: the "
+        "flavor the FMU folder holds, python if it is empty)",
+    )
+
+
+def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None) -> Path:
+    """The FMU folder a command's ``--fmu-dir``/``--flavor`` name; with ``--flavor`` the
+    FMUs there are built in that flavor first if missing, stale or of the other flavor."""
+    folder = Path(fmu_dir) if fmu_dir is not None else DEFAULT_DIRS[flavor or "python"]
+    if flavor is not None:
+        build_all(folder, only_stale=True, flavor=flavor)
+    return folder

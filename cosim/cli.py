@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
+from .build import DEFAULT_DIRS, FLAVORS, add_fmu_options
 from .inputs.text import one_line, quote, shown_path
 from .master import DEFAULT_MAX_STEPS, Interrupted, MasterError, SystemSpecError
 from .scenario import ScenarioError, shipped_scenarios
@@ -78,7 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
-    b.add_argument("--out", default="fmus", help="output folder")
+    b.add_argument(
+        "--out", default=None, help="output folder (default: fmus, or fmus/native for native)"
+    )
+    b.add_argument(
+        "--flavor", choices=FLAVORS, default="python", help="Python reference or native C99"
+    )
 
     r = sub.add_parser(
         "run",
@@ -94,7 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
         "file; default: default",
     )
     r.add_argument("--out", default="out", help="results folder ('out' means out/<scenario>)")
-    r.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    add_fmu_options(r)
     r.add_argument(
         "--coupling",
         choices=("gauss-seidel", "jacobi"),
@@ -131,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
     e.add_argument("out", help="output .ssp file")
     e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
-    e.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    add_fmu_options(e)
 
     he = sub.add_parser(
         "host-env", help="environment a C/C++ host on another machine needs for our FMUs"
@@ -145,11 +151,11 @@ def build_parser() -> argparse.ArgumentParser:
     xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
     xf.add_argument("out", help="output .fmu file")
     xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
-    xf.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    add_fmu_options(xf)
 
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
     rep.add_argument("--out", default="out/report", help="report folder")
-    rep.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    add_fmu_options(rep)
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
     rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
                      help="region-of-attraction grid: N glide angles x M speeds (default "
@@ -397,13 +403,21 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
+    if hasattr(args, "fmu_dir"):  # --fmu-dir/--flavor: the folder, built in the flavor asked
+        from .build import prepare_fmus
+
+        folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
+        try:
+            args.fmu_dir = str(prepare_fmus(folder, args.flavor))
+        except OSError as err:
+            raise _os_error(err, {"--fmu-dir": folder or Path("fmus")}) from None
     if args.command == "build":
         from .build import build_all
 
-        out = Path(args.out)
+        out = Path(args.out) if args.out is not None else DEFAULT_DIRS[args.flavor]
         _check_out_dir(out, "build --out")
         try:
-            built = build_all(out)
+            built = build_all(out, flavor=args.flavor)
         except OSError as err:
             raise _os_error(err, {"build --out": out}) from None
         for name, path in built.items():

@@ -319,7 +319,9 @@ def add_parser(sub: Any) -> None:
                    help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
     s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
     s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
-    s.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
+    from .build import add_fmu_options
+
+    add_fmu_options(s)
     s.add_argument("--restart", action="store_true", help="ignore results already in --out")
     s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")

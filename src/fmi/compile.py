@@ -59,6 +59,17 @@ def find_compiler() -> str:
     )
 
 
+def fmi_headers() -> Path:
+    """The folder of the FMI headers fmpy ships (``fmi2Functions.h`` and the FMI 3 ones)."""
+    spec = importlib.util.find_spec("fmpy")
+    if spec is None or spec.origin is None:
+        raise RuntimeBuildError("fmpy is not installed: its FMI 2.0 headers are needed")
+    fmi_include = Path(spec.origin).parent / "c-code"
+    if not (fmi_include / "fmi2Functions.h").is_file():
+        raise RuntimeBuildError(f"fmi2Functions.h not found in {fmi_include}")
+    return fmi_include
+
+
 def _include_dirs() -> list[str]:
     py_include = sysconfig.get_paths()["include"]
     if not (Path(py_include) / "Python.h").is_file():
@@ -66,13 +77,7 @@ def _include_dirs() -> list[str]:
             f"Python.h not found in {py_include}: install this Python's development "
             "headers (e.g. 'apt-get install python3-dev')"
         )
-    spec = importlib.util.find_spec("fmpy")
-    if spec is None or spec.origin is None:
-        raise RuntimeBuildError("fmpy is not installed: its FMI 2.0 headers are needed")
-    fmi_include = Path(spec.origin).parent / "c-code"
-    if not (fmi_include / "fmi2Functions.h").is_file():
-        raise RuntimeBuildError(f"fmi2Functions.h not found in {fmi_include}")
-    return [py_include, str(fmi_include)]
+    return [py_include, str(fmi_headers())]
 
 
 def compile_command(output: Path) -> list[str]:

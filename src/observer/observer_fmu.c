@@ -1,0 +1,105 @@
+/* GliderObserver, native flavor: the C counterpart of glider_observer/slave.py.
+ *
+ * The variables are generated from the Python slave's table (GliderObserver_vars.h); the
+ * equations are observer_model.c's (Butterworth pre-filter, observer, Riccati gain) and
+ * plant_model.c's (the glider model the observer runs).
+ */
+#include <stdio.h>
+
+#include "GliderObserver_vars.h"
+#include "observer_model.h"
+
+typedef struct {
+    GliderObserverVars v; /* first: the variable table's offsets are into it */
+    GliderParams p;
+    double H[4];
+    Butterworth filter;
+    double xh[4]; /* estimate V, theta_g, alpha, omega2 */
+} ObserverData;
+
+static void params_from(const GliderObserverVars *v, GliderParams *p) {
+    p->m = v->m;
+    p->J2 = v->J2;
+    p->K_L0 = v->K_L0;
+    p->K_L = v->K_L;
+    p->K_D0 = v->K_D0;
+    p->K_D = v->K_D;
+    p->K_q = v->K_q;
+    p->K_M0 = v->K_M0;
+    p->K_M = v->K_M;
+    p->K_Fdelta = v->K_Fdelta;
+    p->K_udelta = v->K_udelta;
+    p->m0 = v->m0;
+    p->g = v->g;
+}
+
+static void publish(ObserverData *d) {
+    GliderObserverVars *v = &d->v;
+    v->V_hat = d->xh[0];
+    v->theta_g_hat = d->xh[1];
+    v->alpha_hat = d->xh[2];
+    v->omega2_hat = d->xh[3];
+    v->theta_hat = v->theta_g_hat + v->alpha_hat;
+}
+
+static int initialize(void *data, char *msg, size_t size) {
+    ObserverData *d = data;
+    GliderObserverVars *v = &d->v;
+    double Q[4];
+    params_from(v, &d->p);
+    if (glider_params_check(&d->p, msg, size)) return NATIVE_REFUSED;
+    Q[0] = v->Q_V;
+    Q[1] = v->Q_theta_g;
+    Q[2] = v->Q_alpha;
+    Q[3] = v->Q_omega2;
+    if (observer_gain(&d->p, v->R, Q, d->H, msg, size)) return NATIVE_REFUSED;
+    if (butterworth_init(&d->filter, v->f_sample, v->f_cutoff, msg, size)) return NATIVE_REFUSED;
+    if (v->start_at_equilibrium) {
+        GliderEquilibrium e;
+        glider_equilibrium(&d->p, &e);
+        d->xh[0] = e.V;
+        d->xh[1] = e.theta_g;
+        d->xh[2] = e.alpha;
+        d->xh[3] = 0.0;
+    } else {
+        d->xh[0] = v->V_hat_0;
+        d->xh[1] = v->theta_g_hat_0;
+        d->xh[2] = v->alpha_hat_0;
+        d->xh[3] = v->omega2_hat_0;
+    }
+    v->theta_filt = v->theta_meas;
+    publish(d);
+    return NATIVE_OK;
+}
+
+static int step(void *data, double t, double time, double h, char *msg, size_t size, char *warning,
+                size_t wsize) {
+    ObserverData *d = data;
+    GliderObserverVars *v = &d->v;
+    char stall[512], tg[64];
+    (void)time, (void)warning, (void)wsize;
+    if (t < v->t_start - 1e-9) { /* not initialised yet (Sec. 5.2: 2 s after release) */
+        v->theta_filt = v->theta_meas;
+        return NATIVE_OK;
+    }
+    v->theta_filt = v->filter_enabled ? butterworth_filter(&d->filter, v->theta_meas)
+                                      : v->theta_meas;
+    if (observer_step(d->xh, v->theta_filt, d->p.K_udelta * v->delta_cmd, h, &d->p, d->H,
+                      v->h_max, stall, sizeof stall)) {
+        py_float_g(t, 6, tg, sizeof tg);
+        snprintf(msg, size, "observer estimate %s at t = %s s", stall, tg);
+        return NATIVE_DISCARD;
+    }
+    publish(d);
+    return NATIVE_OK;
+}
+
+static int valid(const void *data) {
+    const ObserverData *d = data;
+    return d->filter.primed == 0 || d->filter.primed == 1;
+}
+
+const NativeModel GLIDER_NATIVE_MODEL = {
+    MODEL_IDENTIFIER,   GLIDEROBSERVER_VARS, GLIDEROBSERVER_NVARS, GLIDEROBSERVER_TYPES,
+    GLIDEROBSERVER_NAMES, sizeof(ObserverData), initialize, step, NULL, valid,
+};
