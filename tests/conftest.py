@@ -54,6 +54,22 @@ def fmu_dir(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def native_dir(tmp_path_factory) -> Path:
+    """Our three FMUs in the native flavor (C99), built from the current sources."""
+    from glider_cosim.build import build_all
+
+    out = tmp_path_factory.mktemp("native_fmus")
+    build_all(out, flavor="native")
+    return out
+
+
+@pytest.fixture(scope="session", params=["python", "native"])
+def flavor_dir(request) -> Path:
+    """The three FMUs of each flavor in turn: tests that take it run on both."""
+    return request.getfixturevalue("fmu_dir" if request.param == "python" else "native_dir")
+
+
+@pytest.fixture(scope="session")
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
     """Small FMUs written for the tests (integrator, gain, delay, runtime probe), on our
     FMI runtime like ours."""

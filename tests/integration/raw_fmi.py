@@ -78,6 +78,8 @@ class RawFMU:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.dir = Path(_extracted(self.fmu))
+        #: the native flavor (C model), not a Python slave
+        self.native = not (self.dir / "resources" / "slavemodule.txt").is_file()
         ident = self.md.coSimulation.modelIdentifier
         self.dll = ctypes.CDLL(str(self.dir / "binaries" / "linux64" / f"{ident}.so"))
         for name, (args, res) in _SIGNATURES.items():

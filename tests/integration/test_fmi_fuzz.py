@@ -19,8 +19,8 @@ FUZZ = Path(__file__).parent / "fmi_fuzz.py"
 SEED = 20261201
 
 
-def test_random_call_sequences_return_statuses_and_never_crash(fmu_dir, test_fmus):
-    fmus = [fmu_dir / f"{n}.fmu" for n in ("GliderPlant", "GliderObserver", "GliderController")]
+def test_random_call_sequences_return_statuses_and_never_crash(flavor_dir, test_fmus):
+    fmus = [flavor_dir / f"{n}.fmu" for n in ("GliderPlant", "GliderObserver", "GliderController")]
     fmus.append(test_fmus["RuntimeTestProbe"])
     p = subprocess.run([sys.executable, str(FUZZ), str(SEED), "300", *map(str, fmus)],
                        capture_output=True, text=True, timeout=600)  # fmt: skip

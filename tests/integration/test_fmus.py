@@ -74,13 +74,13 @@ class Slave:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_fmu_passes_fmpy_validation(fmu_dir, name):
-    assert validate_fmu(str(fmu_dir / f"{name}.fmu")) == []
+def test_fmu_passes_fmpy_validation(flavor_dir, name):
+    assert validate_fmu(str(flavor_dir / f"{name}.fmu")) == []
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_model_description_has_units_structure_and_state_flag(fmu_dir, name):
-    md = read_model_description(str(fmu_dir / f"{name}.fmu"))
+def test_model_description_has_units_structure_and_state_flag(flavor_dir, name):
+    md = read_model_description(str(flavor_dir / f"{name}.fmu"))
     assert md.coSimulation.canGetAndSetFMUstate
     assert {u.name for u in md.unitDefinitions} >= {"rad"}
     rad = next(u for u in md.unitDefinitions if u.name == "rad")
@@ -122,9 +122,9 @@ STATE_CASES = {
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_get_set_fmu_state_restores_internal_state(fmu_dir, name):
+def test_get_set_fmu_state_restores_internal_state(flavor_dir, name):
     params, inputs = STATE_CASES[name]
-    s = Slave(fmu_dir / f"{name}.fmu")
+    s = Slave(flavor_dir / f"{name}.fmu")
     s.init(**params)
     outs = s.outputs()
     s.set(**inputs)
@@ -150,8 +150,8 @@ def test_get_set_fmu_state_restores_internal_state(fmu_dir, name):
     assert first[0] != first[-1]  # the run really moved on
 
 
-def test_controller_has_direct_feedthrough(fmu_dir):
-    s = Slave(fmu_dir / "GliderController.fmu")
+def test_controller_has_direct_feedthrough(flavor_dir):
+    s = Slave(flavor_dir / "GliderController.fmu")
     s.init(law=1, K_c=4.0)
     p = GliderParams()
     e = equilibrium(p)

@@ -41,9 +41,9 @@ def one_instance(fmu: Path, params: dict) -> CoSimulation:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_every_parameter_is_validated(fmu_dir, name):
+def test_every_parameter_is_validated(flavor_dir, name):
     """NaN for every Real parameter, an out-of-range value for every Integer one."""
-    fmu = fmu_dir / f"{name}.fmu"
+    fmu = flavor_dir / f"{name}.fmu"
     checked = 0
     for v in parameters(fmu):
         if v.type == "Boolean":
@@ -61,14 +61,14 @@ def test_every_parameter_is_validated(fmu_dir, name):
     assert checked >= 8
 
 
-def test_consistency_checks(fmu_dir):
+def test_consistency_checks(flavor_dir):
     cases = [
         ("GliderObserver", {"f_sample": 50.0, "f_cutoff": 25.0}, "below the Nyquist frequency"),
         ("GliderPlant", {"delta_max": 0.1, "delta_0": 0.2}, "delta_0 = 0.2 is invalid"),
         ("GliderPlant", {"K_M0": -0.39}, r"K_L0 \+ K_L\*alpha_e = -8.05\d* is invalid"),
     ]
     for name, params, message in cases:
-        sim = one_instance(fmu_dir / f"{name}.fmu", params)
+        sim = one_instance(flavor_dir / f"{name}.fmu", params)
         with pytest.raises(FMUCallError, match=message) as err:
             sim.run(0.1, ArrayRecorder())
         sim.close()
@@ -77,8 +77,8 @@ def test_consistency_checks(fmu_dir):
         assert "Error: " not in str(err.value).partition("[fmi2Error] ")[2]
 
 
-def test_non_finite_input_is_refused_at_the_step(fmu_dir):
-    fmu = fmu_dir / "GliderPlant.fmu"
+def test_non_finite_input_is_refused_at_the_step(flavor_dir):
+    fmu = flavor_dir / "GliderPlant.fmu"
     sim = one_instance(fmu, {})
     sim.system.driven["x.F_x"] = float("inf")
     with pytest.raises(FMUCallError) as err:
@@ -111,8 +111,8 @@ def vr(s: FMU2Slave, name: str) -> int:
     ["step_before_init", "wrong_time", "zero_step", "negative_step", "fixed_after_init",
      "set_output", "tunable_out_of_range"],
 )  # fmt: skip
-def test_illegal_call_sequences_give_an_error_not_a_crash(fmu_dir, sequence):
-    s = raw_slave(fmu_dir / "GliderController.fmu")
+def test_illegal_call_sequences_give_an_error_not_a_crash(flavor_dir, sequence):
+    s = raw_slave(flavor_dir / "GliderController.fmu")
     if sequence != "step_before_init":
         s.enterInitializationMode()
         s.exitInitializationMode()
@@ -142,8 +142,8 @@ def test_illegal_call_sequences_give_an_error_not_a_crash(fmu_dir, sequence):
     s.freeInstance()
 
 
-def test_illegal_sequence_messages_through_the_master(fmu_dir):
-    sim = one_instance(fmu_dir / "GliderController.fmu", {})
+def test_illegal_sequence_messages_through_the_master(flavor_dir):
+    sim = one_instance(flavor_dir / "GliderController.fmu", {})
     sim.initialize()
     inst = sim.instances["x"]
     with pytest.raises(FMUCallError, match=r"delta_max is a fixed parameter: it cannot be set"):
@@ -152,7 +152,7 @@ def test_illegal_sequence_messages_through_the_master(fmu_dir):
     sim.reset()  # fmi2Reset works after an error
     assert not inst.failed
     sim.close()
-    sim = one_instance(fmu_dir / "GliderController.fmu", {})
+    sim = one_instance(flavor_dir / "GliderController.fmu", {})
     sim.initialize()
     sim._set_value(sim.instances["x"], "K_c", 4.0)  # tunable: fine
     with pytest.raises(FMUCallError, match=r"K_c = -1.0 is invalid: expected a finite value"):

@@ -28,9 +28,9 @@ FMUS = ("GliderPlant", "GliderObserver", "GliderController")
 
 
 @pytest.fixture(scope="module")
-def ssp(fmu_dir: Path, tmp_path_factory) -> Path:
-    """The default scenario as an SSP archive."""
-    return export_ssp(tmp_path_factory.mktemp("ssp") / "glider.ssp", None, fmu_dir)
+def ssp(flavor_dir: Path, tmp_path_factory) -> Path:
+    """The default scenario as an SSP archive, with the FMUs of each flavor in turn."""
+    return export_ssp(tmp_path_factory.mktemp("ssp") / "glider.ssp", None, flavor_dir)
 
 
 @pytest.fixture(scope="module")
@@ -95,9 +95,9 @@ def test_folder_and_ssd_file_load_like_the_archive(ssp, tmp_path):
     assert load_ssp(ssp)[0].fmus == a.fmus  # an archive is unpacked once per process
 
 
-def test_our_run_of_the_ssp_equals_the_scenario_run(ssp, fmu_dir):
+def test_our_run_of_the_ssp_equals_the_scenario_run(ssp, flavor_dir):
     a = run_ssp(ssp, None, stop_time=10.0)
-    b = simulate(None, None, fmu_dir=fmu_dir, build=False, stop_time=10.0)
+    b = simulate(None, None, fmu_dir=flavor_dir, build=False, stop_time=10.0)
     assert a.status == "ok" and a.columns == b.columns
     assert np.array_equal(a.data, b.data)
 

@@ -16,19 +16,49 @@
  *   threads                                step the instances each in a thread of its own
  *                                          at every point (as libcosim's thread pool does)
  *
- * usage: host PLAN.  Compiled against the FMI 2.0 headers fmpy ships.
+ * usage: host PLAN.  Compiled against the FMI 2.0 headers fmpy ships, with gcc for linux64
+ * (dlopen, pthreads) or with mingw-w64 for win64 (LoadLibrary, Win32 threads: no
+ * libwinpthread, which wine lacks), where DIR is a Windows path such as Z:/tmp/x.
  * Exit codes: 0 ok, 2 usage or plan, 3 dlopen/dlsym, 4 instantiate, 5 initialisation,
  * 6 step, 7 get/set.
  */
-#include <dlfcn.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fmi2Functions.h"
+
+#ifdef _WIN32
+#include <windows.h>
+#define PLATFORM "win64"
+#define SUFFIX ".dll"
+#define URI_FORMAT "file:///%s/resources"
+typedef HANDLE thread_t;
+static void *open_library(const char *path) { return (void *)LoadLibraryA(path); }
+static void *library_symbol(void *lib, const char *name) {
+    FARPROC f = GetProcAddress((HMODULE)lib, name);
+    void *p;
+    memcpy(&p, &f, sizeof p);
+    return p;
+}
+static const char *library_error(void) {
+    static char text[64];
+    snprintf(text, sizeof text, "Windows error %lu", (unsigned long)GetLastError());
+    return text;
+}
+#else
+#include <dlfcn.h>
+#include <pthread.h>
+#define PLATFORM "linux64"
+#define SUFFIX ".so"
+#define URI_FORMAT "file://%s/resources"
+typedef pthread_t thread_t;
+static void *open_library(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
+static void *library_symbol(void *lib, const char *name) { return dlsym(lib, name); }
+static const char *library_error(void) { return dlerror(); }
+#endif
 
 #define MAX 32
 
@@ -74,6 +104,24 @@ static void *step_job(void *arg) {
     return NULL;
 }
 
+#ifdef _WIN32
+static DWORD WINAPI win_step_job(LPVOID arg) {
+    step_job(arg);
+    return 0;
+}
+static int start_thread(thread_t *t, StepJob *j) {
+    *t = CreateThread(NULL, 0, win_step_job, j, 0, NULL);
+    return *t == NULL;
+}
+static void join_thread(thread_t t) {
+    WaitForSingleObject(t, INFINITE);
+    CloseHandle(t);
+}
+#else
+static int start_thread(thread_t *t, StepJob *j) { return pthread_create(t, NULL, step_job, j); }
+static void join_thread(thread_t t) { pthread_join(t, NULL); }
+#endif
+
 static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
                    fmi2String category, fmi2String message, ...) {
     char text[4096];
@@ -94,9 +142,9 @@ static int find(const char *name) {
 }
 
 static void *sym(void *lib, const char *name) {
-    void *f = dlsym(lib, name);
+    void *f = library_symbol(lib, name);
     if (!f) {
-        fprintf(stderr, "dlsym %s failed: %s\n", name, dlerror());
+        fprintf(stderr, "symbol %s not found: %s\n", name, library_error());
         exit(3);
     }
     return f;
@@ -104,10 +152,10 @@ static void *sym(void *lib, const char *name) {
 
 static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
     char path[12288], uri[12288];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, model);
-    f->lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    snprintf(path, sizeof path, "%s/binaries/" PLATFORM "/%s" SUFFIX, dir, model);
+    f->lib = open_library(path);
     if (!f->lib) {
-        fprintf(stderr, "dlopen failed: %s\n", dlerror());
+        fprintf(stderr, "loading %s failed: %s\n", path, library_error());
         return 3;
     }
     f->instantiate = (fmi2InstantiateTYPE *)sym(f->lib, "fmi2Instantiate");
@@ -121,7 +169,7 @@ static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
     f->terminate = (fmi2TerminateTYPE *)sym(f->lib, "fmi2Terminate");
     f->free_instance = (fmi2FreeInstanceTYPE *)sym(f->lib, "fmi2FreeInstance");
     static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
-    snprintf(uri, sizeof uri, "file://%s/resources", dir);
+    snprintf(uri, sizeof uri, URI_FORMAT, dir);
     f->c = f->instantiate(f->name, fmi2CoSimulation, guid, uri, &callbacks, fmi2False,
                           fmi2False);
     if (!f->c) {
@@ -209,13 +257,13 @@ int main(int argc, char **argv) {
             if (f->set_real(f->c, &conn_dst[i].vr, 1, &v[i]) > fmi2Warning) return 7;
         }
         StepJob jobs[MAX];
-        pthread_t tids[MAX];
+        thread_t tids[MAX];
         for (int i = 0; i < n_fmus; ++i) {
             jobs[i] = (StepJob){&fmus[i], t, h, fmi2OK};
             if (!use_threads) step_job(&jobs[i]);
-            else if (pthread_create(&tids[i], NULL, step_job, &jobs[i])) return 6;
+            else if (start_thread(&tids[i], &jobs[i])) return 6;
         }
-        for (int i = 0; use_threads && i < n_fmus; ++i) pthread_join(tids[i], NULL);
+        for (int i = 0; use_threads && i < n_fmus; ++i) join_thread(tids[i]);
         for (int i = 0; i < n_fmus; ++i) {
             if (jobs[i].status > fmi2Warning) {
                 fprintf(stderr, "%s: step %ld at t = %g failed\n", fmus[i].name, k, t);

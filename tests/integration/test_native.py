@@ -1,0 +1,371 @@
+"""The native flavor (C99 models behind the same FMI layer) where users put it.
+
+- the FMUs: fmpy validate, only libc and libm (linux64), only KERNEL32/msvcrt (win64),
+  ``sources/`` with ``buildDescription.xml`` and ``<SourceFiles>``;
+- the same interface as the Python flavor, variable by variable;
+- the same numbers: the default and the noise scenario, shared columns, bit for bit;
+- a C host (tests/integration/c_host/host.c) under ``env -i`` in a mount namespace where
+  every Python installation is hidden (checked), equal to our master;
+- the win64 DLLs under wine, stepped by the same host cross-compiled with mingw-w64;
+- rebuilt from ``sources/`` by fmpy's ``build_platform_binary`` and run, equal;
+- valgrind memcheck on a C-host run (no error, nothing definitely lost);
+- the same refusal messages as the Python flavor;
+- ``run --fmu-dir`` with native FMUs runs them as they are.
+The fuzz, the serialization round trip, the two-thread test and libcosim run on both
+flavors in their own files (the ``flavor_dir`` fixture).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+from raw_fmi import RawFMU
+
+from glider_cosim.build import folder_flavor
+from glider_cosim.master import CoSimulation
+from glider_cosim.native import MINGW, NATIVE_COMPONENTS
+from glider_cosim.runner import ArrayRecorder, simulate, system_for
+from glider_cosim.scenario import load_scenario
+
+pytestmark = pytest.mark.integration
+NAMES = [c.name for c in NATIVE_COMPONENTS]
+HOST_C = Path(__file__).parent / "c_host" / "host.c"
+HEADERS = Path(fmpy.__file__).parent / "c-code"
+RECORD = ["plant.theta_g", "plant.V", "plant.delta", "observer.theta_g_hat", "controller.delta_cmd"]
+STOP = 10.0
+
+
+def unzip(fmu: Path, where: Path) -> Path:
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(where)
+    return where
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_native_fmu_is_valid_and_self_contained(native_dir, tmp_path, name):
+    fmu = native_dir / f"{name}.fmu"
+    assert validate_fmu(str(fmu)) == []
+    d = unzip(fmu, tmp_path / name)
+    assert folder_flavor(native_dir) == "native"
+    so = d / "binaries" / "linux64" / f"{name}.so"
+    needed = subprocess.run(["readelf", "-d", str(so)], capture_output=True, text=True,
+                            check=True).stdout  # fmt: skip
+    libs = {line.split("[")[1].rstrip("]") for line in needed.splitlines() if "NEEDED" in line}
+    assert libs == {"libc.so.6", "libm.so.6"}
+    dll = d / "binaries" / "win64" / f"{name}.dll"
+    if shutil.which(MINGW) is None:
+        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(dll)], capture_output=True,
+                          text=True, check=True).stdout  # fmt: skip
+    imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
+    assert imports == {"KERNEL32.dll", "msvcrt.dll"}
+    md = read_model_description(str(fmu))
+    listed = [f.strip() for f in (d / "modelDescription.xml").read_text().split('File name="')[1:]]
+    sources = sorted(p.name for p in (d / "sources").glob("*.c"))
+    assert sorted(x.split('"')[0] for x in listed) == sources
+    assert {"fmi2_layer.c", "backend_native.c", "plant_model.c"} <= set(sources)
+    assert (d / "sources" / "buildDescription.xml").is_file()
+    assert md.coSimulation.canSerializeFMUstate and md.coSimulation.canGetAndSetFMUstate
+    assert not md.coSimulation.needsExecutionTool
+    assert not (d / "resources" / "slavemodule.txt").exists()  # no Python anywhere
+
+
+def variable_table(fmu: Path) -> list[tuple]:
+    md = read_model_description(str(fmu))
+    return [
+        (v.name, v.valueReference, v.type, v.causality, v.variability, v.initial, v.unit,
+         v.displayUnit, v.start, v.min, v.max, v.description)
+        for v in md.modelVariables
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_native_interface_equals_the_python_flavor(fmu_dir, native_dir, name):
+    py, nat = fmu_dir / f"{name}.fmu", native_dir / f"{name}.fmu"
+    assert variable_table(py) == variable_table(nat)
+    a, b = read_model_description(str(py)), read_model_description(str(nat))
+    assert a.coSimulation.modelIdentifier == b.coSimulation.modelIdentifier == name
+    assert [(u.variable.name, [d.name for d in u.dependencies or []]) for u in a.outputs] == [
+        (u.variable.name, [d.name for d in u.dependencies or []]) for u in b.outputs
+    ]
+    assert [u.variable.name for u in a.initialUnknowns] == [
+        u.variable.name for u in b.initialUnknowns
+    ]
+    assert [u.name for u in a.unitDefinitions] == [u.name for u in b.unitDefinitions]
+
+
+@pytest.mark.parametrize("scenario", ["default", "fig5-6-observer-noise"])
+def test_native_equals_the_python_flavor_bit_for_bit(fmu_dir, native_dir, scenario):
+    a = simulate(scenario, None, fmu_dir=fmu_dir, build=False)
+    b = simulate(scenario, None, fmu_dir=native_dir, build=False)
+    assert a.status == b.status == "ok"
+    assert a.columns == b.columns and a.data.shape == b.data.shape == (3001, len(a.columns))
+    diff = np.abs(a.data - b.data)
+    print(f"{scenario}: max |native - python| = {diff.max():.3g} over {len(a.columns)} columns")
+    assert diff.max() <= 1e-9  # the issue's bound
+    assert np.array_equal(a.data, b.data)  # what we reached on linux64: bit for bit
+
+
+# ---------------------------------------------------------------- hosts
+def compile_host(compiler: str, out: Path, extra: list[str]) -> Path:
+    p = subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1",
+                        f"-I{HEADERS}", "-o", str(out), str(HOST_C), *extra],
+                       capture_output=True, text=True)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    return out
+
+
+def write_plan(system, root: Path, dir_of=str, threads: bool = False) -> Path:
+    """The C host's plan for ``system`` (its FMUs unzipped under ``root``)."""
+    lines, mds = [], {}
+    for inst, fmu in system.fmus.items():
+        folder = unzip(fmu, root / inst)
+        md = mds[inst] = read_model_description(str(fmu))
+        lines.append(f"fmu {inst} {dir_of(folder)} {md.coSimulation.modelIdentifier} {md.guid}")
+    vars_ = {i: {v.name: v for v in md.modelVariables} for i, md in mds.items()}
+    for inst, params in system.parameters.items():
+        for name, value in params.items():
+            v = vars_[inst][name]
+            kind = {"Real": "real", "Integer": "integer"}[v.type]
+            lines.append(f"{kind} {inst} {v.valueReference} {float(value)!r}")
+    for src, dst in system.connections:
+        (si, sn), (di, dn) = src.split("."), dst.split(".")
+        lines.append(
+            f"connect {si} {vars_[si][sn].valueReference} {di} {vars_[di][dn].valueReference}"
+        )  # noqa: E501
+    for ref in RECORD:
+        i, n = ref.split(".")
+        lines.append(f"record {i} {vars_[i][n].valueReference}")
+    lines.append(f"run {0.02!r} {STOP!r}")
+    if threads:
+        lines.append("threads")
+    plan = root / "plan.txt"
+    plan.write_text("\n".join(lines) + "\n")
+    return plan
+
+
+def rows(text: str) -> np.ndarray:
+    return np.array([[float(x) for x in line.split(",")] for line in text.splitlines() if line])
+
+
+@pytest.fixture(scope="module")
+def native_system(native_dir):
+    return system_for(load_scenario("default"), native_dir)
+
+
+@pytest.fixture(scope="module")
+def master_rows(native_system) -> np.ndarray:
+    native_system.record = list(RECORD)
+    sim = CoSimulation(native_system, step=0.02, coupling="jacobi")
+    rec = ArrayRecorder()
+    try:
+        sim.run(STOP, rec)
+    finally:
+        sim.close()
+    return rec.array()
+
+
+def python_places() -> list[str]:
+    """Folders that hold a Python installation or packages (hidden in the namespace)."""
+    places = {sys.base_prefix, sys.prefix, "/usr/lib/python3", "/usr/local/lib/python3.11"}
+    places.update(str(p) for p in Path("/usr/lib").glob("python3*"))
+    pyenv = Path(sys.base_prefix).parents
+    places.update(str(p) for p in pyenv if p.name in (".pyenv", "versions"))
+    return sorted(p for p in places if Path(p).is_dir())
+
+
+def hidden_run(host: Path, plan: Path, tmp_path: Path) -> subprocess.CompletedProcess:
+    """``host plan`` under unshare -m with tmpfs over every Python folder and /dev/null over
+    every libpython, after checking that no Python can start there."""
+    if shutil.which("unshare") is None:
+        pytest.skip("unshare is not installed: cannot hide Python from the host")
+    probe = subprocess.run(["unshare", "-m", "true"], capture_output=True, text=True)
+    if probe.returncode != 0:
+        pytest.skip(f"unshare -m is not permitted here: {probe.stderr.strip()}")
+    mounts = []
+    for place in sorted(python_places(), key=len):  # parents first: children then skipped
+        if any(place.startswith(m + "/") for m in mounts):
+            continue
+        mounts.append(place)
+    libs = sorted({str(p.resolve()) for p in Path("/usr/lib/x86_64-linux-gnu").glob("libpython3*")
+                   if p.resolve().is_file()})  # fmt: skip
+    script = "set -e\n"
+    script += "".join(f"mount --bind /dev/null '{lib}'\n" for lib in libs)
+    script += "".join(f"mount -t tmpfs none '{m}'\n" for m in mounts)
+    # Python must really be gone: no python3 starts, the build interpreter is not there
+    script += (
+        f"if [ -e '{sys.executable}' ]; then echo 'build python visible' >&2; exit 90; fi\n"
+        "for py in python3 python3.11 python; do\n"
+        "  if env -i PATH=/usr/bin:/bin:/usr/local/bin $py -c pass 2>/dev/null; then\n"
+        '    echo "$py starts" >&2; exit 91; fi\n'
+        "done\n"
+        f"exec env -i PATH=/usr/bin:/bin '{host}' '{plan}'\n"
+    )
+    return subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+
+
+@pytest.mark.parametrize("threads", [False, True], ids=["main-thread", "thread-per-step"])
+def test_c_host_with_no_python_reachable_equals_our_master(
+    native_system, master_rows, tmp_path, threads
+):
+    host = compile_host("gcc", tmp_path / "host", ["-D_DEFAULT_SOURCE", "-ldl", "-lm", "-lpthread"])
+    plan = write_plan(native_system, tmp_path, threads=threads)
+    p = hidden_run(host, plan, tmp_path)
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = rows(p.stdout)
+    assert got.shape == master_rows.shape == (round(STOP / 0.02) + 1, 1 + len(RECORD))
+    assert np.array_equal(got, master_rows)  # bit for bit
+
+
+def test_python_is_really_hidden_in_the_namespace(tmp_path):
+    """The check inside hidden_run can fail: with the same mounts, python3 does not start."""
+    fake_host = tmp_path / "host.sh"
+    fake_host.write_text("#!/bin/sh\nexec python3 -c 'print(1)'\n")
+    fake_host.chmod(0o755)
+    p = hidden_run(fake_host, tmp_path / "none", tmp_path)
+    assert p.returncode != 0 and "1" not in p.stdout
+
+
+def wine_env(tmp_path: Path) -> dict[str, str]:
+    if shutil.which("wine") is None:
+        pytest.fail("wine is not installed (.ci/run installs wine64 and wine)")
+    (tmp_path / "winetmp").mkdir()
+    return {**os.environ, "WINEPREFIX": str(tmp_path / "wineprefix"), "WINEDEBUG": "-all",
+            "TMPDIR": str(tmp_path / "winetmp"),
+            "WINEDLLOVERRIDES": "mscoree,mshtml="}  # fmt: skip
+
+
+def test_win64_dlls_under_wine_equal_linux64(native_system, master_rows, tmp_path):
+    if shutil.which(MINGW) is None:
+        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    host = compile_host(MINGW, tmp_path / "host.exe", [])
+    plan = write_plan(native_system, tmp_path, dir_of=lambda p: "Z:" + str(p))
+    env = wine_env(tmp_path)
+    try:
+        p = subprocess.run(["wine", str(host), "Z:" + str(plan)], capture_output=True,
+                           text=True, timeout=600, env=env)  # fmt: skip
+    finally:
+        subprocess.run(["wineserver", "-k"], env=env, capture_output=True, timeout=60)
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = rows(p.stdout.replace("\r", ""))
+    assert got.shape == master_rows.shape
+    diff = np.abs(got - master_rows).max()
+    print(f"win64 under wine vs linux64: max diff {diff:.3g}")
+    assert diff <= 1e-9  # Windows' libm may differ in the last bit
+
+
+def test_rebuilt_from_sources_with_fmpy_runs_equal(native_dir, tmp_path):
+    from fmpy.build import build_platform_binary
+
+    if shutil.which("cmake") is None:
+        pytest.fail("cmake is not installed (.ci/run installs it)")
+    rebuilt = tmp_path / "rebuilt"
+    rebuilt.mkdir()
+    for name in NAMES:
+        d = unzip(native_dir / f"{name}.fmu", tmp_path / name)
+        shutil.rmtree(d / "binaries")
+        build_platform_binary(str(d.resolve()))
+        assert (d / "binaries" / "linux64" / f"{name}.so").is_file()
+        with zipfile.ZipFile(rebuilt / f"{name}.fmu", "w") as z:
+            for f in sorted(d.rglob("*")):
+                if f.is_file():
+                    z.write(f, f.relative_to(d).as_posix())
+    a = simulate("default", None, fmu_dir=native_dir, build=False, stop_time=20.0)
+    b = simulate("default", None, fmu_dir=rebuilt, build=False, stop_time=20.0)
+    assert a.status == b.status == "ok"
+    diff = np.abs(a.data - b.data).max()
+    print(f"rebuilt by fmpy (cmake, -O3) vs ours: max diff {diff:.3g}")
+    assert diff <= 1e-9
+
+
+def test_c_host_run_is_clean_under_valgrind(native_system, tmp_path):
+    if shutil.which("valgrind") is None:
+        pytest.fail("valgrind is not installed (.ci/run installs it)")
+    host = compile_host("gcc", tmp_path / "host", ["-D_DEFAULT_SOURCE", "-g", "-ldl", "-lm",
+                                                    "-lpthread"])  # fmt: skip
+    plan = write_plan(native_system, tmp_path, threads=True)
+    p = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full",
+                        "--errors-for-leak-kinds=definite", "--track-origins=yes",
+                        str(host), str(plan)], capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in p.stderr
+    assert "definitely lost: 0 bytes" in p.stderr or "no leaks are possible" in p.stderr
+
+
+# ---------------------------------------------------------------- messages
+CASES = [
+    ("GliderController", "K_c", float("nan")),
+    ("GliderController", "law", 7),
+    ("GliderPlant", "noise_seed", -5),
+    ("GliderPlant", "V_0", -1.0),
+    ("GliderPlant", "delta_0", 2.0),  # |delta_0| > delta_max (1.57)
+    ("GliderObserver", "f_cutoff", 30.0),  # above Nyquist at 50 Hz
+    ("GliderObserver", "R", 0.0),
+    ("GliderPlant", "K_M0", -1.0),  # no descending glide
+]
+
+
+def refusal(fmu: Path, name: str, value) -> list[str]:
+    r = RawFMU(fmu)
+    c = r.instantiate("x")
+    setter = r.set_integer if r.types[name] == "Integer" else r.set_real
+    assert setter(c, **{name: value}) == 0
+    assert r.SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0) == 0
+    assert r.EnterInitializationMode(c) == 0
+    assert r.ExitInitializationMode(c) == 3
+    out = r.errors()
+    r.FreeInstance(c)
+    return out
+
+
+@pytest.mark.parametrize(("name", "var", "value"), CASES)
+def test_refusals_say_the_same_in_both_flavors(fmu_dir, native_dir, name, var, value):
+    py = refusal(fmu_dir / f"{name}.fmu", var, value)
+    nat = refusal(native_dir / f"{name}.fmu", var, value)
+    assert py and py == nat
+    assert py[-1].startswith("fmi2ExitInitializationMode: ")
+
+
+def test_stall_is_a_discard_with_the_same_message(fmu_dir, native_dir):
+    msgs = {}
+    for flavor, d in (("python", fmu_dir), ("native", native_dir)):
+        r = RawFMU(d / "GliderPlant.fmu")
+        c = r.instantiate("plant")
+        # a tail held hard over: the glider tumbles and stalls
+        assert r.set_real(c, delta_cmd=1.2) == 0
+        assert r.initialize(c, delta_0=1.2) == 0
+        t, st = 0.0, 0
+        for k in range(3000):
+            st = r.DoStep(c, k * 0.02, 0.02, 1)
+            if st:
+                t = k * 0.02
+                break
+        assert st == 2, f"{flavor}: no discard"  # fmi2Discard
+        msgs[flavor] = (t, [m.text for m in r.messages if m.status == 2])
+        r.FreeInstance(c)
+    assert msgs["python"] == msgs["native"]
+    assert "glider stalled" in msgs["native"][1][0]
+
+
+def test_run_with_native_fmu_dir_runs_them_as_they_are(native_dir, tmp_path):
+    before = {n: (native_dir / f"{n}.fmu").stat().st_mtime_ns for n in NAMES}
+    p = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "run", "--fmu-dir",
+                        str(native_dir), "--no-plots", "--out", str(tmp_path / "o"),
+                        "--stop-time", "2"], capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    after = {n: (native_dir / f"{n}.fmu").stat().st_mtime_ns for n in NAMES}
+    assert before == after  # not rebuilt (as the Python flavor or at all)
+    assert folder_flavor(native_dir) == "native"
