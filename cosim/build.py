@@ -181,7 +181,7 @@ def build_component(c: Component, out: Path, binary: Path) -> Path:
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
-            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.so")
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.h", "*.so")
             shutil.copytree(pkg, dst, ignore=ignore)
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")

@@ -21,14 +21,23 @@ import sysconfig
 from pathlib import Path
 
 RUNTIME_SOURCE = Path(__file__).with_name("runtime.c")
+#: every C file of the runtime, compiled into one library: the FMI layer, finding a
+#: Python on the target, and the GIL with one thread state kept per host thread
+RUNTIME_SOURCES = tuple(
+    Path(__file__).with_name(n) for n in ("runtime.c", "python_find.c", "python_threads.c")
+)
+RUNTIME_HEADERS = tuple(Path(__file__).with_name(n) for n in ("python_find.h", "python_threads.h"))
 #: file in the FMU's resources/ naming the Python to start in a host without one
 PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"
 #: environment variable naming another such file (another Python installation)
 PYTHON_CONFIG_ENV = "GLIDER_FMI_PYTHON_CONFIG"
 CFLAGS = ("-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
 LIBS = ("-ldl", "-lpthread", "-lm")
-#: packages the slaves import from the Python environment (not bundled in the FMUs)
-PYTHON_PACKAGES = ("numpy", "scipy", "pythonfmu")
+#: packages whose site folders the configuration records as a last resort (``site=``):
+#: everything our FMUs import is the standard library or bundled in ``resources/``
+#: (pythonfmu's pure-Python part included); these serve users' own slaves built with
+#: ``build_slave_fmu`` that import them, on the building installation only
+PYTHON_PACKAGES = ("numpy", "scipy")
 
 
 class RuntimeBuildError(OSError):
@@ -73,12 +82,16 @@ def _include_dirs() -> list[str]:
 def compile_command(output: Path) -> list[str]:
     """The compiler command line that builds the runtime into ``output``."""
     includes = [f"-I{d}" for d in _include_dirs()]
-    return [find_compiler(), *CFLAGS, *includes, str(RUNTIME_SOURCE), "-o", str(output), *LIBS]
+    sources = [str(p) for p in RUNTIME_SOURCES]
+    return [find_compiler(), *CFLAGS, *includes, *sources, "-o", str(output), *LIBS]
 
 
 def runtime_fingerprint() -> str:
-    """SHA-256 over the runtime's source and its compile flags (FMU staleness)."""
-    h = hashlib.sha256(RUNTIME_SOURCE.read_bytes())
+    """SHA-256 over the runtime's sources and its compile flags (FMU staleness)."""
+    h = hashlib.sha256()
+    for p in (*RUNTIME_SOURCES, *RUNTIME_HEADERS):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
     h.update(" ".join((*CFLAGS, *LIBS)).encode())
     return h.hexdigest()
 

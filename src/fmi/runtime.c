@@ -40,13 +40,16 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "python_find.h"
+#include "python_threads.h"
 
 /* ------------------------------------------------------------------ Python API table */
 /* Every Python function is called through a pointer of the exact type Python.h
  * declares: the binary has no undefined Python symbol (checked by the build). */
 #define PY_FUNCTIONS(X)                                                                    \
     X(Py_IsInitialized) X(Py_InitializeEx) X(PyEval_SaveThread) X(PyGILState_Ensure)       \
-    X(PyGILState_Release) X(PyObject_Size) X(Py_IncRef) X(Py_DecRef) X(PyErr_Occurred) X(PyErr_Fetch) X(PyErr_Restore) \
+    X(PyGILState_Release) X(PyGILState_GetThisThreadState) X(PyEval_RestoreThread) \
+    X(PyThreadState_Clear) X(PyThreadState_Delete) X(PyObject_Size) X(Py_IncRef) X(Py_DecRef) X(PyErr_Occurred) X(PyErr_Fetch) X(PyErr_Restore) \
     X(PyErr_NormalizeException) X(PyErr_Clear) X(PyObject_Str) X(PyUnicode_AsUTF8AndSize) \
     X(PyUnicode_FromString) X(PyUnicode_InternFromString) X(PyType_GetName)              \
     X(PyImport_ImportModule) X(PyObject_GetAttr) X(PyObject_GetAttrString)                \
@@ -385,45 +388,9 @@ static fmi2Status py_error(Ctx *x) {
 }
 
 /* ------------------------------------------------------------------ starting Python */
-typedef struct {
-    char libpython[1024], home[1024], executable[1024];
-    char site[16][1024];
-    int nsite;
-} PythonConfig;
-
 static void trim(char *s) {
     size_t n = strlen(s);
     while (n && (s[n - 1] == '\n' || s[n - 1] == '\r' || s[n - 1] == ' ')) s[--n] = '\0';
-}
-
-/* Key=value lines: libpython, home, executable, site (repeated); '#' comments. */
-static int read_config(const char *path, PythonConfig *cfg, char *err, size_t errsize) {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        snprintf(err, errsize, "cannot read the Python configuration %s", path);
-        return 0;
-    }
-    char line[1200];
-    memset(cfg, 0, sizeof *cfg);
-    while (fgets(line, sizeof line, f)) {
-        trim(line);
-        char *eq = strchr(line, '=');
-        if (line[0] == '#' || !eq) continue;
-        *eq = '\0';
-        const char *v = eq + 1;
-        if (!strcmp(line, "libpython")) snprintf(cfg->libpython, sizeof cfg->libpython, "%s", v);
-        else if (!strcmp(line, "home")) snprintf(cfg->home, sizeof cfg->home, "%s", v);
-        else if (!strcmp(line, "executable"))
-            snprintf(cfg->executable, sizeof cfg->executable, "%s", v);
-        else if (!strcmp(line, "site") && cfg->nsite < 16)
-            snprintf(cfg->site[cfg->nsite++], sizeof cfg->site[0], "%s", v);
-    }
-    fclose(f);
-    if (!cfg->libpython[0]) {
-        snprintf(err, errsize, "%s names no libpython", path);
-        return 0;
-    }
-    return 1;
 }
 
 static int resolve_api(void *h, char *err, size_t errsize) {
@@ -445,7 +412,7 @@ static int resolve_api(void *h, char *err, size_t errsize) {
 
 /* Called once the interpreter runs, with the GIL held: add the recorded site folders
  * (with their .pth files) and set sys.executable. */
-static int configure_started_python(const PythonConfig *cfg, char *err, size_t errsize) {
+static int configure_started_python(const FoundPython *cfg, char *err, size_t errsize) {
     PyObject *site = pPyImport_ImportModule("site");
     PyObject *add = site ? pPyObject_GetAttrString(site, "addsitedir") : NULL;
     int ok = add != NULL;
@@ -470,7 +437,8 @@ static int configure_started_python(const PythonConfig *cfg, char *err, size_t e
     return ok;
 }
 
-/* Make Python usable in this process: the host's, or one we load and start. */
+/* Make Python usable in this process: the host's, or one we find, load and start
+ * (python_find.c). */
 static int ensure_python(const char *resources) {
     int ok;
     pthread_mutex_lock(&g_lock);
@@ -481,27 +449,24 @@ static int ensure_python(const char *resources) {
     char *err = g_python_error;
     size_t es = sizeof g_python_error;
     void *h = RTLD_DEFAULT;
-    PythonConfig cfg;
+    FoundPython cfg;
     int have_cfg = 0;
-    const char *override = getenv("GLIDER_FMI_PYTHON_CONFIG");
-    char path[1200];
-    if (override && override[0]) snprintf(path, sizeof path, "%s", override);
-    else snprintf(path, sizeof path, "%s/glider_fmi_python.cfg", resources);
+    char recorded[1200];
+    snprintf(recorded, sizeof recorded, "%s/glider_fmi_python.cfg", resources);
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        /* a host without Python: load the recorded libpython, globally (numpy's
-         * extension modules resolve their Python symbols from the process) */
-        if (!(have_cfg = read_config(path, &cfg, err, es))) goto done;
-        h = dlopen(cfg.libpython, RTLD_NOW | RTLD_GLOBAL);
-        if (!h) {
-            snprintf(err, es, "cannot load %s (%s); set GLIDER_FMI_PYTHON_CONFIG",
-                     cfg.libpython, dlerror());
-            goto done;
-        }
+        /* a host without Python: find one and load it globally (extension modules
+         * resolve their Python symbols from the process) */
+        if (!(have_cfg = glider_find_python(resources, recorded, &cfg, err, es))) goto done;
+        h = cfg.handle;
     }
     if (!resolve_api(h, err, es)) goto done;
     if (!pPy_IsInitialized()) {
-        if (!have_cfg && !(have_cfg = read_config(path, &cfg, err, es))) goto done;
-        /* the standard library is found from PYTHONHOME: the recorded prefix unless the
+        if (!have_cfg) { /* libpython preloaded by the host but not started */
+            const char *override = getenv("GLIDER_FMI_PYTHON_CONFIG");
+            const char *path = override && override[0] ? override : recorded;
+            if (!(have_cfg = glider_read_python_config(path, &cfg, err, es))) goto done;
+        }
+        /* the standard library is found from PYTHONHOME: the found prefix unless the
          * user set one; the host's environment is restored afterwards */
         const char *user_home = getenv("PYTHONHOME");
         int set_home = !(user_home && user_home[0]) && cfg.home[0];
@@ -517,6 +482,11 @@ static int ensure_python(const char *resources) {
         if (!configured) goto done;
     }
     {
+        const GliderGilApi gil = {pPyGILState_Ensure, pPyGILState_Release,
+                                  pPyGILState_GetThisThreadState, pPyEval_SaveThread,
+                                  pPyEval_RestoreThread, pPyThreadState_Clear,
+                                  pPyThreadState_Delete, pPy_IsInitialized};
+        glider_threads_init(&gil);
         PyGILState_STATE g = pPyGILState_Ensure();
         int interned = 1;
         for (int i = 0; i < M_COUNT; ++i)
@@ -559,7 +529,7 @@ static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
     if (!pPy_IsInitialized())
         return FAIL(x, "the process's Python is finalizing: the slave cannot be called any "
                        "more (free instances before the interpreter exits)");
-    x->gil = pPyGILState_Ensure();
+    x->gil = glider_gil_ensure(); /* one thread state per host thread, kept */
     x->have_gil = 1;
     if (inst->state == S_FATAL) {
         add_msg(x, fmi2Fatal, inst->cat_error, "%s: the instance failed fatally earlier",
@@ -626,7 +596,7 @@ static fmi2Status end(Ctx *x, fmi2Status status) {
             x->msgs[i].text = NULL;
         }
     }
-    if (x->have_gil) pPyGILState_Release(x->gil);
+    if (x->have_gil) glider_gil_release(x->gil);
     x->have_gil = 0;
     for (size_t i = 0; i < x->nmsgs; ++i) {
         if (!x->msgs[i].text) continue;
@@ -1178,6 +1148,10 @@ void fmi2FreeInstance(fmi2Component c) {
     PyGILState_STATE g = alive ? pPyGILState_Ensure() : PyGILState_UNLOCKED;
     free_instance(inst, alive);
     if (alive) pPyGILState_Release(g);
+    pthread_mutex_lock(&g_lock);
+    int last = g_instances == NULL;
+    pthread_mutex_unlock(&g_lock);
+    if (last && alive) glider_thread_unpin(); /* this thread's kept thread state */
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
