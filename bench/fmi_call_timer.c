@@ -1,13 +1,16 @@
 /* Times FMI calls into one FMU from C (no Python in the host), for bench/fmu_step.py.
  *
- * usage: fmi_call_timer FMU_DIR MODEL_IDENTIFIER N GET_VRS SET_VR=VALUE,...
+ * usage: fmi_call_timer FMU_DIR MODEL_IDENTIFIER N GET_VRS SET_VR=VALUE,... [thread]
  * GET_VRS: comma-separated value references read by fmi2GetReal; SET_VR=VALUE pairs: the
  * inputs written by fmi2SetReal (and held). After initialisation and 200 warm-up steps,
  * N calls of each of fmi2DoStep, fmi2GetReal and fmi2SetReal are timed; prints
- * {"doStep_ns": ..., "getReal_ns": ..., "setReal_ns": ...} (mean per call).
+ * {"doStep_ns": ..., "getReal_ns": ..., "setReal_ns": ...} (mean per call). With
+ * "thread", the timed calls are made from a new pthread, one Python has never seen (as
+ * libcosim's and Ecos's worker threads are); instantiation stays on the main thread.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,9 +40,42 @@ static size_t parse_vrs(char *text, fmi2ValueReference *vr, fmi2Real *val, size_
     return n;
 }
 
+typedef struct {
+    fmi2DoStepTYPE *DoStep;
+    fmi2GetRealTYPE *GetReal;
+    fmi2SetRealTYPE *SetReal;
+    fmi2Component c;
+    long n;
+    const fmi2ValueReference *get_vr, *set_vr;
+    fmi2Real *get_val;
+    const fmi2Real *set_val;
+    size_t n_get, n_set;
+    double t[4];
+    int rc;
+} Job;
+
+static void *timed(void *arg) {
+    Job *j = arg;
+    const double h = 0.02;
+    long k = 0;
+    for (; k < 200; ++k)
+        if (j->DoStep(j->c, (double)k * h, h, fmi2True)) return j->rc = 6, NULL;
+    j->t[0] = now();
+    for (long i = 0; i < j->n; ++i, ++k)
+        if (j->DoStep(j->c, (double)k * h, h, fmi2True)) return j->rc = 6, NULL;
+    j->t[1] = now();
+    for (long i = 0; i < j->n; ++i)
+        if (j->GetReal(j->c, j->get_vr, j->n_get, j->get_val)) return j->rc = 7, NULL;
+    j->t[2] = now();
+    for (long i = 0; i < j->n; ++i)
+        if (j->SetReal(j->c, j->set_vr, j->n_set, j->set_val)) return j->rc = 7, NULL;
+    j->t[3] = now();
+    return NULL;
+}
+
 int main(int argc, char **argv) {
-    if (argc != 6) {
-        fprintf(stderr, "usage: fmi_call_timer FMU_DIR MODEL N GET_VRS SET_VR=VALUE,...\n");
+    if (argc != 6 && !(argc == 7 && !strcmp(argv[6], "thread"))) {
+        fprintf(stderr, "usage: fmi_call_timer FMU_DIR MODEL N GET_VRS SET_VR=VALUE,... [thread]\n");
         return 2;
     }
     char path[8192], uri[8192];
@@ -70,22 +106,18 @@ int main(int argc, char **argv) {
     if (!c || SetupExperiment(c, fmi2False, 0, 0, fmi2False, 0) || SetReal(c, set_vr, n_set, set_val) ||
         EnterInitializationMode(c) || ExitInitializationMode(c))
         return 5;
-    const double h = 0.02;
-    long k = 0;
-    for (; k < 200; ++k)
-        if (DoStep(c, (double)k * h, h, fmi2True)) return 6;
-    double t0 = now();
-    for (long i = 0; i < n; ++i, ++k)
-        if (DoStep(c, (double)k * h, h, fmi2True)) return 6;
-    double t1 = now();
-    for (long i = 0; i < n; ++i)
-        if (GetReal(c, get_vr, n_get, get_val)) return 7;
-    double t2 = now();
-    for (long i = 0; i < n; ++i)
-        if (SetReal(c, set_vr, n_set, set_val)) return 7;
-    double t3 = now();
+    Job j = {DoStep, GetReal, SetReal, c, n, get_vr, set_vr, get_val, set_val, n_get, n_set,
+             {0, 0, 0, 0}, 0};
+    if (argc == 7) {
+        pthread_t tid;
+        if (pthread_create(&tid, NULL, timed, &j) || pthread_join(tid, NULL)) return 8;
+    } else {
+        timed(&j);
+    }
+    if (j.rc) return j.rc;
     printf("{\"doStep_ns\": %.1f, \"getReal_ns\": %.1f, \"setReal_ns\": %.1f}\n",
-           (t1 - t0) / (double)n * 1e9, (t2 - t1) / (double)n * 1e9, (t3 - t2) / (double)n * 1e9);
+           (j.t[1] - j.t[0]) / (double)n * 1e9, (j.t[2] - j.t[1]) / (double)n * 1e9,
+           (j.t[3] - j.t[2]) / (double)n * 1e9);
     FreeInstance(c);
     return 0;
 }

@@ -35,13 +35,16 @@
 #include <string.h>
 
 #include "fmi_layer.h"
+#include "python_find.h"
+#include "python_threads.h"
 
 /* ------------------------------------------------------------------ Python API table */
 /* Every Python function is called through a pointer of the exact type Python.h
  * declares: the binary has no undefined Python symbol (checked by the build). */
 #define PY_FUNCTIONS(X)                                                                    \
     X(Py_IsInitialized) X(Py_InitializeEx) X(PyEval_SaveThread) X(PyGILState_Ensure)       \
-    X(PyGILState_Release) X(PyObject_Size) X(Py_IncRef) X(Py_DecRef) X(PyErr_Occurred) X(PyErr_Fetch) X(PyErr_Restore) \
+    X(PyGILState_Release) X(PyGILState_GetThisThreadState) X(PyEval_RestoreThread) \
+    X(PyThreadState_Clear) X(PyThreadState_Delete) X(PyObject_Size) X(Py_IncRef) X(Py_DecRef) X(PyErr_Occurred) X(PyErr_Fetch) X(PyErr_Restore) \
     X(PyErr_NormalizeException) X(PyErr_Clear) X(PyObject_Str) X(PyUnicode_AsUTF8AndSize) \
     X(PyUnicode_FromString) X(PyUnicode_InternFromString) X(PyType_GetName)              \
     X(PyImport_ImportModule) X(PyObject_GetAttr) X(PyObject_GetAttrString)                \
@@ -119,6 +122,7 @@ typedef struct {
     char **strings;     /* buffers returned by fmi2GetString, valid until the next call */
     size_t nstrings;
     RefCache refs[C_COUNT];
+    int counted; /* in g_live */
 } PyInstance;
 
 #define PY(inst) ((PyInstance *)(inst)->backend)
@@ -186,45 +190,9 @@ static fmi2Status py_error(Ctx *x) {
 }
 
 /* ------------------------------------------------------------------ starting Python */
-typedef struct {
-    char libpython[1024], home[1024], executable[1024];
-    char site[16][1024];
-    int nsite;
-} PythonConfig;
-
 static void trim(char *s) {
     size_t n = strlen(s);
     while (n && (s[n - 1] == '\n' || s[n - 1] == '\r' || s[n - 1] == ' ')) s[--n] = '\0';
-}
-
-/* Key=value lines: libpython, home, executable, site (repeated); '#' comments. */
-static int read_config(const char *path, PythonConfig *cfg, char *err, size_t errsize) {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        snprintf(err, errsize, "cannot read the Python configuration %s", path);
-        return 0;
-    }
-    char line[1200];
-    memset(cfg, 0, sizeof *cfg);
-    while (fgets(line, sizeof line, f)) {
-        trim(line);
-        char *eq = strchr(line, '=');
-        if (line[0] == '#' || !eq) continue;
-        *eq = '\0';
-        const char *v = eq + 1;
-        if (!strcmp(line, "libpython")) snprintf(cfg->libpython, sizeof cfg->libpython, "%s", v);
-        else if (!strcmp(line, "home")) snprintf(cfg->home, sizeof cfg->home, "%s", v);
-        else if (!strcmp(line, "executable"))
-            snprintf(cfg->executable, sizeof cfg->executable, "%s", v);
-        else if (!strcmp(line, "site") && cfg->nsite < 16)
-            snprintf(cfg->site[cfg->nsite++], sizeof cfg->site[0], "%s", v);
-    }
-    fclose(f);
-    if (!cfg->libpython[0]) {
-        snprintf(err, errsize, "%s names no libpython", path);
-        return 0;
-    }
-    return 1;
 }
 
 static int resolve_api(void *h, char *err, size_t errsize) {
@@ -246,7 +214,7 @@ static int resolve_api(void *h, char *err, size_t errsize) {
 
 /* Called once the interpreter runs, with the GIL held: add the recorded site folders
  * (with their .pth files) and set sys.executable. */
-static int configure_started_python(const PythonConfig *cfg, char *err, size_t errsize) {
+static int configure_started_python(const FoundPython *cfg, char *err, size_t errsize) {
     PyObject *site = pPyImport_ImportModule("site");
     PyObject *add = site ? pPyObject_GetAttrString(site, "addsitedir") : NULL;
     int ok = add != NULL;
@@ -271,7 +239,8 @@ static int configure_started_python(const PythonConfig *cfg, char *err, size_t e
     return ok;
 }
 
-/* Make Python usable in this process: the host's, or one we load and start. */
+/* Make Python usable in this process: the host's, or one we find, load and start
+ * (python_find.c). */
 static int ensure_python(const char *resources) {
     int ok;
     pthread_mutex_lock(&g_lock);
@@ -282,27 +251,24 @@ static int ensure_python(const char *resources) {
     char *err = g_python_error;
     size_t es = sizeof g_python_error;
     void *h = RTLD_DEFAULT;
-    PythonConfig cfg;
+    FoundPython cfg;
     int have_cfg = 0;
-    const char *override = getenv("GLIDER_FMI_PYTHON_CONFIG");
-    char path[1200];
-    if (override && override[0]) snprintf(path, sizeof path, "%s", override);
-    else snprintf(path, sizeof path, "%s/glider_fmi_python.cfg", resources);
+    char recorded[1200];
+    snprintf(recorded, sizeof recorded, "%s/glider_fmi_python.cfg", resources);
     if (!dlsym(RTLD_DEFAULT, "Py_IsInitialized")) {
-        /* a host without Python: load the recorded libpython, globally (numpy's
-         * extension modules resolve their Python symbols from the process) */
-        if (!(have_cfg = read_config(path, &cfg, err, es))) goto done;
-        h = dlopen(cfg.libpython, RTLD_NOW | RTLD_GLOBAL);
-        if (!h) {
-            snprintf(err, es, "cannot load %s (%s); set GLIDER_FMI_PYTHON_CONFIG",
-                     cfg.libpython, dlerror());
-            goto done;
-        }
+        /* a host without Python: find one and load it globally (extension modules
+         * resolve their Python symbols from the process) */
+        if (!(have_cfg = glider_find_python(resources, recorded, &cfg, err, es))) goto done;
+        h = cfg.handle;
     }
     if (!resolve_api(h, err, es)) goto done;
     if (!pPy_IsInitialized()) {
-        if (!have_cfg && !(have_cfg = read_config(path, &cfg, err, es))) goto done;
-        /* the standard library is found from PYTHONHOME: the recorded prefix unless the
+        if (!have_cfg) { /* libpython preloaded by the host but not started */
+            const char *override = getenv("GLIDER_FMI_PYTHON_CONFIG");
+            const char *path = override && override[0] ? override : recorded;
+            if (!(have_cfg = glider_read_python_config(path, &cfg, err, es))) goto done;
+        }
+        /* the standard library is found from PYTHONHOME: the found prefix unless the
          * user set one; the host's environment is restored afterwards */
         const char *user_home = getenv("PYTHONHOME");
         int set_home = !(user_home && user_home[0]) && cfg.home[0];
@@ -318,6 +284,11 @@ static int ensure_python(const char *resources) {
         if (!configured) goto done;
     }
     {
+        const GliderGilApi gil = {pPyGILState_Ensure, pPyGILState_Release,
+                                  pPyGILState_GetThisThreadState, pPyEval_SaveThread,
+                                  pPyEval_RestoreThread, pPyThreadState_Clear,
+                                  pPyThreadState_Delete, pPy_IsInitialized};
+        glider_threads_init(&gil);
         PyGILState_STATE g = pPyGILState_Ensure();
         int interned = 1;
         for (int i = 0; i < M_COUNT; ++i)
@@ -369,12 +340,22 @@ static fmi2Status py_enter(Ctx *x) {
     if (!pPy_IsInitialized())
         return FAIL(x, "the process's Python is finalizing: the slave cannot be called any "
                        "more (free instances before the interpreter exits)");
-    x->token = (int)pPyGILState_Ensure();
+    x->token = (int)glider_gil_ensure(); /* one thread state per host thread, kept */
     x->have_token = 1;
     return fmi2OK;
 }
 
-static void py_leave(Ctx *x) { pPyGILState_Release((PyGILState_STATE)x->token); }
+static int g_live; /* live instances of this FMU (under g_lock) */
+
+static void py_leave(Ctx *x) {
+    glider_gil_release((PyGILState_STATE)x->token);
+    if (x->call == C_FREE) {
+        pthread_mutex_lock(&g_lock);
+        int last = g_live == 0;
+        pthread_mutex_unlock(&g_lock);
+        if (last) glider_thread_unpin(); /* this thread's kept thread state */
+    }
+}
 
 /* Move the slave's queued log messages into the call's messages. */
 static void drain_log_queue(Ctx *x) {
@@ -590,6 +571,12 @@ static fmi2Status py_create(Ctx *x) {
     if (st == fmi2OK) read_categories(inst);
     if (st == fmi2OK) st = make_slave(x);
     if (st == fmi2OK) st = read_variables(x);
+    if (st == fmi2OK) {
+        pthread_mutex_lock(&g_lock);
+        ++g_live;
+        pthread_mutex_unlock(&g_lock);
+        PY(inst)->counted = 1;
+    }
     return st;
 }
 
@@ -598,6 +585,11 @@ static fmi2Status py_reset(Ctx *x) { return make_slave(x); }
 static void py_destroy(Instance *inst, int alive) {
     PyInstance *p = PY(inst);
     if (!p) return;
+    if (p->counted) {
+        pthread_mutex_lock(&g_lock);
+        --g_live;
+        pthread_mutex_unlock(&g_lock);
+    }
     if (alive) {
         release_slave(p);
         CLEAR(p->cls);

@@ -21,19 +21,28 @@ import sys
 import sysconfig
 from pathlib import Path
 
-#: the FMI layer (one state machine, every FMU) and the Python back end
+#: every C file of the runtime, compiled into one library: the FMI layer (one state
+#: machine, every FMU), the Python back end, finding a Python on the target, and the GIL
+#: with one thread state kept per host thread
 LAYER_SOURCES = (Path(__file__).with_name("fmi2_layer.c"),)
-PYTHON_BACKEND_SOURCES = (Path(__file__).with_name("backend_python.c"),)
+PYTHON_BACKEND_SOURCES = tuple(
+    Path(__file__).with_name(n) for n in ("backend_python.c", "python_find.c", "python_threads.c")
+)
 RUNTIME_SOURCES = LAYER_SOURCES + PYTHON_BACKEND_SOURCES
-LAYER_HEADERS = (Path(__file__).with_name("fmi_layer.h"),)
+RUNTIME_HEADERS = tuple(
+    Path(__file__).with_name(n) for n in ("fmi_layer.h", "python_find.h", "python_threads.h")
+)
 #: file in the FMU's resources/ naming the Python to start in a host without one
 PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"
 #: environment variable naming another such file (another Python installation)
 PYTHON_CONFIG_ENV = "GLIDER_FMI_PYTHON_CONFIG"
 CFLAGS = ("-std=gnu11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
 LIBS = ("-ldl", "-lpthread", "-lm")
-#: packages the slaves import from the Python environment (not bundled in the FMUs)
-PYTHON_PACKAGES = ("numpy", "scipy", "pythonfmu")
+#: packages whose site folders the configuration records as a last resort (``site=``):
+#: everything our FMUs import is the standard library or bundled in ``resources/``
+#: (pythonfmu's pure-Python part included); these serve users' own slaves built with
+#: ``build_slave_fmu`` that import them, on the building installation only
+PYTHON_PACKAGES = ("numpy", "scipy")
 
 
 class RuntimeBuildError(OSError):
@@ -88,10 +97,11 @@ def compile_command(output: Path) -> list[str]:
 
 
 def runtime_fingerprint() -> str:
-    """SHA-256 over the runtime's source and its compile flags (FMU staleness)."""
+    """SHA-256 over the runtime's sources and its compile flags (FMU staleness)."""
     h = hashlib.sha256()
-    for path in (*RUNTIME_SOURCES, *LAYER_HEADERS):
-        h.update(path.read_bytes())
+    for p in (*RUNTIME_SOURCES, *RUNTIME_HEADERS):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
     h.update(" ".join((*CFLAGS, *LIBS)).encode())
     return h.hexdigest()
 
