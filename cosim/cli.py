@@ -97,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--fmu-dir", default="fmus", help="FMU folder (built if missing or stale)")
     r.add_argument(
         "--coupling",
+        type=str.lower,
         choices=("gauss-seidel", "jacobi"),
         default=None,
         help="coupling scheme (default: the scenario's, gauss-seidel for an SSP)",
