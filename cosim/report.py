@@ -107,6 +107,7 @@ def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
     """A copy of ``sc`` with ``instance.parameter`` overrides; ``event.instance.var``
     changes what the scenario's events set (e.g. which law takes over)."""
     sc = copy.deepcopy(sc)
+    sc.overrides.update(overrides)
     for key, value in overrides.items():
         if key.startswith("event."):
             target = key.removeprefix("event.")

@@ -22,6 +22,7 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import tomllib
@@ -83,6 +84,10 @@ class Scenario:
     events: list[Event] = field(default_factory=list)
     #: ``instance.variable`` -> where an overridden value came from (e.g. ``--set ...``)
     origins: dict[str, str] = field(default_factory=dict)
+    #: SHA-256 of the scenario file's text ("" for a scenario built in code)
+    sha256: str = ""
+    #: ``instance.variable`` (or ``event.instance.variable``) -> value set over the file's
+    overrides: dict[str, Any] = field(default_factory=dict)
 
 
 def _number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
@@ -371,9 +376,11 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     except RecursionError:
         raise ScenarioError(f"{_shown(source)}: not valid TOML (nested too deeply)") from None
     try:
-        return parse_scenario(data, source)
+        sc = parse_scenario(data, source)
     except RecursionError:
         raise ScenarioError(f"{_shown(source)}: values nested too deeply") from None
+    sc.sha256 = hashlib.sha256(text.encode()).hexdigest()
+    return sc
 
 
 _shown = shown_path
