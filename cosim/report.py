@@ -10,8 +10,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +21,8 @@ from glider_observer.filter import butterworth_coefficients
 
 from .metrics import describe_outcome
 from .monolithic import COLUMNS, simulate_continuous, simulate_monolithic
+from .progress import Progress
+from .progress import wanted as progress_wanted
 from .report_sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 from .runner import RunResult, simulate
 from .scenario import LAWS, Scenario, load_scenario
@@ -120,24 +120,6 @@ def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
         inst, _, name = key.partition(".")
         sc.parameters.setdefault(inst, {})[name] = value
     return sc
-
-
-class Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, total: int, stream=sys.stderr, width: int = 30):
-        self.total, self.done, self.stream, self.width = total, 0, stream, width
-        self.t0 = time.perf_counter()
-
-    def step(self, label: str) -> None:
-        self.done += 1
-        filled = round(self.width * self.done / self.total)
-        bar = "#" * filled + "-" * (self.width - filled)
-        elapsed = time.perf_counter() - self.t0
-        self.stream.write(f"\r[{bar}] {self.done}/{self.total} {elapsed:5.1f} s {label[:40]:40s}")
-        if self.done == self.total:
-            self.stream.write("\n")
-        self.stream.flush()
 
 
 def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
@@ -341,7 +323,7 @@ def build_report(
     fmu_dir = Path(fmu_dir)
     build_all(fmu_dir, only_stale=True)
     total = sum(len(f.runs) for f in FIGURES) + 4
-    bar = Progress(total) if progress else None
+    bar = Progress(total) if progress and progress_wanted() else None
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
         results[fig.key] = []

@@ -367,6 +367,10 @@ def simulate(
         recorder: ArrayRecorder | CsvRecorder = CsvRecorder(files["results"])
     else:
         recorder = ArrayRecorder()
+    from .progress import RunProgress, wanted
+
+    if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
+        recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
     status, message = "ok", ""
     interrupt: Interrupted | None = None
     failure: Exception | None = None
@@ -388,6 +392,8 @@ def simulate(
         sim.close()
     if "results" in files and not files["results"].exists():
         del files["results"]  # the run failed before its first row
+    if isinstance(recorder, RunProgress):
+        recorder = recorder.inner
     if isinstance(recorder, CsvRecorder):
         data = (
             np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
