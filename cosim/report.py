@@ -70,7 +70,8 @@ FIGURES: tuple[Figure, ...] = (
         by_group=True, share_y=False,
     ),
     Figure(
-        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1",
+        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1 (full-state "
+        "feedback; the observer runs in parallel, not in the loop)",
         (Run("K_c = 10", "fig5-6-observer-noise"),
          Run("K_c = 2 (paper)", "fig5-6-observer-noise", {"controller.K_c": 2.0})),
         (("plant.theta_meas", "measured pitch [deg] (Fig. 5)"),
@@ -151,7 +152,7 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
                            squeeze=False, layout="constrained")  # fmt: skip
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     colour = {run.label: colours[i % len(colours)] for i, (run, _) in enumerate(results)}
-    clipped = stopped = False
+    clipped = stopped = marked = False
     for i, (col, ylabel) in enumerate(fig.panels):
         series = [(run, r, r.data[:, 0], r.column(col) * DEG) for run, r in results
                   if col in r.columns and len(r.data)]  # fmt: skip
@@ -182,6 +183,11 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
                     y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
                     ax.plot(t[-1], y_end, marker="x", color=c, ms=8, mew=2, clip_on=False,
                             zorder=5)  # fmt: skip
+                for ev in r.metrics.get("events") or ():  # the takeover, in the run's colour
+                    if ev["kind"] in ("takeover", "enable"):
+                        ax.axvline(ev["time_s"], color=c, ls="-.", lw=0.8, alpha=0.8,
+                                   gid=f"event:{ev['kind']}")  # fmt: skip
+                        marked = True
                 label = run.label + (f" ({'; '.join(notes)})" if notes else "")
                 ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
                 clipped |= lim is not None and bool(np.any((y < lim[0]) | (y > lim[1])))
@@ -212,6 +218,8 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
         keys.append("triangle: the run leaves the axes (clipped there)")
     if stopped:
         keys.append("cross: the run stops (stall)")
+    if marked:
+        keys.append("dash-dot: the controller takes over")
     title = "\n".join(textwrap.wrap(fig.title, int(width * 11)))
     f.suptitle(title + (f"\n{'; '.join(keys)}" if keys else ""), fontsize=10)
     path = out / f"{fig.key}.png"
@@ -416,7 +424,10 @@ def _markdown(results, an, study, pngs, sec52: list[str]) -> str:
         lines += [_metrics_row(run.label, r) for run, r in results[fig.key]]
         stopped = [(run, r) for run, r in results[fig.key] if r.status != "ok"]
         for run, r in stopped:
-            lines.append(f"\n{run.label}: {r.message}")
+            lines.append(
+                f"\n{run.label}: **disagrees** with the paper, whose run with these gains "
+                f"settles: here it stops at {r.data[-1, 0]:.2f} s ({r.message})"
+            )
         lines.append("")
     lines += sec52
     lines += _analysis_section(an)
