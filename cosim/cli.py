@@ -103,6 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_fmu_options(r)
     r.add_argument(
         "--coupling",
+        type=str.lower,
         choices=("gauss-seidel", "jacobi"),
         default=None,
         help="coupling scheme (default: the scenario's, gauss-seidel for an SSP)",
@@ -258,6 +259,19 @@ def _run(args: argparse.Namespace) -> int:
     if args.out == "out":
         out = out / name
     _check_out_dir(out, "--out")
+    options = {
+        opt: value
+        for opt, value, default in (
+            ("--coupling", args.coupling, None),
+            ("--step", args.step, None),
+            ("--stop-time", args.stop_time, None),
+            ("--fmu-dir", args.fmu_dir, "fmus"),
+            ("--no-plots", args.no_plots, False),
+            ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
+            ("--max-extract-mb", args.max_extract_mb, 256),
+        )
+        if value != default
+    }
     try:
         result = simulate(
             scenario,
@@ -268,6 +282,7 @@ def _run(args: argparse.Namespace) -> int:
             stop_time=args.stop_time,
             plots=not args.no_plots,
             max_steps=args.max_steps,
+            options=options,
         )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None

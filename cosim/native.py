@@ -295,6 +295,7 @@ def model_description(c: NativeComponent, sources: list[str]) -> bytes:
         "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + native_hash(c))) + "}",
     )
     root.set("generationTool", f"glider-cosim {_version()} (native C99)")
+    root.set("version", _version())
     cs = root.find("CoSimulation")
     cs.set("needsExecutionTool", "false")
     cs.set("canGetAndSetFMUstate", "true")

@@ -10,8 +10,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +21,8 @@ from glider_observer.filter import butterworth_coefficients
 
 from .metrics import describe_outcome
 from .monolithic import COLUMNS, simulate_continuous, simulate_monolithic
+from .progress import Progress
+from .progress import wanted as progress_wanted
 from .report_sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 from .runner import RunResult, simulate
 from .scenario import LAWS, Scenario, load_scenario
@@ -70,7 +70,8 @@ FIGURES: tuple[Figure, ...] = (
         by_group=True, share_y=False,
     ),
     Figure(
-        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1",
+        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1 (full-state "
+        "feedback; the observer runs in parallel, not in the loop)",
         (Run("K_c = 10", "fig5-6-observer-noise"),
          Run("K_c = 2 (paper)", "fig5-6-observer-noise", {"controller.K_c": 2.0})),
         (("plant.theta_meas", "measured pitch [deg] (Fig. 5)"),
@@ -107,6 +108,7 @@ def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
     """A copy of ``sc`` with ``instance.parameter`` overrides; ``event.instance.var``
     changes what the scenario's events set (e.g. which law takes over)."""
     sc = copy.deepcopy(sc)
+    sc.overrides.update(overrides)
     for key, value in overrides.items():
         if key.startswith("event."):
             target = key.removeprefix("event.")
@@ -119,24 +121,6 @@ def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
         inst, _, name = key.partition(".")
         sc.parameters.setdefault(inst, {})[name] = value
     return sc
-
-
-class Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, total: int, stream=sys.stderr, width: int = 30):
-        self.total, self.done, self.stream, self.width = total, 0, stream, width
-        self.t0 = time.perf_counter()
-
-    def step(self, label: str) -> None:
-        self.done += 1
-        filled = round(self.width * self.done / self.total)
-        bar = "#" * filled + "-" * (self.width - filled)
-        elapsed = time.perf_counter() - self.t0
-        self.stream.write(f"\r[{bar}] {self.done}/{self.total} {elapsed:5.1f} s {label[:40]:40s}")
-        if self.done == self.total:
-            self.stream.write("\n")
-        self.stream.flush()
 
 
 def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
@@ -168,7 +152,7 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
                            squeeze=False, layout="constrained")  # fmt: skip
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     colour = {run.label: colours[i % len(colours)] for i, (run, _) in enumerate(results)}
-    clipped = stopped = False
+    clipped = stopped = marked = False
     for i, (col, ylabel) in enumerate(fig.panels):
         series = [(run, r, r.data[:, 0], r.column(col) * DEG) for run, r in results
                   if col in r.columns and len(r.data)]  # fmt: skip
@@ -199,6 +183,11 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
                     y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
                     ax.plot(t[-1], y_end, marker="x", color=c, ms=8, mew=2, clip_on=False,
                             zorder=5)  # fmt: skip
+                for ev in r.metrics.get("events") or ():  # the takeover, in the run's colour
+                    if ev["kind"] in ("takeover", "enable"):
+                        ax.axvline(ev["time_s"], color=c, ls="-.", lw=0.8, alpha=0.8,
+                                   gid=f"event:{ev['kind']}")  # fmt: skip
+                        marked = True
                 label = run.label + (f" ({'; '.join(notes)})" if notes else "")
                 ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
                 clipped |= lim is not None and bool(np.any((y < lim[0]) | (y > lim[1])))
@@ -229,6 +218,8 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
         keys.append("triangle: the run leaves the axes (clipped there)")
     if stopped:
         keys.append("cross: the run stops (stall)")
+    if marked:
+        keys.append("dash-dot: the controller takes over")
     title = "\n".join(textwrap.wrap(fig.title, int(width * 11)))
     f.suptitle(title + (f"\n{'; '.join(keys)}" if keys else ""), fontsize=10)
     path = out / f"{fig.key}.png"
@@ -340,7 +331,7 @@ def build_report(
     fmu_dir = Path(fmu_dir)
     build_all(fmu_dir, only_stale=True)
     total = sum(len(f.runs) for f in FIGURES) + 4
-    bar = Progress(total) if progress else None
+    bar = Progress(total) if progress and progress_wanted() else None
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
         results[fig.key] = []
@@ -433,7 +424,10 @@ def _markdown(results, an, study, pngs, sec52: list[str]) -> str:
         lines += [_metrics_row(run.label, r) for run, r in results[fig.key]]
         stopped = [(run, r) for run, r in results[fig.key] if r.status != "ok"]
         for run, r in stopped:
-            lines.append(f"\n{run.label}: {r.message}")
+            lines.append(
+                f"\n{run.label}: **disagrees** with the paper, whose run with these gains "
+                f"settles: here it stops at {r.data[-1, 0]:.2f} s ({r.message})"
+            )
         lines.append("")
     lines += sec52
     lines += _analysis_section(an)

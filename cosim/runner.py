@@ -28,6 +28,7 @@ from .master import (
     count_steps,
 )
 from .metrics import compute_metrics
+from .provenance import clear_owned, marked_events, run_record
 from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
 log = logging.getLogger(__name__)
@@ -260,6 +261,7 @@ def simulate(
     stop_time: float | None = None,
     plots: bool = True,
     max_steps: int = DEFAULT_MAX_STEPS,
+    options: dict[str, Any] | None = None,
 ) -> RunResult:
     """Run a scenario and return its results.
 
@@ -279,6 +281,10 @@ def simulate(
         Write the PNG plots (with ``out``).
     max_steps : int
         Most communication steps; a longer run is refused before it starts.
+    options : dict, optional
+        The options to record in ``metrics.json`` (``run.options``; the CLI passes the
+        ones given on its command line). Default: the ``coupling``, ``step`` and
+        ``stop_time`` given here.
 
     Returns
     -------
@@ -356,22 +362,28 @@ def simulate(
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
+        clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
         files["results"] = out / "results.csv"
         recorder: ArrayRecorder | CsvRecorder = CsvRecorder(files["results"])
     else:
         recorder = ArrayRecorder()
+    from .progress import RunProgress, wanted
+
+    if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
+        recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
     status, message = "ok", ""
     interrupt: Interrupted | None = None
+    failure: Exception | None = None
     try:
         sim.run(stop, recorder)
     except FMUStopped as err:
-        status, message = "stopped", str(err)
+        status, message, failure = "stopped", str(err), err
     except FMUCallError as err:
-        status, message = "error", str(err)
+        status, message, failure = "error", str(err), err
     except SystemSpecError:
         raise
     except MasterError as err:
-        status, message = "error", str(err)
+        status, message, failure = "error", str(err), err
     except KeyboardInterrupt as err:
         interrupt = err if isinstance(err, Interrupted) else Interrupted()
         status, message = "interrupted", interrupt.describe()
@@ -380,6 +392,8 @@ def simulate(
         sim.close()
     if "results" in files and not files["results"].exists():
         del files["results"]  # the run failed before its first row
+    if isinstance(recorder, RunProgress):
+        recorder = recorder.inner
     if isinstance(recorder, CsvRecorder):
         data = (
             np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
@@ -391,6 +405,11 @@ def simulate(
         columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
     metrics = compute_metrics(columns, data, scenario, sim, status)
     metrics.update(status=status, message=message)
+    if options is None:
+        options = {k: v for k, v in (("coupling", coupling), ("step", step),
+                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    metrics["run"] = run_record(scenario, sim, options)
+    metrics["events"] = marked_events(sim, status, failure)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
     if out is not None:
         files["metrics"] = out / "metrics.json"

@@ -22,6 +22,7 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import tomllib
@@ -40,6 +41,8 @@ from .master import Disturbance, Event
 
 INSTANCES = ("plant", "observer", "controller")
 LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
+COUPLINGS = ("gauss-seidel", "jacobi")
+FEEDBACKS = ("observer", "state")
 _TOP = {
     "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
     "record",
@@ -81,14 +84,20 @@ class Scenario:
     events: list[Event] = field(default_factory=list)
     #: ``instance.variable`` -> where an overridden value came from (e.g. ``--set ...``)
     origins: dict[str, str] = field(default_factory=dict)
+    #: SHA-256 of the scenario file's text ("" for a scenario built in code)
+    sha256: str = ""
+    #: ``instance.variable`` (or ``event.instance.variable``) -> value set over the file's
+    overrides: dict[str, Any] = field(default_factory=dict)
 
 
-def _number(value: Any, where: str) -> float | int | bool:
+def _number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
     """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
 
     Types are kept (an int stays an int, a boolean a boolean): the variable's type and
-    unit are checked against its FMU before the run.
+    unit are checked against its FMU before the run. ``ref`` (``instance.variable``)
+    selects the unit hint of the message.
     """
+    expect = _expect_number(ref)
     if isinstance(value, bool | int | float):
         return value
     if isinstance(value, str):
@@ -97,7 +106,30 @@ def _number(value: Any, where: str) -> float | int | bool:
             rad = math.radians(float(m.group(1)))
             if math.isfinite(rad):
                 return Degrees(rad, value.strip())
-    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected a number or 'X deg'")
+    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected {expect}")
+
+
+def _expect_number(ref: str | None) -> str:
+    """What a number for ``instance.variable`` ``ref`` looks like: its unit from our FMUs'
+    variable tables, and ``'X deg'`` only for an angle (rad). A variable we do not know
+    (a swapped FMU's, a time) gets no unit hint."""
+    unit = _our_unit(ref) if ref else None
+    if unit == "rad":
+        return "a number (rad) or 'X deg'"
+    if unit and unit != "1":
+        return f"a number ({unit})"
+    return "a number"
+
+
+def _our_unit(ref: str) -> str | None:
+    inst, _, name = ref.partition(".")
+    try:
+        from .inputs.check import our_table
+
+        spec = our_table(inst).get(name)
+    except (KeyError, ImportError):
+        return None
+    return None if spec is None else spec.unit
 
 
 def _float(
@@ -124,20 +156,35 @@ def _float(
     return v if isinstance(v, Degrees) else float(v)
 
 
+def _choices(names: Any) -> str:
+    names = [f"'{n}'" for n in names]
+    return " or ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + " or " + names[-1]
+
+
+#: what ``controller.law`` accepts, for messages
+LAW_CHOICES = f"one of {', '.join(repr(n) for n in LAWS)} (any case) or an integer 0..3"
+
+
 def _law(value: Any, where: str) -> Any:
-    """``controller.law``: a name or an exact integer 0..3 (the type is checked later)."""
+    """``controller.law``: a name (any case) or an exact integer 0..3."""
     if isinstance(value, str):
-        if value not in LAWS:
-            raise ScenarioError(
-                f"{where}: {quote(value)} is invalid: expected one of {', '.join(LAWS)} (or 0..3)"
-            )
-        return LAWS[value]
-    if isinstance(value, bool) or not isinstance(value, int) or value not in LAWS.values():
-        raise ScenarioError(
-            f"{where}: {quote(value)} is invalid: expected one of {', '.join(LAWS)} or an "
-            "integer 0..3"
-        )
-    return value
+        key = value.strip().lower()
+        if key in LAWS:
+            return LAWS[key]
+        if re.fullmatch(r"[-+]?\d{1,3}", key) and int(key) in LAWS.values():
+            return int(key)
+    elif not isinstance(value, bool) and isinstance(value, int) and value in LAWS.values():
+        return value
+    raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
+
+
+def _choice(value: Any, choices: tuple[str, ...], where: str) -> str:
+    """An enumerated string option (``coupling``, ``feedback``), any case."""
+    if isinstance(value, str) and value.strip().lower() in choices:
+        return value.strip().lower()
+    raise ScenarioError(
+        f"{where}: {quote(value)} is invalid: expected {_choices(choices)} (any case)"
+    )
 
 
 def _table(value: Any, where: str) -> dict[str, Any]:
@@ -166,19 +213,9 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     if "step" in data:
         sc.step = _float(data["step"], f"{source}: key 'step'", positive=True)
     if "coupling" in data:
-        if data["coupling"] not in ("gauss-seidel", "jacobi"):
-            raise ScenarioError(
-                f"{source}: key 'coupling': {quote(data['coupling'])} is invalid: expected "
-                "'gauss-seidel' or 'jacobi'"
-            )
-        sc.coupling = data["coupling"]
+        sc.coupling = _choice(data["coupling"], COUPLINGS, f"{source}: key 'coupling'")
     if "feedback" in data:
-        if data["feedback"] not in ("observer", "state"):
-            raise ScenarioError(
-                f"{source}: key 'feedback': {quote(data['feedback'])} is invalid: expected "
-                "'observer' or 'state'"
-            )
-        sc.feedback = data["feedback"]
+        sc.feedback = _choice(data["feedback"], FEEDBACKS, f"{source}: key 'feedback'")
     if "with_observer" in data:
         if not isinstance(data["with_observer"], bool):
             raise ScenarioError(f"{source}: key 'with_observer': expected true or false")
@@ -204,7 +241,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
                 where = f"{source}: key {quote(f'{inst}.{k}')}"
                 if inst == "controller" and k == "law":
                     v = _law(v, where)
-                params[k] = _number(v, where)
+                params[k] = _number(v, where, f"{inst}.{k}")
             sc.parameters[inst] = params
     for k, v in _table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
         if k not in INSTANCES:
@@ -271,7 +308,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         for target, v in _table(e.get("set", {}), f"{where}.set").items():
             if target == "controller.law":
                 v = _law(v, f"{where}.set.{target}")
-            actions[target] = _number(v, f"{where}.set.{quote(target)}")
+            actions[target] = _number(v, f"{where}.set.{quote(target)}", target)
         if not actions:
             raise ScenarioError(f"{where}.set: expected at least one 'instance.variable' = value")
         try:
@@ -339,9 +376,11 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     except RecursionError:
         raise ScenarioError(f"{_shown(source)}: not valid TOML (nested too deeply)") from None
     try:
-        return parse_scenario(data, source)
+        sc = parse_scenario(data, source)
     except RecursionError:
         raise ScenarioError(f"{_shown(source)}: values nested too deeply") from None
+    sc.sha256 = hashlib.sha256(text.encode()).hexdigest()
+    return sc
 
 
 _shown = shown_path
@@ -379,8 +418,8 @@ def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int
                 f"{where}: expected INSTANCE.NAME=VALUE with INSTANCE one of {', '.join(INSTANCES)}"
             )
         text = text.strip()
-        if inst == "controller" and name == "law" and text in LAWS:
-            out[key.strip()] = LAWS[text]
+        if inst == "controller" and name == "law":
+            out[key.strip()] = _law(text, where)
             continue
         value: float | int | bool
         if text in ("true", "false"):
@@ -391,7 +430,7 @@ def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int
             try:
                 value = float(text)
             except ValueError:
-                value = _number(text, where)
+                value = _number(text, where, key.strip())
         out[key.strip()] = value
     return out
 

@@ -31,7 +31,6 @@ import copy
 import io
 import math
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -352,12 +351,9 @@ def main(args: argparse.Namespace) -> int:
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
 
-    def progress(done: int, total: int, failed: int, secs: float) -> None:
-        sys.stderr.write(f"\rsweep: {done}/{total} done, {failed} failed, "
-                         f"{done / max(secs, 1e-9):.1f} runs/s ")  # fmt: skip
-        if done == total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+    from .progress import sweep_line
+
+    progress = sweep_line()  # None in a pipe or CI: nothing printed
 
     client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:

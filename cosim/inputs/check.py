@@ -110,6 +110,11 @@ def _table(inst: str) -> dict[str, Any]:
     return {v.name: v for v in getattr(importlib.import_module(module), cls).VARIABLES}
 
 
+def our_table(inst: str) -> dict[str, Any]:
+    """Variable name -> its ``Var`` (unit, range) in our FMU ``inst`` (KeyError if none)."""
+    return _table(inst)
+
+
 def check_ranges(
     parameters: dict[str, dict[str, Any]],
     origin: Origin,

@@ -45,10 +45,12 @@ class GliderController(GliderSlave):
             tunable=True,
             valid=POSITIVE,
         ),
+        # defaults that settle the default scenario (P: 10.2 s, PI: 14.9 s); the paper's
+        # K_P = 2, K_I = 1 stall it (scenarios paper-p-gains, paper-pi-gains)
         Var(
-            "K_P", "parameter", "1", "P/PI proportional gain", 2.0, tunable=True, valid=NON_NEGATIVE
+            "K_P", "parameter", "1", "P/PI proportional gain", 0.5, tunable=True, valid=NON_NEGATIVE
         ),
-        Var("K_I", "parameter", "Hz", "PI integral gain", 1.0, tunable=True, valid=NON_NEGATIVE),
+        Var("K_I", "parameter", "Hz", "PI integral gain", 0.2, tunable=True, valid=NON_NEGATIVE),
         Var(
             "delta_open",
             "parameter",

@@ -14,6 +14,7 @@ host's logger; a clean stop (stall) is ``do_step`` returning False, i.e. ``fmi2D
 from __future__ import annotations
 
 import copy
+import importlib.metadata
 import math
 import operator
 from collections.abc import Sequence
@@ -153,6 +154,10 @@ class GliderSlave(Fmi2Slave):
     # ------------------------------------------------------------------ XML
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:  # noqa: D401
         root = super().to_xml(model_options or {})
+        try:  # the model's version: the package that built it
+            root.set("version", importlib.metadata.version("glider-cosim"))
+        except importlib.metadata.PackageNotFoundError:
+            pass
         spec = {v.name: v for v in self.VARIABLES}
         # units on the Real elements
         used = set()

@@ -1,0 +1,213 @@
+"""What a run records about itself: its settings, its FMUs, the events its plots mark.
+
+``metrics.json`` gets a ``run`` object (:func:`run_record`): the scenario's name, source
+and SHA-256, every override (``--set`` and the command-line options), the package
+version and, per instance, the FMU's file, SHA-256, GUID, model name, flavor and
+version. Plot titles carry :func:`subtitle`. A run into an existing folder first removes
+what an earlier run wrote there (:func:`clear_owned`), and nothing else.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import platform
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+#: files a run writes into its folder (removed before a run into the same folder)
+OWNED = (
+    "results.csv",
+    "metrics.json",
+    "glide_angle.png",
+    "pitch.png",
+    "tail_angle.png",
+    "speed.png",
+    "depth.png",
+)
+#: a resource inside an FMU that names its flavor (the runtime behind the slave)
+FLAVOR_RESOURCES = ("resources/glider_cosim_flavor.txt",)
+#: what a third-party FMU is recorded as
+DEFAULT_FLAVOR = "unknown"
+LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
+
+
+def clear_owned(out: Path) -> list[Path]:
+    """Remove the files an earlier run wrote into ``out`` (:data:`OWNED`); return them.
+
+    Anything else in the folder (the user's files, other commands' outputs) stays.
+    """
+    removed = []
+    for name in OWNED:
+        path = Path(out) / name
+        if path.is_file() or path.is_symlink():
+            path.unlink()
+            removed.append(path)
+    return removed
+
+
+def package_version() -> str:
+    try:
+        return metadata.version("glider-cosim")
+    except metadata.PackageNotFoundError:  # pragma: no cover - run from a plain checkout
+        return "unknown"
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _plain(value: Any) -> Any:
+    """A value for JSON: a ``"X deg"`` angle keeps its text, floats stay floats."""
+    text = getattr(value, "text", None)
+    if isinstance(text, str):
+        return text
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return value
+
+
+def scenario_sha256(scenario: Any) -> str:
+    """The SHA-256 of the scenario file's text, or of the scenario's settings (canonical
+    JSON) for one built in code."""
+    if getattr(scenario, "sha256", ""):
+        return scenario.sha256
+    data = {
+        "name": scenario.name,
+        "stop_time": scenario.stop_time,
+        "step": scenario.step,
+        "coupling": scenario.coupling,
+        "feedback": scenario.feedback,
+        "observer": scenario.observer,
+        "parameters": {i: {k: _plain(v) for k, v in p.items()}
+                       for i, p in scenario.parameters.items()},
+        "events": [
+            {"when": f"{e.variable} {e.op} {e.threshold}", "delay": e.delay,
+             "set": {k: _plain(v) for k, v in e.actions.items()}}
+            for e in scenario.events
+        ],
+        "fmus": dict(scenario.fmus),
+    }  # fmt: skip
+    text = json.dumps(data, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def fmu_flavor(inst: Any) -> tuple[str, str]:
+    """(flavor, version) of an instance's FMU, as the FMU says.
+
+    The flavor is read from a resource (:data:`FLAVOR_RESOURCES`, one word) or from the
+    model description's ``generationTool`` (``PythonFMU ...``: ``"python"``), else
+    :data:`DEFAULT_FLAVOR`. The version is the model description's ``version``
+    attribute, else the generation tool's.
+    """
+    md = inst.md
+    flavor = None
+    unzipdir = getattr(inst, "unzipdir", None)
+    for rel in FLAVOR_RESOURCES if unzipdir else ():
+        path = Path(unzipdir) / rel
+        if path.is_file():
+            word = path.read_text(errors="replace").strip().split()
+            if word:
+                flavor = word[0][:40]
+                break
+    tool = str(getattr(md, "generationTool", "") or "")
+    if flavor is None and tool.lower().startswith("pythonfmu"):
+        flavor = "python"
+    version = str(getattr(md, "version", "") or "") or tool
+    return flavor or DEFAULT_FLAVOR, version
+
+
+def fmu_record(inst: Any) -> dict[str, Any]:
+    flavor, version = fmu_flavor(inst)
+    return {
+        "file": str(inst.fmu),
+        "sha256": file_sha256(inst.fmu),
+        "guid": inst.md.guid,
+        "model_name": inst.md.modelName,
+        "generation_tool": inst.md.generationTool,
+        "flavor": flavor,
+        "version": version,
+    }
+
+
+def run_record(scenario: Any, sim: Any, options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The ``run`` object of ``metrics.json``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        As run (its ``overrides`` are the ``--set`` values and the report's variations).
+    sim : CoSimulation
+        Loaded (its instances' model descriptions and files are read).
+    options : dict, optional
+        The options given (``{"--step": 0.01, ...}``, or the API's keyword arguments).
+    """
+    return {
+        "scenario": scenario.name,
+        "scenario_source": scenario.source,
+        "scenario_sha256": scenario_sha256(scenario),
+        "overrides": {k: _plain(v) for k, v in scenario.overrides.items()},
+        "options": {k: _plain(v) for k, v in (options or {}).items()},
+        "package": "glider-cosim",
+        "package_version": package_version(),
+        "python": platform.python_version(),
+        "fmus": {name: fmu_record(inst) for name, inst in sim.instances.items()},
+    }
+
+
+def _short(value: Any) -> str:
+    value = _plain(value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def settings_text(metrics: dict[str, Any]) -> str:
+    """``"scenario default; controller.K_c=6, --step 0.01"``: what a plot's subtitle says."""
+    run = metrics.get("run") or {}
+    parts = [
+        f"{k}={LAW_NAMES.get(v, v) if k.endswith('controller.law') else _short(v)}"
+        for k, v in run.get("overrides", {}).items()
+    ]
+    parts += [k if v is True else f"{k} {_short(v)}" for k, v in run.get("options", {}).items()]
+    text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
+    return text + ("; " + ", ".join(parts) if parts else "; no overrides")
+
+
+def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, Any]]:
+    """What every time plot marks: the controller's enable time, the takeover by an
+    event (e.g. at 1 m depth), and a stall or a Discard that stopped the run.
+
+    Each is ``{"kind": "enable"|"takeover"|"stall"|"discard"|"error", "time_s": t,
+    "label": text}``.
+    """
+    out: list[dict[str, Any]] = []
+    ctrl = sim.system.parameters.get("controller", {})
+    t_enable = ctrl.get("t_enable", 0.0)
+    if isinstance(t_enable, int | float) and float(t_enable) > 0:
+        out.append({"kind": "enable", "time_s": float(t_enable),
+                    "label": f"controller enabled (t_enable = {float(t_enable):g} s)"})  # fmt: skip
+    for ev in sim.system.events:
+        if ev.fired_at is None or not any(t.startswith("controller.") for t in ev.actions):
+            continue
+        t = ev.fired_at + ev.delay
+        sets = ", ".join(
+            f"{k} = {LAW_NAMES.get(v, v) if k == 'controller.law' else _short(v)}"
+            for k, v in ev.actions.items()
+        )
+        label = f"takeover at {ev.variable} {ev.op} {ev.threshold:g} ({sets})"
+        out.append({"kind": "takeover", "time_s": float(t), "label": label})
+    if error is not None and status in ("stopped", "error"):
+        t = getattr(error, "time", None)
+        text = str(error)
+        kind = "error" if status == "error" else ("stall" if "stall" in text else "discard")
+        what = {"stall": "stalled (fmi2Discard)", "discard": "fmi2Discard",
+                "error": "fmi2Error"}[kind]  # fmt: skip
+        if t is not None and math.isfinite(float(t)):
+            out.append({"kind": kind, "time_s": float(t),
+                        "label": f"{getattr(error, 'instance', '?')} {what}"})  # fmt: skip
+    return out

@@ -1,0 +1,115 @@
+"""Every output records its run (issue 21): metrics.json's run record, the plots' subtitles
+and marked events (read back from the PNGs and from the figures' artists), and a rerun
+into the same folder."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from importlib import metadata, resources
+
+import pytest
+
+from glider_cosim.cli import main
+from glider_cosim.plots import read_png_record, write_plots
+from glider_cosim.provenance import OWNED, file_sha256
+from glider_cosim.runner import simulate
+from glider_cosim.scenario import load_scenario, parse_scenario
+
+pytestmark = pytest.mark.integration
+PNGS = ("glide_angle", "pitch", "tail_angle", "speed", "depth")
+TIME_PLOTS = ("glide_angle", "pitch", "tail_angle", "speed")
+
+
+def _cli(fmu_dir, *args):
+    return main(["run", *args, "--fmu-dir", str(fmu_dir)])
+
+
+def test_metrics_record_the_run(fmu_dir, tmp_path, capsys):
+    out = tmp_path / "o"
+    argv = ["--set", "controller.K_c=12", "--set", "plant.theta_g_0=-30 deg", "--stop-time", "4",
+            "--coupling", "Jacobi", "--out", str(out)]  # fmt: skip
+    assert _cli(fmu_dir, *argv) == 0
+    run = json.loads((out / "metrics.json").read_text())["run"]
+    text = (resources.files("glider_cosim") / "scenarios" / "default.toml").read_text()
+    assert run["scenario"] == "default"
+    assert run["scenario_sha256"] == hashlib.sha256(text.encode()).hexdigest()
+    assert run["overrides"] == {"controller.K_c": 12, "plant.theta_g_0": "-30 deg"}
+    assert run["options"] == {"--coupling": "jacobi", "--stop-time": 4.0,
+                              "--fmu-dir": str(fmu_dir)}  # fmt: skip
+    assert run["package_version"] == metadata.version("glider-cosim")
+    assert set(run["fmus"]) == {"plant", "observer", "controller"}
+    for inst, rec in run["fmus"].items():
+        assert rec["sha256"] == file_sha256(fmu_dir / f"Glider{inst.capitalize()}.fmu")
+        assert len(rec["guid"]) == 36 and rec["flavor"] == "python" and rec["version"]
+    for png in PNGS:
+        settings = read_png_record(out / f"{png}.png")["settings"]
+        assert settings == (
+            "scenario default; controller.K_c=12, plant.theta_g_0=-30 deg, --coupling jacobi, "
+            f"--stop-time 4, --fmu-dir {fmu_dir}"
+        )
+
+
+def test_no_plots_rerun_removes_only_what_the_run_owns(fmu_dir, tmp_path):
+    out = tmp_path / "o"
+    assert _cli(fmu_dir, "--stop-time", "2", "--out", str(out)) == 0
+    assert all((out / f"{p}.png").exists() for p in PNGS)
+    (out / "notes.txt").write_text("mine")
+    (out / "other.png").write_bytes(b"not ours")
+    assert _cli(fmu_dir, "--stop-time", "1", "--no-plots", "--out", str(out)) == 0
+    left = sorted(p.name for p in out.iterdir())
+    assert left == ["metrics.json", "notes.txt", "other.png", "results.csv"]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["rows"] == 51 and m["run"]["options"]["--no-plots"] is True
+    assert set(OWNED) >= {"results.csv", "metrics.json", *(f"{p}.png" for p in PNGS)}
+
+
+def _lines(fig):
+    return [ln for ax in fig.axes for ln in ax.get_lines() if (ln.get_gid() or "")[:6] == "event:"]
+
+
+@pytest.mark.parametrize(
+    ("name", "doc", "kinds"),
+    [
+        ("takeover", {"name": "takeover", "stop_time": 40.0, "plant": {"delta_0": "2 deg"},
+                      "controller": {"law": "open-loop", "delta_open": "2 deg", "t_enable": 3.0},
+                      "event": [{"when": "plant.z >= 1.0",
+                                 "set": {"controller.law": "passivity"}}]},
+         ["enable", "takeover"]),
+        ("stall", None, ["stall"]),
+    ],
+)  # fmt: skip
+def test_plots_mark_the_events(fmu_dir, tmp_path, name, doc, kinds):
+    sc = parse_scenario(doc) if doc else load_scenario("paper-p-gains")
+    r = simulate(sc, tmp_path, fmu_dir=fmu_dir, build=False)
+    events = json.loads((tmp_path / "metrics.json").read_text())["events"]
+    assert [e["kind"] for e in events] == kinds
+    if name == "stall":
+        assert r.status == "stopped"
+        assert events[0]["time_s"] == pytest.approx(5.54)
+        assert events[0]["label"] == "observer stalled (fmi2Discard)"
+    else:
+        assert events[0]["time_s"] == 3.0
+        assert events[1]["label"].startswith(
+            "takeover at plant.z >= 1 (controller.law = passivity)"
+        )
+        z = r.column("plant.z")
+        k = list(r.data[:, 0]).index(events[1]["time_s"])
+        assert z[k] >= 1.0 > z[k - 1]
+    for png in PNGS:  # what each PNG says it marks
+        assert read_png_record(tmp_path / f"{png}.png")["events"] == events
+    figs: list = []
+    (tmp_path / "again").mkdir()
+    write_plots(r, tmp_path / "again", keep=figs)
+    assert len(figs) == len(PNGS)
+    for png, fig in zip(PNGS, figs):
+        lines = _lines(fig)
+        if png in TIME_PLOTS:  # a vertical line at each event's time, on every axis
+            for ax in fig.axes:
+                marks = [(ln.get_gid(), ln.get_xdata()[0]) for ln in ax.get_lines()
+                         if (ln.get_gid() or "").startswith("event:")]  # fmt: skip
+                assert marks == [(f"event:{e['kind']}", e["time_s"]) for e in events]
+        else:  # the depth profile: a point on the path at each event
+            assert [ln.get_gid() for ln in lines] == [f"event:{e['kind']}" for e in events]
+        labels = fig.axes[0].get_legend_handles_labels()[1]
+        assert all(any(e["label"] in lab for lab in labels) for e in events)
