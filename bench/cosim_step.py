@@ -21,7 +21,7 @@ from _common import emit
 from glider_cosim.build import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.monolithic import COLUMNS, simulate_monolithic
-from glider_cosim.runner import CsvRecorder, system_for
+from glider_cosim.runner import ArrayRecorder, CsvRecorder, system_for
 from glider_cosim.scenario import load_scenario
 
 
@@ -46,6 +46,41 @@ def cosim_step_times(fmu_dir: Path, out: Path) -> list[float]:
         rec.close()
         sim.close()
     return times
+
+
+def run_seconds_per_step(fmu_dir: Path, recorder_for, repeat: int) -> float:
+    """Best of ``repeat`` runs of the default scenario through :meth:`CoSimulation.run`
+    (the master's own loop: the C fast loop in blocks), seconds per macro step."""
+    sc = load_scenario(None)
+    n = round(sc.stop_time / sc.step)
+    best = float("inf")
+    for _ in range(repeat):
+        sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
+        rec = recorder_for()
+        try:
+            sim.initialize()  # FMU loading and initialisation are not in the figure
+            t0 = time.perf_counter()
+            sim.run(sc.stop_time, rec)
+            best = min(best, (time.perf_counter() - t0) / n)
+        finally:
+            rec.close()
+            sim.close()
+    return best
+
+
+def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
+    """What the CSV recorder costs per row of ``ncol`` values (the C formatter), s."""
+    import random
+
+    rng = random.Random(1)
+    rows = [tuple(rng.uniform(-1, 1) for _ in range(ncol)) for _ in range(256)]
+    rec = CsvRecorder(out / "csv_cost.csv")
+    rec.start([f"c{i}" for i in range(ncol)])
+    t0 = time.perf_counter()
+    for i in range(n):
+        rec.row(rows[i % 256])
+    rec.close()
+    return (time.perf_counter() - t0) / n
 
 
 def monolithic_step_times(fmu_dir: Path, out: Path) -> list[float]:
@@ -111,10 +146,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object last")
     ap.add_argument("--repeat", type=int, default=3, help="runs; the best median is kept")
-    ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--fmu-dir", default="fmus", help="the Python flavor's FMUs")
+    ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
-    build_all(fmu_dir, only_stale=True)
+    native_dir = Path(args.native_dir)
+    build_all(fmu_dir, only_stale=True, flavor="python")
+    build_all(native_dir, only_stale=True, flavor="native")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         cosim = min(statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat))
@@ -123,14 +161,27 @@ def main() -> None:
         )
         cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
         libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
+        native_mem = run_seconds_per_step(native_dir, ArrayRecorder, args.repeat * 3)
+        native_csv = run_seconds_per_step(
+            native_dir, lambda: CsvRecorder(out / "native.csv"), args.repeat * 3
+        )
+        python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
+        csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
     result = {
+        "native_us_per_macro_step": round(native_mem * 1e6, 2),
+        "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
+        "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
+        "csv_us_per_row": round(csv_row * 1e6, 2),
+        "csv_us_per_value": round(csv_row * 1e6 / 17, 3),
         "us_per_macro_step": round(cosim * 1e6, 1),
         "monolithic_us_per_macro_step": round(mono * 1e6, 1),
         "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
         "ratio_to_libcosim": round(cosim / libcosim, 3),
         "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
         "cold_run_s": round(cold, 2),
-        "scenario": "default (60 s, 3 FMUs, 50 Hz, both loops recording the same CSV)",
+        "scenario": "default (60 s, 3 FMUs, 50 Hz; us_per_macro_step and monolithic: both "
+        "loops recording the same CSV, step by step; native_*: CoSimulation.run in memory / "
+        "to CSV)",
         "cpus": os.cpu_count(),
     }
     emit(result, args.json)

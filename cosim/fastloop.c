@@ -61,3 +61,31 @@ long glider_format_rows(const double *values, int nrows, int ncol, char *out, lo
     }
     return used;
 }
+
+/* Up to n whole macro steps from step k (time t0 + k*h): every instance steps, then the
+ * planned exchange runs, then the recorded values (read through `record`) go into one row
+ * of `rows` (time first, nrec values after it). Returns the number of rows written; when
+ * a call fails, *where says which (0 a doStep, 1 the exchange after it), *index and
+ * *status which call and what it returned, and the rows before it are all there. */
+long glider_run(const Op *ops, int nops, void *const *fns, void *const *comps, int nsteppers,
+                double t0, long k, double h, long n, const double *const *record, int nrec,
+                double *rows, int *where, int *index, int *status) {
+    for (long j = 0; j < n; ++j, ++k) {
+        int i = glider_step(fns, comps, nsteppers, t0 + (double)k * h, h, status);
+        if (i >= 0) {
+            *where = 0;
+            *index = i;
+            return j;
+        }
+        i = glider_exchange(ops, nops, status);
+        if (i >= 0) {
+            *where = 1;
+            *index = i;
+            return j;
+        }
+        double *row = rows + j * (long)(nrec + 1);
+        row[0] = t0 + (double)(k + 1) * h;
+        for (int c = 0; c < nrec; ++c) row[1 + c] = *record[c];
+    }
+    return n;
+}

@@ -54,11 +54,12 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         from .tempdirs import new_temp_dir
 
         out = new_temp_dir("fastloop_") / "fastloop.so"
-        cmd = [find_compiler(), "-O2", "-fPIC", "-shared", str(SOURCE), "-o", str(out)]
+        cmd = [find_compiler(), "-O2", "-ffp-contract=off", "-fPIC", "-shared", str(SOURCE),
+               "-o", str(out)]  # fmt: skip
         subprocess.run(cmd, check=True, capture_output=True, timeout=120)
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
-        lib.glider_format_rows.restype = ctypes.c_long
+        lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
     except (OSError, subprocess.SubprocessError, RuntimeBuildError):
         lib = None  # the Python loop runs instead
     _LIB[hold_gil] = lib
@@ -109,6 +110,10 @@ class FastLoop:
         self._nsteps = ctypes.c_int(len(steppers))
         self._status = ctypes.c_int(0)
         self._status_ref = ctypes.byref(self._status)
+        self._where = ctypes.c_int(0)
+        self._index = ctypes.c_int(0)
+        self._where_of = where
+        self._record: Any = None
 
     @classmethod
     def plan(
@@ -139,3 +144,39 @@ class FastLoop:
         """fmi2DoStep of every instance: ``(index of the failed one or -1, its status)``."""
         i = self._lib.glider_step(self._fns, self._comps, self._nsteps, t, h, self._status_ref)
         return i, self._status.value
+
+    def record(self, names: Sequence[str]) -> bool:
+        """Record ``names`` (outputs the exchange reads) in :meth:`run`'s rows; False if
+        one of them is not read by the plan."""
+        if any(n not in self._where_of for n in names):
+            return False
+        ptrs = (ctypes.c_void_p * max(1, len(names)))()
+        for c, name in enumerate(names):
+            arr, j = self._where_of[name]
+            ptrs[c] = ctypes.addressof(arr) + j * ctypes.sizeof(ctypes.c_double)
+        self._record = ptrs
+        self._nrec = len(names)
+        self._rows = (ctypes.c_double * (self.RUN_BLOCK * (len(names) + 1)))()
+        return True
+
+    #: macro steps one :meth:`run` call makes at most
+    RUN_BLOCK = 256
+
+    def run(self, t0: float, k: int, h: float, n: int) -> tuple[int, int, int, int]:
+        """Up to ``n`` (<= RUN_BLOCK) macro steps from step ``k``, each followed by the
+        exchange and a recorded row in :attr:`rows`: ``(rows done, where, index, status)``
+        with ``where`` -1 when all went well, 0 a failed doStep, 1 a failed exchange."""
+        done = self._lib.glider_run(
+            self._ops, self._nops, self._fns, self._comps, self._nsteps, ctypes.c_double(t0),
+            ctypes.c_long(k), ctypes.c_double(h), ctypes.c_long(n), self._record,
+            ctypes.c_int(self._nrec), self._rows, ctypes.byref(self._where),
+            ctypes.byref(self._index), self._status_ref,
+        )  # fmt: skip
+        if done == n:
+            return done, -1, -1, 0
+        return done, self._where.value, self._index.value, self._status.value
+
+    @property
+    def rows(self) -> Any:
+        """The row buffer :meth:`run` fills (ctypes doubles, time first in each row)."""
+        return self._rows

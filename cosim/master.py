@@ -755,6 +755,7 @@ class CoSimulation:
         if self._fast is not None and self._record and all(r in pos for r in self._record):
             self._row_from_reads = _tuple_getter([pos[r] for r in self._record])
         self._read_arrays = [value for _, value in self._reads]
+        self._block_ready: bool | None = None  # rows of whole blocks of steps from C
         self._driven_last: dict[int, list[float] | None] = dict.fromkeys(range(len(self._driven)))
 
     def _drive(self, t: float) -> None:
@@ -876,11 +877,48 @@ class CoSimulation:
             self.initialize()
             recorder.start(self.columns)
             recorder.row(self.communication_point())
-            for _ in range(n):
+            done = 0
+            while done < n:
                 if signum := interrupted():
                     raise Interrupted(signum)
+                if self._runs_in_blocks():
+                    done += self._run_block(min(FastLoop.RUN_BLOCK, n - done), recorder)
+                    continue
                 self.do_step()
                 recorder.row(self.communication_point())
+                done += 1
+
+    def _runs_in_blocks(self) -> bool:
+        """True when whole blocks of steps can run in C: the fast loop, constant inputs
+        already set, no event pending, every recorded column read by the exchange."""
+        if self._fast is None or self._pending_events or self._row_from_reads is None:
+            return False
+        if not (self._drive_static and self._drive_done):
+            return False
+        if self._block_ready is None:
+            self._block_ready = self._fast.record(self._record)
+        return self._block_ready
+
+    def _run_block(self, n: int, recorder: Recorder) -> int:
+        """``n`` macro steps in C, their rows handed to ``recorder``; raises as
+        :meth:`do_step` and :meth:`communication_point` would, after the rows before."""
+        done, where, index, status = self._fast.run(self.t0, self.k, self.step_size, n)
+        ncol = len(self._record) + 1
+        rows = self._fast.rows
+        block = getattr(recorder, "rows_block", None)
+        if block is not None:
+            block(rows, done, ncol)
+        else:
+            for j in range(done):
+                recorder.row(tuple(rows[j * ncol : (j + 1) * ncol]))
+        self.k += done
+        if where == 0:
+            self._raise(self._steppers[index][0], "fmi2DoStep", status)
+        if where == 1:
+            self.k += 1  # the step was made; the exchange after it failed
+            op = self._exchange_ops[index]
+            self._raise(op[1], op[3], status)
+        return done
 
     def close(self) -> None:
         """Terminate and free every instance that is not in a fatal state."""

@@ -88,7 +88,8 @@ class ArrayRecorder:
 
     def __init__(self) -> None:
         self.columns: list[str] = []
-        self.rows: list[Sequence[float]] = []
+        self.rows: list[Sequence[float]] = []  # rows handed one by one
+        self._blocks: list[np.ndarray] = []  # earlier rows, as arrays
 
     def start(self, columns: Sequence[str]) -> None:
         self.columns = list(columns)
@@ -96,14 +97,31 @@ class ArrayRecorder:
     def row(self, values: Sequence[float]) -> None:
         self.rows.append(values)
 
+    def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
+        """``nrows`` rows of ``ncol`` doubles from a buffer (copied)."""
+        self._gather(ncol)
+        block = np.frombuffer(values, dtype=float, count=nrows * ncol).reshape(nrows, ncol)
+        self._blocks.append(block.copy())
+
+    def _gather(self, ncol: int) -> None:
+        if self.rows:
+            self._blocks.append(np.array(self.rows, dtype=float).reshape(-1, ncol))
+            self.rows = []
+
+    def __len__(self) -> int:
+        return len(self.rows) + sum(len(b) for b in self._blocks)
+
     def close(self) -> None:
         pass
 
     def array(self, n_columns: int | None = None) -> np.ndarray:
         n = len(self.columns) if self.columns else (n_columns or 0)
-        if not self.rows:
+        self._gather(n)
+        if not self._blocks:
             return np.empty((0, n))
-        return np.array(self.rows, dtype=float).reshape(-1, n)
+        if len(self._blocks) > 1:
+            self._blocks = [np.concatenate(self._blocks)]
+        return self._blocks[0].copy()
 
 
 class CsvRecorder:
@@ -146,6 +164,24 @@ class CsvRecorder:
             if self._pending == self.BLOCK:
                 self._flush()
         self.n_rows += 1
+
+    def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
+        """``nrows`` rows of ``ncol`` doubles from a ctypes buffer (the fast loop's)."""
+        if self._lib is None:
+            for j in range(nrows):
+                self.row(values[j * ncol : (j + 1) * ncol])
+            return
+        size = ctypes.sizeof(ctypes.c_double)
+        j = 0
+        while j < nrows:
+            take = min(self.BLOCK - self._pending, nrows - j)
+            dst = ctypes.addressof(self._block) + self._pending * ncol * size
+            ctypes.memmove(dst, ctypes.addressof(values) + j * ncol * size, take * ncol * size)
+            self._pending += take
+            self.n_rows += take
+            j += take
+            if self._pending == self.BLOCK:
+                self._flush()
 
     def _flush(self) -> None:
         if not self._pending:

@@ -164,7 +164,7 @@ def run_one(
         _SIMS[key] = sim  # reuse: reset next time
     elif sim is not None:
         sim.close()  # frees what is not fatal; a fatal instance is never called again
-    cols, data = rec.columns, rec.array() if rec.rows else None
+    cols, data = rec.columns, rec.array() if len(rec) else None
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
         m = compute_metrics(cols, data, scenario, sim, status)

@@ -488,13 +488,15 @@ def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging, tmp_path,
 CURRENT_AFTER_RUN = """
 import sys
 from pathlib import Path
+import fmpy
 from glider_cosim.build import COMPONENTS, is_current
-from glider_cosim.runner import simulate
 fmus = Path(sys.argv[1])
-r = simulate("default", None, fmu_dir=fmus, build=False, stop_time=0.2)
+# an FMU run first in this process (before anything of ours imports the slave tables)
+r = fmpy.simulate_fmu(str(fmus / "GliderPlant.fmu"), stop_time=0.2, output_interval=0.02)
 import pythonfmu
 print("pythonfmu from", pythonfmu.__file__)
-print("current", all(is_current(fmus / f"{c.name}.fmu", c) for c in COMPONENTS), r.status)
+ok = "ok" if len(r) == 11 else "short"
+print("current", all(is_current(fmus / f"{c.name}.fmu", c) for c in COMPONENTS), ok)
 """
 
 
