@@ -633,19 +633,20 @@ def export(out: str | Path, fmu_dir: str | Path = "fmus", platform: str = "linux
         src = kit_root() / component
         names = case_names(component)
         purposes = _purposes(src / "README.md")
+        md = open_fmu(fmus[model])
         for name in names:
             sub = folder / "cases" / name
             sub.mkdir(parents=True)
             for suffix in ("_in.csv", "_ref.csv", "_ref.opt", "_par.csv"):
                 if (src / f"{name}{suffix}").is_file():
                     shutil.copyfile(src / f"{name}{suffix}", sub / f"{model}{suffix}")
-            (sub / "ReadMe.txt").write_text(_readme(model, component, name, purposes, sub))
+            (sub / "ReadMe.txt").write_text(_readme(model, component, name, purposes, md))
         default = DEFAULT_CASE[component]
         for suffix in ("_in.csv", "_ref.csv", "_ref.opt"):
             shutil.copyfile(
                 folder / "cases" / default / f"{model}{suffix}", folder / f"{model}{suffix}"
             )
-        text = _readme(model, component, default, purposes, folder)
+        text = _readme(model, component, default, purposes, md)
         others = ", ".join(n for n in names if n != default)
         text += (
             f"\nThe other cases of this model are in cases/<case>/ with the same file names "
@@ -665,7 +666,7 @@ def _purposes(readme: Path) -> dict[str, str]:
     return out
 
 
-def _readme(model: str, component: str, name: str, purposes: dict[str, str], folder: Path) -> str:
+def _readme(model: str, component: str, name: str, purposes: dict[str, str], md: Any) -> str:
     case = load_case(component, name)
     lines = [
         f"{model} (glider-cosim {_version()}), {component} case '{name}': {purposes.get(name, '')}",
@@ -685,6 +686,18 @@ def _readme(model: str, component: str, name: str, purposes: dict[str, str], fol
         lines.append(
             f"Expected end: the FMU returns fmi2Discard from the doStep that starts at "
             f"t = {case.discard_time:g} s (DiscardTime in {model}_ref.opt; within one step)."
+        )
+    feedthrough = [
+        u.variable.name
+        for u in md.outputs
+        if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
+    ]
+    if feedthrough:
+        lines.append(
+            f"{', '.join(feedthrough)} depends directly on the inputs: the reference records it "
+            "after the inputs of the same communication point are set (row k uses the inputs "
+            "of row k). A tool that records outputs before it sets the inputs of the point "
+            "(e.g. fmpy's simulate_fmu) shows the same values one row later."
         )
     lines.append("Checked with: glider-cosim verify " + f"{model}.fmu --case {name}")
     return "\n".join(lines) + "\n"
