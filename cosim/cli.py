@@ -170,6 +170,17 @@ def build_parser() -> argparse.ArgumentParser:
     from .sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
+    from .verify import _tolerance
+    from .verify import add_arguments as add_verify_arguments
+
+    v = sub.add_parser(
+        "verify",
+        help="run the component verification kit on an FMU",
+        description="Run the reference cases of a component (plant, observer, controller) on\n"
+        "an FMI 2.0 co-simulation FMU and compare with the references; exit 0 if every case\n"
+        "passes, 1 if any fails, 2 on bad input.",
+    )
+    add_verify_arguments(v, _tolerance)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     return p
 
@@ -467,6 +478,12 @@ def _dispatch(args: argparse.Namespace) -> int:
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
+    if args.command == "verify":
+        from .verify import run_command
+
+        if args.export:
+            _check_out_dir(Path(args.export), "verify --export")
+        return run_command(args)
     print("\n".join(shipped_scenarios()))
     return 0
 
