@@ -35,7 +35,7 @@ pytestmark = pytest.mark.integration
 
 #: the flavors of our three FMUs; each needs a fixture ``<flavor>_fmus`` returning a folder
 #: holding GliderPlant.fmu, GliderObserver.fmu and GliderController.fmu
-FMU_SETS = ["python"]
+FMU_SETS = ["python", "native"]
 ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]
 
 
@@ -43,6 +43,12 @@ ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]
 def python_fmus(fmu_dir) -> Path:
     """Our FMUs authored with pythonfmu (the session build)."""
     return fmu_dir
+
+
+@pytest.fixture(scope="session")
+def native_fmus(native_dir) -> Path:
+    """Our FMUs in the native flavor (C99 behind the same FMI layer)."""
+    return native_dir
 
 
 @pytest.fixture(scope="session", params=FMU_SETS)
