@@ -877,16 +877,24 @@ class CoSimulation:
             self.initialize()
             recorder.start(self.columns)
             recorder.row(self.communication_point())
-            done = 0
-            while done < n:
-                if signum := interrupted():
-                    raise Interrupted(signum)
-                if self._runs_in_blocks():
-                    done += self._run_block(min(FastLoop.RUN_BLOCK, n - done), recorder)
-                    continue
-                self.do_step()
-                recorder.row(self.communication_point())
-                done += 1
+            self.advance(n, recorder, interrupted)
+
+    def advance(
+        self, n: int, recorder: Recorder, interrupted: Callable[[], int] = lambda: 0
+    ) -> None:
+        """``n`` macro steps from the current point, each row handed to ``recorder``
+        (whole blocks of steps run in C where nothing is driven or pending); raises
+        :class:`Interrupted` when ``interrupted()`` returns a signal number."""
+        done = 0
+        while done < n:
+            if signum := interrupted():
+                raise Interrupted(signum)
+            if self._runs_in_blocks():
+                done += self._run_block(min(FastLoop.RUN_BLOCK, n - done), recorder)
+                continue
+            self.do_step()
+            recorder.row(self.communication_point())
+            done += 1
 
     def _runs_in_blocks(self) -> bool:
         """True when whole blocks of steps can run in C: the fast loop, constant inputs

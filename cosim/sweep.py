@@ -153,9 +153,7 @@ def run_one(
         n = round(stop / sim.step_size)
         rec.start(sim.columns)
         rec.row(sim.communication_point())
-        for _ in range(n):
-            sim.do_step()
-            rec.row(sim.communication_point())
+        sim.advance(n, rec)
     except FMUStopped as err:
         status, message = "stopped", str(err)
     except (FMUCallError, MasterError, ValueError) as err:
