@@ -5,7 +5,7 @@
  * by their standard library's presence; an interpreter found on PATH or beside a
  * system libpython is asked, in a subprocess started with posix_spawn (no shell), for
  * its libpython, prefix, executable and site folders and whether it can import the
- * FMU's slave module. The runtime then starts the chosen one (runtime.c,
+ * FMU's slave module. The runtime then starts the chosen one (backend_python.c,
  * ensure_python). Once a libpython is started it cannot be swapped for another, which is
  * why every check is made before.
  */

@@ -6,9 +6,10 @@ valid variabilities, ModelStructure with output dependencies and InitialUnknowns
 validates parameters and inputs, and saves, restores and serializes the internal state
 with the FMU state.
 
-The slaves run inside our FMI runtime (``runtime.c``), which owns the FMI state machine:
-a Python exception raised here becomes ``fmi2Error`` with its message passed to the
-host's logger; a clean stop (stall) is ``do_step`` returning False, i.e. ``fmi2Discard``.
+The slaves run inside our FMI layer (``fmi2_layer.c`` with ``backend_python.c``), which
+owns the FMI state machine: a Python exception raised here becomes ``fmi2Error`` with
+its message passed to the host's logger; a clean stop (stall) is ``do_step`` returning
+False, i.e. ``fmi2Discard``.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
-"""Our FMI runtime (src/fmi/runtime.c) under raw FMI calls: statuses, messages, the state
-machine, FMU state serialization, threads, references, and how it is compiled."""
+"""Our FMI layer (src/fmi/fmi2_layer.c) under raw FMI calls, on both back ends: statuses,
+messages, the state machine, FMU state serialization, threads, references, and how the
+Python back end is compiled."""
 
 from __future__ import annotations
 
