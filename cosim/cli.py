@@ -429,7 +429,7 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    if hasattr(args, "fmu_dir"):  # --fmu-dir/--flavor: the folder, built in the flavor asked
+    if hasattr(args, "fmu_dir") and hasattr(args, "flavor"):  # the folder, in the flavor asked
         from .build import prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
