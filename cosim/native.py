@@ -58,7 +58,7 @@ MINGW = "x86_64-w64-mingw32-gcc"
 
 FMI_DIR = Path(glider_fmi.__file__).resolve().parent
 #: the layer and the native back end, in every native FMU
-LAYER_FILES = ("fmi_layer.h", "fmi2_layer.c", "native_model.h", "backend_native.c")
+LAYER_FILES = ("fmi_layer.h", "fmi_layer.c", "fmi2_layer.c", "native_model.h", "backend_native.c")
 
 
 def _pkg(module: Any) -> Path:

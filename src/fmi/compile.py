@@ -24,7 +24,7 @@ from pathlib import Path
 #: every C file of the runtime, compiled into one library: the FMI layer (one state
 #: machine, every FMU), the Python back end, finding a Python on the target, and the GIL
 #: with one thread state kept per host thread
-LAYER_SOURCES = (Path(__file__).with_name("fmi2_layer.c"),)
+LAYER_SOURCES = tuple(Path(__file__).with_name(n) for n in ("fmi_layer.c", "fmi2_layer.c"))
 PYTHON_BACKEND_SOURCES = tuple(
     Path(__file__).with_name(n) for n in ("backend_python.c", "python_find.c", "python_threads.c")
 )

@@ -36,47 +36,54 @@ enum {
 #define S_GETTABLE (S_INSTANTIATED | S_INIT | S_STEPPING | S_TERMINATED | S_ERROR)
 #define S_SETTABLE (S_INSTANTIATED | S_INIT | S_STEP_COMPLETE)
 
-/* Allowed states per call, after the FMI 2.0 co-simulation state table (getters are
- * also accepted right after instantiation: they return the start values). */
+/* Allowed states per call, after the FMI 2.0 and 3.0 co-simulation state tables (getters
+ * are also accepted right after instantiation: they return the start values), with the
+ * call's name in each version ("-": the version has no such call). FMI 3's
+ * fmi3EnterInitializationMode takes the experiment (FMI 2's fmi2SetupExperiment). */
 #define CALL_TABLE(X)                                                                     \
-    X(C_INSTANTIATE, "fmi2Instantiate", 0)                                                \
-    X(C_SET_DEBUG_LOGGING, "fmi2SetDebugLogging", S_LIVE)                                 \
-    X(C_SETUP_EXPERIMENT, "fmi2SetupExperiment", S_INSTANTIATED)                          \
-    X(C_ENTER_INIT, "fmi2EnterInitializationMode", S_INSTANTIATED)                        \
-    X(C_EXIT_INIT, "fmi2ExitInitializationMode", S_INIT)                                  \
-    X(C_TERMINATE, "fmi2Terminate", S_STEPPING)                                           \
-    X(C_RESET, "fmi2Reset", S_LIVE)                                                       \
-    X(C_FREE, "fmi2FreeInstance", S_LIVE | S_FATAL)                                       \
-    X(C_GET_REAL, "fmi2GetReal", S_GETTABLE)                                              \
-    X(C_GET_INTEGER, "fmi2GetInteger", S_GETTABLE)                                        \
-    X(C_GET_BOOLEAN, "fmi2GetBoolean", S_GETTABLE)                                        \
-    X(C_GET_STRING, "fmi2GetString", S_GETTABLE)                                          \
-    X(C_SET_REAL, "fmi2SetReal", S_SETTABLE)                                              \
-    X(C_SET_INTEGER, "fmi2SetInteger", S_SETTABLE)                                        \
-    X(C_SET_BOOLEAN, "fmi2SetBoolean", S_SETTABLE)                                        \
-    X(C_SET_STRING, "fmi2SetString", S_SETTABLE)                                          \
-    X(C_GET_FMU_STATE, "fmi2GetFMUstate", S_LIVE)                                         \
-    X(C_SET_FMU_STATE, "fmi2SetFMUstate", S_LIVE)                                         \
-    X(C_FREE_FMU_STATE, "fmi2FreeFMUstate", S_LIVE)                                       \
-    X(C_STATE_SIZE, "fmi2SerializedFMUstateSize", S_LIVE)                                 \
-    X(C_SERIALIZE, "fmi2SerializeFMUstate", S_LIVE)                                       \
-    X(C_DESERIALIZE, "fmi2DeSerializeFMUstate", S_LIVE)                                   \
-    X(C_DIRECTIONAL, "fmi2GetDirectionalDerivative", 0)                                   \
-    X(C_SET_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", 0)                          \
-    X(C_GET_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", 0)                        \
-    X(C_DO_STEP, "fmi2DoStep", S_STEP_COMPLETE)                                           \
-    X(C_CANCEL_STEP, "fmi2CancelStep", 0)                                                 \
-    X(C_GET_STATUS, "fmi2GetStatus", S_STEPPING | S_TERMINATED | S_ERROR)                 \
-    X(C_GET_REAL_STATUS, "fmi2GetRealStatus", S_STEPPING | S_TERMINATED | S_ERROR)        \
-    X(C_GET_INTEGER_STATUS, "fmi2GetIntegerStatus", S_STEPPING | S_TERMINATED | S_ERROR)  \
-    X(C_GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", S_STEPPING | S_TERMINATED | S_ERROR)  \
-    X(C_GET_STRING_STATUS, "fmi2GetStringStatus", S_STEPPING | S_TERMINATED | S_ERROR)
-#define CALL_ID(id, name, allowed) id,
+    X(C_INSTANTIATE, "fmi2Instantiate", "fmi3InstantiateCoSimulation", 0)                  \
+    X(C_SET_DEBUG_LOGGING, "fmi2SetDebugLogging", "fmi3SetDebugLogging", S_LIVE)           \
+    X(C_SETUP_EXPERIMENT, "fmi2SetupExperiment", "-", S_INSTANTIATED)                      \
+    X(C_ENTER_INIT, "fmi2EnterInitializationMode", "fmi3EnterInitializationMode",          \
+      S_INSTANTIATED)                                                                      \
+    X(C_EXIT_INIT, "fmi2ExitInitializationMode", "fmi3ExitInitializationMode", S_INIT)     \
+    X(C_TERMINATE, "fmi2Terminate", "fmi3Terminate", S_STEPPING)                           \
+    X(C_RESET, "fmi2Reset", "fmi3Reset", S_LIVE)                                           \
+    X(C_FREE, "fmi2FreeInstance", "fmi3FreeInstance", S_LIVE | S_FATAL)                    \
+    X(C_GET_REAL, "fmi2GetReal", "fmi3GetFloat64", S_GETTABLE)                             \
+    X(C_GET_INTEGER, "fmi2GetInteger", "fmi3GetInt32", S_GETTABLE)                         \
+    X(C_GET_BOOLEAN, "fmi2GetBoolean", "fmi3GetBoolean", S_GETTABLE)                       \
+    X(C_GET_STRING, "fmi2GetString", "fmi3GetString", S_GETTABLE)                          \
+    X(C_GET_OTHER, "-", "fmi3Get<type>", S_GETTABLE)                                       \
+    X(C_SET_REAL, "fmi2SetReal", "fmi3SetFloat64", S_SETTABLE)                             \
+    X(C_SET_INTEGER, "fmi2SetInteger", "fmi3SetInt32", S_SETTABLE)                         \
+    X(C_SET_BOOLEAN, "fmi2SetBoolean", "fmi3SetBoolean", S_SETTABLE)                       \
+    X(C_SET_STRING, "fmi2SetString", "fmi3SetString", S_SETTABLE)                          \
+    X(C_SET_OTHER, "-", "fmi3Set<type>", S_SETTABLE)                                       \
+    X(C_GET_FMU_STATE, "fmi2GetFMUstate", "fmi3GetFMUState", S_LIVE)                       \
+    X(C_SET_FMU_STATE, "fmi2SetFMUstate", "fmi3SetFMUState", S_LIVE)                       \
+    X(C_FREE_FMU_STATE, "fmi2FreeFMUstate", "fmi3FreeFMUState", S_LIVE)                    \
+    X(C_STATE_SIZE, "fmi2SerializedFMUstateSize", "fmi3SerializedFMUStateSize", S_LIVE)    \
+    X(C_SERIALIZE, "fmi2SerializeFMUstate", "fmi3SerializeFMUState", S_LIVE)               \
+    X(C_DESERIALIZE, "fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState", S_LIVE)         \
+    X(C_DIRECTIONAL, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative", 0)    \
+    X(C_SET_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", "-", 0)                      \
+    X(C_GET_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", "fmi3GetOutputDerivatives", \
+      0)                                                                                   \
+    X(C_DO_STEP, "fmi2DoStep", "fmi3DoStep", S_STEP_COMPLETE)                              \
+    X(C_CANCEL_STEP, "fmi2CancelStep", "-", 0)                                             \
+    X(C_GET_STATUS, "fmi2GetStatus", "-", S_STEPPING | S_TERMINATED | S_ERROR)             \
+    X(C_GET_REAL_STATUS, "fmi2GetRealStatus", "-", S_STEPPING | S_TERMINATED | S_ERROR)    \
+    X(C_GET_INTEGER_STATUS, "fmi2GetIntegerStatus", "-", S_STEPPING | S_TERMINATED | S_ERROR) \
+    X(C_GET_BOOLEAN_STATUS, "fmi2GetBooleanStatus", "-", S_STEPPING | S_TERMINATED | S_ERROR) \
+    X(C_GET_STRING_STATUS, "fmi2GetStringStatus", "-", S_STEPPING | S_TERMINATED | S_ERROR)   \
+    X(C_FMI3_ONLY, "-", "this function", 0) /* FMI 3 functions we do not provide */
+#define CALL_ID(id, name2, name3, allowed) id,
 enum { CALL_TABLE(CALL_ID) C_COUNT };
 #undef CALL_ID
 
 typedef struct {
-    const char *name;
+    const char *name[2]; /* in FMI 2, in FMI 3 */
     unsigned allowed;
 } CallSpec;
 extern const CallSpec GLIDER_CALLS[C_COUNT];
@@ -97,12 +104,20 @@ typedef struct FmuState {
     int terminated;   /* the model had asked to stop */
 } FmuState;
 
+/* The host's logger: FMI 2's (printf-style, with the instance name) or FMI 3's. */
+typedef void (*Fmi3Logger)(void *env, int status, const char *category, const char *message);
+typedef struct {
+    int fmi3; /* 0: FMI 2.0, 1: FMI 3.0 */
+    fmi2CallbackLogger log2;
+    Fmi3Logger log3;
+    void *env;
+} HostLogger;
+
 typedef struct Instance {
     uint32_t magic;
     struct Instance *next; /* registry of live instances */
     char *name, *resources;
-    fmi2CallbackLogger logger;
-    fmi2ComponentEnvironment env;
+    HostLogger logger;
     int logging_on;
     uint64_t cat_on, cat_off; /* debug categories on, categories switched off */
     int ncat, cat_calls, cat_all, cat_error, cat_discard, cat_warning;
@@ -136,6 +151,9 @@ typedef struct {
     size_t nmsgs, cap;
 } Ctx;
 
+/* The call's name in the instance's FMI version. */
+const char *glider_call_name(const Ctx *x);
+
 /* A message of this call: kept, and passed to the host's logger when the call ends if
  * the logging rules let it through (errors always). */
 void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ...);
@@ -145,6 +163,40 @@ int glider_category_index(const Instance *inst, const char *name);
 /* Register the log categories of a model (FMI's standard ones and logFmiCalls). */
 void glider_set_categories(Instance *inst, const char *const names[], int n);
 char *glider_dup_text(const char *s);
+
+/* ------------------------------------------------------------------ the operations
+ * What the front ends (fmi2_layer.c, fmi3_layer.c) call: each checks the instance and the
+ * state machine, runs the back end and reports, once for both versions. Statuses are
+ * FMI's numbers (OK 0, Warning 1, Discard 2, Error 3, Fatal 4), the same in both. */
+void *glider_op_instantiate(const char *name, const char *resources, int visible,
+                            int logging_on, const HostLogger *logger);
+void glider_log_orphan(const HostLogger *logger, const char *name, int status, const char *text);
+/* fmuResourceLocation (file: URI) -> a path (malloc'ed), NULL if it is none */
+char *glider_resource_path(const char *uri);
+int glider_op_set_debug_logging(void *c, int on, size_t n, const char *const categories[]);
+void glider_op_free(void *c);
+/* setup (FMI 2's fmi2SetupExperiment, or with enter = 1 FMI 3's
+ * fmi3EnterInitializationMode: the experiment, then initialisation mode) */
+int glider_op_setup(void *c, int call, int tolerance_defined, double tolerance, double start,
+                    int stop_defined, double stop, int enter);
+int glider_op_transition(void *c, int call, unsigned next);
+int glider_op_reset(void *c);
+/* get (out) or set (in) nvr values of a type; nvalues must equal nvr (scalars only) */
+int glider_op_access(void *c, int call, char type, const unsigned vr[], size_t nvr,
+                     size_t nvalues, const void *in, void *out);
+int glider_op_get_state(void *c, void **state);
+int glider_op_set_state(void *c, void *state);
+int glider_op_free_state(void *c, void **state);
+int glider_op_state_size(void *c, void *state, size_t *size);
+int glider_op_serialize(void *c, void *state, char buffer[], size_t size);
+int glider_op_deserialize(void *c, const char data[], size_t size, void **state);
+int glider_op_unsupported(void *c, int call);
+/* one step; *terminated: the model stopped (the status is Discard), *last: the last
+ * successful time */
+int glider_op_do_step(void *c, double t, double h, int *terminated, double *last);
+/* a status query (FMI 2's fmi2Get*Status): store() fills value when kind is want */
+int glider_op_query(void *c, int call, int kind, int want,
+                    void (*store)(const Instance *, void *), void *value);
 
 /* ------------------------------------------------------------------ a back end */
 typedef struct {

@@ -1,0 +1,697 @@
+/* glider-cosim's FMI layer: one state machine for every FMU, FMI 2.0 and 3.0 alike.
+ *
+ * The front ends (fmi2_layer.c, fmi3_layer.c) export the FMI functions of their version
+ * and call the operations here (glider_op_*). Every operation checks that its instance
+ * is live and in a state where FMI allows the call (GLIDER_CALLS), enters the back end (the Python back end takes the GIL),
+ * calls it, records what happened and leaves the back end before the host's logger is
+ * called. Errors are fmi2Error with a message that is passed to the logger whatever
+ * loggingOn says; fmi2Fatal is kept for the back end itself failing. After fmi2Error
+ * only getters, FMU-state functions, fmi2Reset and fmi2FreeInstance are accepted. A
+ * forged or freed instance or state pointer gets a status, never a crash.
+ *
+ * C99, libc only; the registry lock is a pthread mutex (an SRW lock on Windows). Written
+ * from the FMI 2.0.4 standard and the FMI headers that fmpy ships.
+ */
+#if !defined(_WIN32) && !defined(_POSIX_C_SOURCE)
+#define _POSIX_C_SOURCE 200809L
+#endif
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi_layer.h"
+
+#ifdef _WIN32
+#include <windows.h>
+static SRWLOCK g_lock = SRWLOCK_INIT;
+#define LOCK() AcquireSRWLockExclusive(&g_lock)
+#define UNLOCK() ReleaseSRWLockExclusive(&g_lock)
+#else
+#include <pthread.h>
+static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
+#define LOCK() pthread_mutex_lock(&g_lock)
+#define UNLOCK() pthread_mutex_unlock(&g_lock)
+#endif
+
+#define B GLIDER_BACKEND
+#define INSTANCE_MAGIC 0x474c4944u /* "GLID" */
+#define STATE_MAGIC 0x53544154u    /* "STAT" */
+#define FAIL glider_fail
+
+#define CALL_SPEC(id, name2, name3, allowed) {{name2, name3}, allowed},
+const CallSpec GLIDER_CALLS[C_COUNT] = {CALL_TABLE(CALL_SPEC)};
+#undef CALL_SPEC
+
+static const char *state_name(unsigned s) {
+    switch (s) {
+    case S_INSTANTIATED: return "instantiated";
+    case S_INIT: return "initialization mode";
+    case S_STEP_COMPLETE: return "step complete";
+    case S_STEP_FAILED: return "step failed (after fmi2Discard)";
+    case S_TERMINATED: return "terminated";
+    case S_ERROR: return "error";
+    default: return "fatal";
+    }
+}
+
+/* ------------------------------------------------------------------ instances */
+static Instance *g_instances;
+
+static Instance *lookup(fmi2Component c) {
+    Instance *found = NULL, *i;
+    LOCK();
+    for (i = g_instances; i; i = i->next) {
+        if ((void *)i == c) {
+            found = i;
+            break;
+        }
+    }
+    UNLOCK();
+    return found && found->magic == INSTANCE_MAGIC ? found : NULL;
+}
+
+/* ------------------------------------------------------------------ messages */
+char *glider_dup_text(const char *s) {
+    size_t n = strlen(s);
+    char *d = malloc(n + 1);
+    if (d) memcpy(d, s, n + 1);
+    return d;
+}
+
+static void add_text(Ctx *x, fmi2Status status, int category, const char *text) {
+    char *copy;
+    if (x->nmsgs == x->cap) {
+        size_t cap = x->cap ? 2 * x->cap : 4;
+        Msg *m = realloc(x->msgs, cap * sizeof *m);
+        if (!m) return;
+        x->msgs = m;
+        x->cap = cap;
+    }
+    if (!(copy = glider_dup_text(text))) return;
+    x->msgs[x->nmsgs].status = status;
+    x->msgs[x->nmsgs].category = category;
+    x->msgs[x->nmsgs].text = copy;
+    x->nmsgs++;
+}
+
+void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ...) {
+    char buf[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    add_text(x, status, category, buf);
+}
+
+fmi2Status glider_fail(Ctx *x, const char *fmt, ...) {
+    char buf[1800];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    glider_add_msg(x, fmi2Error, x->inst ? x->inst->cat_error : -1, "%s: %s",
+                   glider_call_name(x), buf);
+    return fmi2Error;
+}
+
+const char *glider_call_name(const Ctx *x) {
+    return GLIDER_CALLS[x->call].name[x->inst && x->inst->logger.fmi3 ? 1 : 0];
+}
+
+int glider_category_index(const Instance *inst, const char *name) {
+    int i;
+    for (i = 0; i < inst->ncat; ++i)
+        if (!strcmp(inst->cat_names[i], name)) return i;
+    return -1;
+}
+
+void glider_set_categories(Instance *inst, const char *const names[], int n) {
+    int i;
+    for (i = 0; i < n && inst->ncat < MAX_CATEGORIES; ++i) {
+        char *copy = glider_dup_text(names[i]);
+        if (copy) inst->cat_names[inst->ncat++] = copy;
+    }
+    inst->cat_calls = glider_category_index(inst, "logFmiCalls");
+    inst->cat_all = glider_category_index(inst, "logAll");
+    inst->cat_error = glider_category_index(inst, "logStatusError");
+    inst->cat_discard = glider_category_index(inst, "logStatusDiscard");
+    inst->cat_warning = glider_category_index(inst, "logStatusWarning");
+}
+
+/* What "all categories" means: every one but logFmiCalls, which traces every call and
+ * is switched on only when named. */
+static uint64_t all_categories(const Instance *inst) {
+    return inst->cat_calls >= 0 ? ~((uint64_t)1 << inst->cat_calls) : ~(uint64_t)0;
+}
+
+/* Errors are always passed on. Warnings and discards too, unless their category was
+ * switched off (fmi2SetDebugLogging(false, [it]) or another list given with true). Debug
+ * messages (fmi2OK) only with logging on and their category, or logAll, enabled;
+ * logFmiCalls only when named. */
+static int should_log(const Instance *inst, fmi2Status status, int category) {
+    uint64_t bit, all;
+    if (status >= fmi2Error) return 1;
+    bit = category >= 0 ? (uint64_t)1 << category : 0;
+    if (inst->cat_off & bit) return 0;
+    if (status == fmi2Warning || status == fmi2Discard) return 1;
+    all = inst->cat_all >= 0 && category != inst->cat_calls ? (uint64_t)1 << inst->cat_all : 0;
+    return inst->logging_on && (inst->cat_on & (bit | all)) != 0;
+}
+
+/* FMI 2's logger takes a printf format: the text goes with every '%' doubled. FMI 3's
+ * takes the message as it is. */
+static void emit(const HostLogger *logger, const char *name, int status, const char *category,
+                 const char *text) {
+    size_t n = strlen(text), extra = 0, i;
+    char *fmt, *o;
+    if (logger->fmi3) {
+        if (logger->log3) logger->log3(logger->env, status, category, text);
+        return;
+    }
+    if (!logger->log2) return;
+    for (i = 0; i < n; ++i) extra += text[i] == '%';
+    if (!(fmt = malloc(n + extra + 1))) return;
+    o = fmt;
+    for (i = 0; i < n; ++i) {
+        *o++ = text[i];
+        if (text[i] == '%') *o++ = '%';
+    }
+    *o = '\0';
+    logger->log2(logger->env, name, (fmi2Status)status, category, fmt);
+    free(fmt);
+}
+
+/* ------------------------------------------------------------------ call framing */
+static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
+    Instance *inst;
+    fmi2Status st;
+    memset(x, 0, sizeof *x);
+    x->call = call;
+    x->inst = inst = lookup(c);
+    if (!inst) return fmi2Error; /* not an instance of this FMU: nobody to log to */
+    if ((st = B.enter(x)) != fmi2OK) return st;
+    if (inst->state == S_FATAL) {
+        glider_add_msg(x, fmi2Fatal, inst->cat_error, "%s: the instance failed fatally earlier",
+                       glider_call_name(x));
+        return fmi2Fatal;
+    }
+    if (!(GLIDER_CALLS[call].allowed & inst->state)) {
+        if (!GLIDER_CALLS[call].allowed) return FAIL(x, "not supported by this FMU");
+        if (inst->state == S_ERROR)
+            return FAIL(x, "not allowed after an error: only getters, FMU-state functions, "
+                           "fmi2Reset and fmi2FreeInstance are");
+        return FAIL(x, "not allowed in state '%s'", state_name(inst->state));
+    }
+    if (inst->cat_calls >= 0 && inst->logging_on && (inst->cat_on >> inst->cat_calls & 1))
+        glider_add_msg(x, fmi2OK, inst->cat_calls, "%s", glider_call_name(x));
+    return fmi2OK;
+}
+
+static fmi2Status end(Ctx *x, fmi2Status status) {
+    Instance *inst = x->inst;
+    size_t i;
+    if (!inst) return status;
+    if (status == fmi2Fatal) inst->state = S_FATAL;
+    else if (status == fmi2Error && inst->state != S_FATAL) inst->state = S_ERROR;
+    for (i = 0; i < x->nmsgs; ++i) {
+        if (!should_log(inst, x->msgs[i].status, x->msgs[i].category)) {
+            free(x->msgs[i].text);
+            x->msgs[i].text = NULL;
+        }
+    }
+    /* leave the back end (release the GIL) before the host's logger is called */
+    if (x->have_token) B.leave(x);
+    x->have_token = 0;
+    for (i = 0; i < x->nmsgs; ++i) {
+        int ci = x->msgs[i].category;
+        const char *category = ci >= 0 && ci < inst->ncat ? inst->cat_names[ci] : "logAll";
+        if (!x->msgs[i].text) continue;
+        emit(&inst->logger, inst->name, x->msgs[i].status, category, x->msgs[i].text);
+        free(x->msgs[i].text);
+    }
+    free(x->msgs);
+    x->msgs = NULL;
+    x->nmsgs = x->cap = 0;
+    return status;
+}
+
+/* ------------------------------------------------------------------ FMU states */
+static FmuState *owned_state(Instance *inst, fmi2FMUstate s) {
+    FmuState *p;
+    for (p = inst->states; p; p = p->next)
+        if ((void *)p == s) return p->magic == STATE_MAGIC ? p : NULL;
+    return NULL;
+}
+
+static FmuState *new_state(Instance *inst) {
+    FmuState *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    s->magic = STATE_MAGIC;
+    s->next = inst->states;
+    inst->states = s;
+    return s;
+}
+
+static void drop_state(FmuState *s, int alive) {
+    B.state_release(s, alive);
+    s->magic = 0;
+    free(s);
+}
+
+static void free_instance(Instance *inst, int alive) {
+    int i;
+    while (inst->states) {
+        FmuState *s = inst->states;
+        inst->states = s->next;
+        drop_state(s, alive);
+    }
+    B.destroy(inst, alive);
+    for (i = 0; i < inst->ncat; ++i) free(inst->cat_names[i]);
+    free(inst->resources);
+    free(inst->name);
+    inst->magic = 0;
+    free(inst);
+}
+
+/* fmuResourceLocation (file:///path, file:/path, file://localhost/path) -> a path; on
+ * Windows file:///C:/x gives C:/x */
+char *glider_resource_path(const char *uri) {
+    const char *p = uri;
+    size_t n, i;
+    char *out, *o;
+    if (!strncmp(p, "file://localhost/", 17)) p += 16;
+    else if (!strncmp(p, "file:///", 8)) p += 7;
+    else if (!strncmp(p, "file:/", 6)) p += 5;
+    else return NULL;
+#ifdef _WIN32
+    if (p[0] == '/' && p[1] && p[2] == ':') ++p;
+#endif
+    n = strlen(p);
+    if (!(out = malloc(n + 1))) return NULL;
+    o = out;
+    for (i = 0; i < n; ++i) {
+        unsigned hex;
+        if (p[i] == '%' && i + 2 < n && sscanf(p + i + 1, "%2x", &hex) == 1) {
+            *o++ = (char)hex;
+            i += 2;
+        } else {
+            *o++ = p[i];
+        }
+    }
+    while (o > out + 1 && o[-1] == '/') --o;
+    *o = '\0';
+    return out;
+}
+
+/* ------------------------------------------------------------------ operations */
+int glider_op_set_debug_logging(void *c, int on, size_t n, const char *const categories[]) {
+    Ctx x;
+    Instance *inst;
+    uint64_t bits = 0;
+    size_t i;
+    fmi2Status st = begin(&x, c, C_SET_DEBUG_LOGGING);
+    if (st != fmi2OK) return end(&x, st);
+    inst = x.inst;
+    if (n == 0) {
+        inst->logging_on = on != 0;
+        inst->cat_on = inst->logging_on ? all_categories(inst) : 0;
+        inst->cat_off = 0;
+        return end(&x, fmi2OK);
+    }
+    if (!categories)
+        return end(&x, FAIL(&x, "NULL categories with nCategories = %lu", (unsigned long)n));
+    for (i = 0; i < n; ++i) {
+        int ci = categories[i] ? glider_category_index(inst, categories[i]) : -1;
+        if (ci < 0) {
+            char known[1024] = "";
+            int k;
+            for (k = 0; k < inst->ncat; ++k)
+                snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s",
+                         k ? ", " : "", inst->cat_names[k]);
+            return end(&x, FAIL(&x, "log category '%.200s' is unknown: expected one of %s",
+                                categories[i] ? categories[i] : "(null)", known));
+        }
+        bits |= (uint64_t)1 << ci;
+    }
+    if (on) { /* only these categories (all of them if logAll is named) */
+        uint64_t all = inst->cat_all >= 0 ? (uint64_t)1 << inst->cat_all : 0;
+        inst->logging_on = 1;
+        inst->cat_on = bits;
+        inst->cat_off = bits & all ? 0 : ~bits;
+    } else {
+        inst->cat_on &= ~bits;
+        inst->cat_off |= bits;
+    }
+    return end(&x, fmi2OK);
+}
+
+void glider_log_orphan(const HostLogger *logger, const char *name, int status, const char *text) {
+    if (logger)
+        emit(logger, name ? name : "?", status,
+             status == fmi2Fatal ? "logStatusFatal" : "logStatusError", text);
+}
+
+void *glider_op_instantiate(const char *name, const char *resources, int visible,
+                            int logging_on, const HostLogger *logger) {
+    const char *call = GLIDER_CALLS[C_INSTANTIATE].name[logger->fmi3 ? 1 : 0];
+    char text[4400], err[4096] = "";
+    Instance *inst;
+    Ctx x;
+    fmi2Status st;
+    if (!B.start(resources, err, sizeof err)) {
+        snprintf(text, sizeof text, "%s: %s", call, err);
+        glider_log_orphan(logger, name, fmi2Fatal, text);
+        return NULL;
+    }
+    inst = calloc(1, sizeof *inst);
+    if (!inst || !(inst->name = glider_dup_text(name)) ||
+        !(inst->resources = glider_dup_text(resources))) {
+        if (inst) free(inst->name);
+        free(inst);
+        snprintf(text, sizeof text, "%s: out of memory", call);
+        glider_log_orphan(logger, name, fmi2Fatal, text);
+        return NULL;
+    }
+    inst->magic = INSTANCE_MAGIC;
+    inst->logger = *logger;
+    inst->logging_on = logging_on != 0;
+    inst->visible = visible != 0;
+    inst->cat_calls = inst->cat_all = inst->cat_error = inst->cat_discard = -1;
+    inst->cat_warning = -1;
+    inst->state = S_INSTANTIATED;
+    memset(&x, 0, sizeof x);
+    x.call = C_INSTANTIATE;
+    x.inst = inst;
+    st = B.enter(&x);
+    if (st == fmi2OK) st = B.create(&x);
+    inst->cat_on = inst->logging_on ? all_categories(inst) : 0;
+    if (st != fmi2OK) {
+        inst->state = S_ERROR;
+        B.destroy(inst, x.have_token);
+        end(&x, st);
+        free(inst->resources);
+        free(inst->name);
+        while (inst->ncat) free(inst->cat_names[--inst->ncat]);
+        inst->magic = 0;
+        free(inst);
+        return NULL;
+    }
+    end(&x, fmi2OK);
+    LOCK();
+    inst->next = g_instances;
+    g_instances = inst;
+    UNLOCK();
+    return inst;
+}
+
+void glider_op_free(void *c) {
+    Instance *inst = lookup(c), **p;
+    Ctx x;
+    if (!inst) return;
+    LOCK();
+    for (p = &g_instances; *p; p = &(*p)->next) {
+        if (*p == inst) {
+            *p = inst->next;
+            break;
+        }
+    }
+    UNLOCK();
+    /* at process exit the back end may be gone already (Python finalized): then only the
+     * C memory is freed */
+    memset(&x, 0, sizeof x);
+    x.call = C_FREE;
+    x.inst = inst;
+    if (B.alive() && B.enter(&x) == fmi2OK) {
+        free_instance(inst, 1);
+        x.inst = NULL;
+        B.leave(&x);
+    } else {
+        free_instance(inst, 0);
+    }
+    free(x.msgs);
+}
+
+int glider_op_setup(void *c, int call, int tolerance_defined, double tolerance, double start,
+                    int stop_defined, double stop, int enter) {
+    Ctx x;
+    fmi2Status st = begin(&x, c, call);
+    if (st != fmi2OK) return end(&x, st);
+    if (!isfinite(start))
+        return end(&x, FAIL(&x, "startTime = %g is invalid: expected a finite time", start));
+    st = B.setup(&x, tolerance_defined, tolerance, start, stop_defined, stop);
+    if (st == fmi2OK) x.inst->time = start;
+    if (st == fmi2OK && enter && (st = B.transition(&x, call)) == fmi2OK) x.inst->state = S_INIT;
+    return end(&x, st);
+}
+
+int glider_op_transition(void *c, int call, unsigned next) {
+    Ctx x;
+    fmi2Status st = begin(&x, c, call);
+    if (st == fmi2OK && (st = B.transition(&x, call)) == fmi2OK) x.inst->state = next;
+    return end(&x, st);
+}
+
+int glider_op_reset(void *c) {
+    Ctx x;
+    fmi2Status st = begin(&x, c, C_RESET);
+    if (st == fmi2OK && (st = B.reset(&x)) == fmi2OK) {
+        x.inst->state = S_INSTANTIATED;
+        x.inst->time = 0.0;
+        x.inst->terminated = 0;
+    }
+    return end(&x, st);
+}
+
+/* ------------------------------------------------------------------ values */
+/* A type's name in the instance's FMI version (FMI 3's other types, which our models
+ * have none of, come with codes of their own from fmi3_layer.c). */
+static const char *type_name(const Ctx *x, char t) {
+    static const struct {
+        char code;
+        const char *name[2];
+    } names[] = {{T_REAL, {"Real", "Float64"}}, {T_INTEGER, {"Integer", "Int32"}},
+                 {T_BOOLEAN, {"Boolean", "Boolean"}}, {T_STRING, {"String", "String"}},
+                 {'f', {"-", "Float32"}}, {'1', {"-", "Int8"}}, {'2', {"-", "UInt8"}},
+                 {'3', {"-", "Int16"}}, {'4', {"-", "UInt16"}}, {'5', {"-", "UInt32"}},
+                 {'6', {"-", "Int64"}}, {'7', {"-", "UInt64"}}, {'y', {"-", "Binary"}},
+                 {'c', {"-", "Clock"}}};
+    size_t i;
+    for (i = 0; i < sizeof names / sizeof *names; ++i)
+        if (names[i].code == t) return names[i].name[x->inst && x->inst->logger.fmi3 ? 1 : 0];
+    return "unknown";
+}
+
+static fmi2Status check_refs(Ctx *x, const unsigned vr[], size_t nvr, const void *values,
+                             char type) {
+    Instance *inst = x->inst;
+    size_t i;
+    if (!vr || !values)
+        return FAIL(x, "NULL %s array with nvr = %lu", vr ? "value" : "vr", (unsigned long)nvr);
+    for (i = 0; i < nvr; ++i) {
+        if (vr[i] >= inst->nvars)
+            return FAIL(x, "value reference %u does not exist: expected 0..%lu", vr[i],
+                        (unsigned long)(inst->nvars - 1));
+        if (inst->var_type[vr[i]] != type)
+            return FAIL(x, "value reference %u (%s) is %s, not %s", vr[i],
+                        inst->var_names[vr[i]], type_name(x, inst->var_type[vr[i]]),
+                        type_name(x, type));
+    }
+    return fmi2OK;
+}
+
+int glider_op_access(void *c, int call, char type, const unsigned vr[], size_t nvr,
+                     size_t nvalues, const void *in, void *out) {
+    Ctx x;
+    fmi2Status st = begin(&x, c, call);
+    if (st != fmi2OK || nvr == 0) return end(&x, st);
+    if (nvalues != nvr)
+        return end(&x, FAIL(&x, "nValues = %lu is invalid: expected %lu (every variable is a "
+                                "scalar)", (unsigned long)nvalues, (unsigned long)nvr));
+    if ((st = check_refs(&x, vr, nvr, out ? out : in, type)) != fmi2OK) return end(&x, st);
+    return end(&x, out ? B.get(&x, type, vr, nvr, out) : B.set(&x, type, vr, nvr, in));
+}
+
+/* ------------------------------------------------------------------ FMU state */
+int glider_op_get_state(void *c, void **state) {
+    Ctx x;
+    Instance *inst;
+    FmuState *s, *fresh = NULL;
+    fmi2Status st = begin(&x, c, C_GET_FMU_STATE);
+    if (st != fmi2OK) return end(&x, st);
+    inst = x.inst;
+    if (!state) return end(&x, FAIL(&x, "FMUstate is NULL"));
+    s = *state ? owned_state(inst, *state) : NULL;
+    if (*state && !s) return end(&x, FAIL(&x, "*FMUstate is not a state of this instance"));
+    if (!s && !(s = fresh = new_state(inst))) return end(&x, FAIL(&x, "out of memory"));
+    if ((st = B.state_get(&x, s)) != fmi2OK) {
+        if (fresh) {
+            inst->states = fresh->next;
+            drop_state(fresh, 1);
+        }
+        return end(&x, st);
+    }
+    s->machine = inst->state;
+    s->time = inst->time;
+    s->terminated = inst->terminated;
+    *state = s;
+    return end(&x, fmi2OK);
+}
+
+int glider_op_set_state(void *c, void *state) {
+    Ctx x;
+    FmuState *s;
+    fmi2Status st = begin(&x, c, C_SET_FMU_STATE);
+    if (st != fmi2OK) return end(&x, st);
+    if (!(s = owned_state(x.inst, state)))
+        return end(&x, FAIL(&x, "FMUstate is not a state of this instance"));
+    if ((st = B.state_set(&x, s)) == fmi2OK) {
+        x.inst->state = s->machine;
+        x.inst->time = s->time;
+        x.inst->terminated = s->terminated;
+    }
+    return end(&x, st);
+}
+
+int glider_op_free_state(void *c, void **state) {
+    Ctx x;
+    FmuState **p;
+    fmi2Status st = begin(&x, c, C_FREE_FMU_STATE);
+    if (st != fmi2OK || !state || !*state) return end(&x, st);
+    for (p = &x.inst->states; *p; p = &(*p)->next) {
+        if ((void *)*p == *state) {
+            FmuState *s = *p;
+            *p = s->next;
+            drop_state(s, 1);
+            *state = NULL;
+            return end(&x, fmi2OK);
+        }
+    }
+    return end(&x, FAIL(&x, "*FMUstate is not a state of this instance"));
+}
+
+/* Serialized layout: magic, FMI state, terminated flag, time, model identifier, then the
+ * back end's bytes (the same in FMI 2 and 3). */
+static const char SER_MAGIC[8] = {'G', 'F', 'M', 'I', 'S', 'T', '0', '1'};
+#define SER_HEADER (8 + 4 + 4 + 8 + MODEL_ID_SIZE)
+
+int glider_op_state_size(void *c, void *state, size_t *size) {
+    Ctx x;
+    FmuState *s;
+    const char *data;
+    size_t n;
+    fmi2Status st = begin(&x, c, C_STATE_SIZE);
+    if (st != fmi2OK) return end(&x, st);
+    s = owned_state(x.inst, state);
+    if (!s || !size)
+        return end(&x, FAIL(&x, s ? "size is NULL" : "FMUstate is not a state of this instance"));
+    if ((st = B.state_bytes(&x, s, &data, &n)) == fmi2OK) *size = SER_HEADER + n;
+    return end(&x, st);
+}
+
+int glider_op_serialize(void *c, void *state, char buffer[], size_t size) {
+    Ctx x;
+    FmuState *s;
+    const char *data, *model = B.model_identifier();
+    size_t n;
+    uint32_t machine, term;
+    fmi2Status st = begin(&x, c, C_SERIALIZE);
+    if (st != fmi2OK) return end(&x, st);
+    s = owned_state(x.inst, state);
+    if (!s || !buffer)
+        return end(&x, FAIL(&x, s ? "buffer is NULL" : "FMUstate is not a state of this instance"));
+    if ((st = B.state_bytes(&x, s, &data, &n)) != fmi2OK) return end(&x, st);
+    if (size < SER_HEADER + n)
+        return end(&x, FAIL(&x, "size = %lu is too small: expected %lu bytes",
+                            (unsigned long)size, (unsigned long)(SER_HEADER + n)));
+    machine = s->machine;
+    term = (uint32_t)s->terminated;
+    memcpy(buffer, SER_MAGIC, 8);
+    memcpy(buffer + 8, &machine, 4);
+    memcpy(buffer + 12, &term, 4);
+    memcpy(buffer + 16, &s->time, 8);
+    memset(buffer + 24, 0, MODEL_ID_SIZE);
+    memcpy(buffer + 24, model, strlen(model) < MODEL_ID_SIZE ? strlen(model) : MODEL_ID_SIZE - 1);
+    memcpy(buffer + SER_HEADER, data, n);
+    return end(&x, fmi2OK);
+}
+
+int glider_op_deserialize(void *c, const char data[], size_t size, void **state) {
+    Ctx x;
+    FmuState *s;
+    char model[MODEL_ID_SIZE + 1] = "";
+    uint32_t machine, term;
+    double time;
+    fmi2Status st = begin(&x, c, C_DESERIALIZE);
+    if (st != fmi2OK) return end(&x, st);
+    if (!data || !state)
+        return end(&x, FAIL(&x, "%s is NULL", state ? "serializedState" : "FMUstate"));
+    if (size < SER_HEADER || memcmp(data, SER_MAGIC, 8))
+        return end(&x, FAIL(&x, "the %lu bytes are not a serialized state of this runtime",
+                            (unsigned long)size));
+    memcpy(model, data + 24, MODEL_ID_SIZE);
+    if (strcmp(model, B.model_identifier()))
+        return end(&x, FAIL(&x, "the state is one of model %.100s: expected %s", model,
+                            B.model_identifier()));
+    memcpy(&machine, data + 8, 4);
+    memcpy(&term, data + 12, 4);
+    memcpy(&time, data + 16, 8);
+    if (!(machine & S_LIVE) || (machine & (machine - 1)))
+        return end(&x, FAIL(&x, "the state records an invalid FMI state %u", machine));
+    if (!(s = new_state(x.inst))) return end(&x, FAIL(&x, "out of memory"));
+    st = B.state_from_bytes(&x, s, data + SER_HEADER, size - SER_HEADER);
+    if (st != fmi2OK) {
+        x.inst->states = s->next;
+        drop_state(s, 1);
+        return end(&x, st);
+    }
+    s->machine = machine;
+    s->terminated = term != 0;
+    s->time = time;
+    *state = s;
+    return end(&x, fmi2OK);
+}
+
+/* ------------------------------------------------------------------ the rest */
+int glider_op_unsupported(void *c, int call) {
+    Ctx x;
+    return end(&x, begin(&x, c, call));
+}
+
+int glider_op_do_step(void *c, double t, double h, int *terminated, double *last) {
+    Ctx x;
+    Instance *inst;
+    int go_on = 1;
+    fmi2Status st = begin(&x, c, C_DO_STEP);
+    if (st != fmi2OK) return end(&x, st);
+    if (!(h > 0.0) || !isfinite(h) || !isfinite(t))
+        return end(&x, FAIL(&x, "step of %g s at t = %g s is invalid: expected a finite step > 0",
+                            h, t));
+    if ((st = B.step(&x, t, h, &go_on)) != fmi2OK) return end(&x, st);
+    inst = x.inst;
+    if (go_on) {
+        inst->time = t + h;
+    } else {
+        inst->state = S_STEP_FAILED;
+        inst->terminated = 1;
+        inst->time = t;
+        glider_add_msg(&x, fmi2Discard, inst->cat_discard,
+                       "%s: the slave stopped the simulation at t = %.17g s", glider_call_name(&x),
+                       t);
+    }
+    if (terminated) *terminated = !go_on;
+    if (last) *last = inst->time;
+    return end(&x, go_on ? fmi2OK : fmi2Discard);
+}
+
+int glider_op_query(void *c, int call, int kind, int want,
+                    void (*store)(const Instance *, void *), void *value) {
+    Ctx x;
+    fmi2Status st = begin(&x, c, call);
+    if (st != fmi2OK) return end(&x, st);
+    if (!value) return end(&x, FAIL(&x, "value is NULL"));
+    if (kind != want || !store) return end(&x, FAIL(&x, "status kind %d is not provided", kind));
+    store(x.inst, value);
+    return end(&x, fmi2OK);
+}
