@@ -194,17 +194,20 @@ def vars_header(c: NativeComponent) -> str:
 
 
 # ---------------------------------------------------------------- sources and hash
-def source_files(c: NativeComponent) -> list[Path]:
-    """Every C file of the component's FMU (the layer, the back end, models, glue)."""
-    return [FMI_DIR / f for f in LAYER_FILES] + list(dict.fromkeys(c.files))
+def source_files(c: NativeComponent, fmi: int = 2) -> list[Path]:
+    """Every C file of the component's FMU (the layer with the front end of FMI ``fmi``,
+    the back end, models, glue)."""
+    layer = [FMI_DIR / (f"fmi{fmi}_layer.c" if f == "fmi2_layer.c" else f) for f in LAYER_FILES]
+    return layer + list(dict.fromkeys(c.files))
 
 
-def native_hash(c: NativeComponent) -> str:
+def native_hash(c: NativeComponent, fmi: int = 2) -> str:
     """SHA-256 over the C sources, the generated variables, the flags and the version."""
     h = hashlib.sha256(vars_header(c).encode())
+    h.update(f"fmi{fmi}".encode())
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(_version().encode())
-    for f in source_files(c):
+    for f in source_files(c, fmi):
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()
@@ -226,11 +229,11 @@ def fmu_flavor(fmu: Path) -> str | None:
         return None
 
 
-def is_current(fmu: Path, c: NativeComponent) -> bool:
-    """True if ``fmu`` is a native FMU built from the current sources."""
+def is_current(fmu: Path, c: NativeComponent, fmi: int = 2) -> bool:
+    """True if ``fmu`` is a native FMU of FMI ``fmi`` built from the current sources."""
     try:
         with zipfile.ZipFile(fmu) as z:
-            return z.read(NATIVE_HASH_FILE).decode().strip() == native_hash(c)
+            return z.read(NATIVE_HASH_FILE).decode().strip() == native_hash(c, fmi)
     except (OSError, KeyError, zipfile.BadZipFile):
         return False
 
@@ -322,13 +325,19 @@ def build_description(c: NativeComponent, sources: list[str]) -> bytes:
 
 
 # ---------------------------------------------------------------- building
-def build_native_component(c: NativeComponent, out: Path, win64: str | None) -> Path:
-    """Build one native FMU into ``out`` (linux64 always, win64 with ``win64`` compiler)."""
+#: where the binaries go, per FMI version
+BINARY_DIRS = {2: ("binaries/linux64", "binaries/win64"),
+               3: ("binaries/x86_64-linux", "binaries/x86_64-windows")}  # fmt: skip
+
+
+def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi: int = 2) -> Path:
+    """Build one native FMU of FMI ``fmi`` (2 or 3) into ``out`` (linux64 always, win64
+    with the ``win64`` compiler)."""
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_native_") as tmp:
         stage = Path(tmp)
         src = stage / "sources"
         src.mkdir()
-        for f in source_files(c):
+        for f in source_files(c, fmi):
             shutil.copyfile(f, src / f.name)
         (src / f"{c.name}_vars.h").write_text(vars_header(c))
         files = sorted(p for p in src.iterdir() if p.suffix in (".c", ".h"))
@@ -348,30 +357,36 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None) -> 
         fmu = out / f"{c.name}.fmu"
         part = fmu.with_name(fmu.name + ".part")
         try:
+            linux, windows = BINARY_DIRS[fmi]
+            md = model_description(c, c_names)
+            if fmi == 3:
+                from .fmi3 import fmi3_model_description
+
+                md = fmi3_model_description(md)
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(c, c_names))
-                z.write(so, f"binaries/linux64/{c.name}.so")
+                z.writestr("modelDescription.xml", md)
+                z.write(so, f"{linux}/{c.name}.so")
                 if dll is not None:
-                    z.write(dll, f"binaries/win64/{c.name}.dll")
+                    z.write(dll, f"{windows}/{c.name}.dll")
                 for p in files:
                     z.write(p, f"sources/{p.name}")
                 z.writestr("sources/buildDescription.xml", build_description(c, c_names))
                 z.writestr(FLAVOR_FILE, "native\n")
-                z.writestr(NATIVE_HASH_FILE, native_hash(c) + "\n")
+                z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi) + "\n")
             part.replace(fmu)  # into place in one step
         finally:
             part.unlink(missing_ok=True)
     return fmu
 
 
-def build_native(out: Path | str, only_stale: bool = False) -> dict[str, Path]:
-    """Build the three native FMUs into ``out``; returns model identifier -> path.
+def build_native(out: Path | str, only_stale: bool = False, fmi: int = 2) -> dict[str, Path]:
+    """Build the three native FMUs of FMI ``fmi`` into ``out``; model identifier -> path.
 
     Without mingw-w64 the FMUs carry linux64 only, and a one-line warning says so.
     """
     out = Path(out)
     result = {c.name: out / f"{c.name}.fmu" for c in NATIVE_COMPONENTS}
-    todo = [c for c in NATIVE_COMPONENTS if not (only_stale and is_current(result[c.name], c))]
+    todo = [c for c in NATIVE_COMPONENTS if not (only_stale and is_current(result[c.name], c, fmi))]
     if not todo:
         return result
     win64 = mingw()
@@ -382,5 +397,5 @@ def build_native(out: Path | str, only_stale: bool = False) -> dict[str, Path]:
             MINGW,
         )
     for c in todo:
-        result[c.name] = build_native_component(c, out, win64)
+        result[c.name] = build_native_component(c, out, win64, fmi)
     return result

@@ -25,6 +25,8 @@ from pathlib import Path
 #: machine, every FMU), the Python back end, finding a Python on the target, and the GIL
 #: with one thread state kept per host thread
 LAYER_SOURCES = tuple(Path(__file__).with_name(n) for n in ("fmi_layer.c", "fmi2_layer.c"))
+#: the FMI 3.0 front end, in place of fmi2_layer.c in an FMI 3 build
+FMI3_FRONT_END = Path(__file__).with_name("fmi3_layer.c")
 PYTHON_BACKEND_SOURCES = tuple(
     Path(__file__).with_name(n) for n in ("backend_python.c", "python_find.c", "python_threads.c")
 )
@@ -89,25 +91,33 @@ def _include_dirs() -> list[str]:
     return [py_include, str(fmi_headers())]
 
 
-def compile_command(output: Path) -> list[str]:
+def runtime_sources(fmi3: bool = False) -> tuple[Path, ...]:
+    """The runtime's C files, with the FMI 3.0 front end instead of FMI 2.0's if ``fmi3``."""
+    if not fmi3:
+        return RUNTIME_SOURCES
+    return tuple(FMI3_FRONT_END if p.name == "fmi2_layer.c" else p for p in RUNTIME_SOURCES)
+
+
+def compile_command(output: Path, fmi3: bool = False) -> list[str]:
     """The compiler command line that builds the runtime into ``output``."""
     includes = [f"-I{d}" for d in _include_dirs()]
-    sources = [str(p) for p in RUNTIME_SOURCES]
+    sources = [str(p) for p in runtime_sources(fmi3)]
     return [find_compiler(), *CFLAGS, *includes, *sources, "-o", str(output), *LIBS]
 
 
-def runtime_fingerprint() -> str:
+def runtime_fingerprint(fmi3: bool = False) -> str:
     """SHA-256 over the runtime's sources and its compile flags (FMU staleness)."""
     h = hashlib.sha256()
-    for p in (*RUNTIME_SOURCES, *RUNTIME_HEADERS):
+    for p in (*runtime_sources(fmi3), *RUNTIME_HEADERS):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     h.update(" ".join((*CFLAGS, *LIBS)).encode())
     return h.hexdigest()
 
 
-def compile_runtime(output: Path | str) -> str:
-    """Compile the runtime into ``output`` (a shared library).
+def compile_runtime(output: Path | str, fmi3: bool = False) -> str:
+    """Compile the runtime into ``output`` (a shared library; FMI 3.0's functions if
+    ``fmi3``, else FMI 2.0's).
 
     Returns
     -------
@@ -120,7 +130,7 @@ def compile_runtime(output: Path | str) -> str:
         No compiler, no headers, or the compiler failed (its first lines quoted).
     """
     output = Path(output)
-    cmd = compile_command(output)
+    cmd = compile_command(output, fmi3)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
     except (OSError, subprocess.TimeoutExpired) as err:

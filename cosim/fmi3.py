@@ -1,0 +1,169 @@
+"""FMI 3.0 builds of the three FMUs (``glider-cosim build --fmi 3``), both flavors.
+
+The same models and the same FMI layer as the FMI 2.0 builds, with the layer's FMI 3.0
+front end (``src/fmi/fmi3_layer.c``) instead of the FMI 2.0 one. The model description
+is the FMI 2.0 build's, written in FMI 3.0 terms (:func:`fmi3_model_description`): the
+same names, value references, causalities, variabilities, units, start values and
+ranges, with FMI 3 types (``Float64``, ``Int32``, ``Boolean``), outputs and initial
+unknowns by value reference. Event mode, clocks, early return and intermediate update
+are not provided, and the capability flags say so.
+
+Binaries: ``binaries/x86_64-linux/<id>.so`` (both flavors), ``binaries/x86_64-windows/
+<id>.dll`` (native, with mingw-w64), ``sources/`` with ``buildDescription.xml`` (native).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from glider_fmi import compile as runtime
+
+from . import native
+from .build import COMPONENTS, build_component, source_hash
+
+log = logging.getLogger(__name__)
+
+#: resource holding the hash an FMI 3 FMU was built from
+FMI3_HASH_FILE = "resources/glider_cosim_fmi3.sha256"
+LINUX = "binaries/x86_64-linux"
+WINDOWS = "binaries/x86_64-windows"
+_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
+_COSIM_FLAGS = {
+    "needsExecutionTool": "false",
+    "canBeInstantiatedOnlyOncePerProcess": "false",
+    "canGetAndSetFMUState": "true",
+    "canSerializeFMUState": "true",
+    "canHandleVariableCommunicationStepSize": "true",
+    "hasEventMode": "false",
+    "providesIntermediateUpdate": "false",
+    "canReturnEarlyAfterIntermediateUpdate": "false",
+    "providesEvaluateDiscreteStates": "false",
+    "providesDirectionalDerivatives": "false",
+    "providesAdjointDerivatives": "false",
+}
+
+
+def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> bytes:
+    """An FMI 2.0 co-simulation model description of ours, written as FMI 3.0."""
+    src = ET.fromstring(md2)
+    root = ET.Element("fmiModelDescription", fmiVersion="3.0")
+    for key in ("modelName", "description", "author", "version", "license", "generationTool",
+                "generationDateAndTime", "variableNamingConvention"):  # fmt: skip
+        if src.get(key):
+            root.set(key, src.get(key))
+    root.set("instantiationToken", src.get("guid", ""))
+    cs2 = src.find("CoSimulation")
+    cs = ET.SubElement(root, "CoSimulation", modelIdentifier=cs2.get("modelIdentifier"))
+    for key, value in _COSIM_FLAGS.items():
+        cs.set(key, value)
+    if needs_execution_tool:
+        cs.set("needsExecutionTool", "true")
+    units = src.find("UnitDefinitions")
+    if units is not None:
+        root.append(units)
+    cats = src.find("LogCategories")
+    if cats is not None:
+        out = ET.SubElement(root, "LogCategories")
+        for c in cats:
+            ET.SubElement(out, "Category", {k: v for k, v in c.attrib.items()})
+    exp = src.find("DefaultExperiment")
+    if exp is not None:
+        root.append(exp)
+    variables = ET.SubElement(root, "ModelVariables")
+    vr_of_index: dict[int, str] = {}
+    for i, sv in enumerate(src.find("ModelVariables"), start=1):
+        typed = sv[0]
+        attrs = {"name": sv.get("name"), "valueReference": sv.get("valueReference")}
+        vr_of_index[i] = sv.get("valueReference")
+        for key in ("description", "causality", "variability", "initial"):
+            if sv.get(key):
+                attrs[key] = sv.get(key)
+        attrs.update(typed.attrib)
+        if attrs.get("causality") == "parameter" and "start" in attrs:
+            attrs.setdefault("initial", "exact")
+        if typed.tag == "Boolean" and "start" in attrs:
+            attrs["start"] = "true" if attrs["start"] in ("true", "1") else "false"
+        ET.SubElement(variables, _TYPES[typed.tag], attrs)
+    # FMI 3 wants its independent variable declared: time, after the others' references
+    next_vr = max((int(v) for v in vr_of_index.values()), default=-1) + 1
+    ET.SubElement(variables, "Float64", name="time", valueReference=str(next_vr),
+                  causality="independent", variability="continuous",
+                  description="simulation time [s]", unit="s")  # fmt: skip
+    structure = ET.SubElement(root, "ModelStructure")
+    s2 = src.find("ModelStructure")
+    for tag, out_tag in (("Outputs", "Output"), ("InitialUnknowns", "InitialUnknown")):
+        group = s2.find(tag)
+        for u in group if group is not None else ():
+            attrs = {"valueReference": vr_of_index[int(u.get("index"))]}
+            deps = (u.get("dependencies") or "").split()
+            if deps or u.get("dependencies") == "":
+                attrs["dependencies"] = " ".join(vr_of_index[int(d)] for d in deps)
+            if u.get("dependenciesKind") and deps:
+                attrs["dependenciesKind"] = u.get("dependenciesKind")
+            ET.SubElement(structure, out_tag, attrs)
+    ET.indent(root, "\t")
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+def fmi3_hash(name: str) -> str:
+    """The Python flavor's FMI 3 build: its FMI 2 build's sources and the FMI 3 front end."""
+    h = hashlib.sha256(f"fmi3 python {name}".encode())
+    h.update(runtime.runtime_fingerprint(fmi3=True).encode())
+    h.update(source_hash(next(c for c in COMPONENTS if c.name == name)).encode())
+    return h.hexdigest()
+
+
+def is_current(fmu: Path, name: str) -> bool:
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            return z.read(FMI3_HASH_FILE).decode().strip() == fmi3_hash(name)
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return False
+
+
+def _repackage(fmu2: Path, out: Path, binary: Path) -> Path:
+    """The Python flavor's FMI 2 FMU as FMI 3: the model description rewritten, the FMI 2
+    runtime replaced by the FMI 3 one, resources kept."""
+    name = fmu2.stem
+    fmu = out / f"{name}.fmu"
+    part = fmu.with_name(fmu.name + ".part")
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        with zipfile.ZipFile(fmu2) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            for item in src.infolist():
+                if item.filename.startswith("binaries/"):
+                    continue
+                if item.filename == "modelDescription.xml":
+                    z.writestr(item.filename, fmi3_model_description(src.read(item), True))
+                else:
+                    z.writestr(item, src.read(item))
+            z.write(binary, f"{LINUX}/{name}.so")
+            z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")
+        part.replace(fmu)  # into place in one step
+    finally:
+        part.unlink(missing_ok=True)
+    return fmu
+
+
+def build_fmi3(out: Path | str, flavor: str = "python", only_stale: bool = False) -> dict:
+    """Build the three FMI 3.0 FMUs of a flavor into ``out``; model identifier -> path."""
+    out = Path(out)
+    if flavor == "native":
+        return native.build_native(out, only_stale, fmi=3)
+    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
+    todo = [c for c in COMPONENTS if not (only_stale and is_current(result[c.name], c.name))]
+    if not todo:
+        return result
+    with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp:
+        stage = Path(tmp)
+        so3, so2 = stage / "runtime3.so", stage / "runtime2.so"
+        runtime.compile_runtime(so3, fmi3=True)
+        runtime.compile_runtime(so2)
+        for c in todo:
+            result[c.name] = _repackage(build_component(c, stage / "fmi2", so2), out, so3)
+    return result
