@@ -346,21 +346,18 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None) -> 
                 raise NativeBuildError(f"{c.name} (win64): not warning-free: {printed[:300]}")
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{c.name}.fmu"
-        part = fmu.with_name(fmu.name + ".part")
-        try:
-            with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(c, c_names))
-                z.write(so, f"binaries/linux64/{c.name}.so")
-                if dll is not None:
-                    z.write(dll, f"binaries/win64/{c.name}.dll")
-                for p in files:
-                    z.write(p, f"sources/{p.name}")
-                z.writestr("sources/buildDescription.xml", build_description(c, c_names))
-                z.writestr(FLAVOR_FILE, "native\n")
-                z.writestr(NATIVE_HASH_FILE, native_hash(c) + "\n")
-            part.replace(fmu)  # into place in one step
-        finally:
-            part.unlink(missing_ok=True)
+        from .build import replacing
+
+        with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", model_description(c, c_names))
+            z.write(so, f"binaries/linux64/{c.name}.so")
+            if dll is not None:
+                z.write(dll, f"binaries/win64/{c.name}.dll")
+            for p in files:
+                z.write(p, f"sources/{p.name}")
+            z.writestr("sources/buildDescription.xml", build_description(c, c_names))
+            z.writestr(FLAVOR_FILE, "native\n")
+            z.writestr(NATIVE_HASH_FILE, native_hash(c) + "\n")
     return fmu
 
 
