@@ -9,11 +9,15 @@ out (see the README, "FMI runtime").
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import os
 import shutil
+import sys
 import tempfile
+import uuid
 import zipfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -107,6 +111,22 @@ def _replace_binaries(fmu: Path, model_identifier: str, binary: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
+@contextlib.contextmanager
+def replacing(target: Path) -> Iterator[Path]:
+    """A temporary path beside ``target``, unique to this call, moved onto ``target`` in
+    one step when the block ends without an error (removed otherwise).
+
+    Two processes building the same FMU at once each write their own file; a reader sees
+    the old FMU or a complete new one, never a part.
+    """
+    part = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
+    try:
+        yield part
+        part.replace(target)
+    finally:
+        part.unlink(missing_ok=True)
+
+
 def package_slave(
     script: Path,
     out: Path,
@@ -148,9 +168,8 @@ def package_slave(
         )
         _replace_binaries(staged, staged.stem, binary)
         fmu = out / staged.name
-        # into place in one step: a process reading the FMU meanwhile sees old or new
-        shutil.copyfile(staged, fmu.with_name(fmu.name + ".part"))
-        fmu.with_name(fmu.name + ".part").replace(fmu)
+        with replacing(fmu) as part:  # a process reading the FMU meanwhile sees old or new
+            shutil.copyfile(staged, part)
     return fmu
 
 
@@ -195,8 +214,59 @@ def build_component(c: Component, out: Path, binary: Path) -> Path:
 
 #: the flavors of our FMUs: the Python reference (default) and the native C99 build
 FLAVORS = ("python", "native")
-#: where each flavor is built unless a folder is given
+#: where ``glider-cosim build`` writes each flavor unless ``--out`` is given (the
+#: project's export folder); runs use the per-user cache instead (:func:`cache_dir`)
 DEFAULT_DIRS = {"python": Path("fmus"), "native": Path("fmus") / "native"}
+#: environment variable naming the cache folder (default: :func:`cache_root`)
+CACHE_ENV = "GLIDER_COSIM_CACHE"
+
+
+def cache_root() -> Path:
+    """The per-user cache of built FMUs: ``$GLIDER_COSIM_CACHE`` if set, else
+    ``$XDG_CACHE_HOME/glider-cosim`` (an absolute ``XDG_CACHE_HOME``), else the
+    platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
+    ``%LOCALAPPDATA%`` on Windows."""
+    own = os.environ.get(CACHE_ENV)
+    if own:
+        return Path(own)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        base = Path(xdg)
+    elif sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path.home() / ".cache"
+    return base / "glider-cosim"
+
+
+def sources_key(flavor: str = "python") -> str:
+    """A short hash over the sources of the flavor's three FMUs (each FMU's own hash,
+    :func:`source_hash` or :func:`glider_cosim.native.native_hash`)."""
+    if flavor == "native":
+        from .native import NATIVE_COMPONENTS, native_hash
+
+        hashes = [native_hash(c) for c in NATIVE_COMPONENTS]
+    else:
+        hashes = [source_hash(c) for c in COMPONENTS]
+    return hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:16]
+
+
+def cache_dir(flavor: str = "python") -> Path:
+    """The cache folder of the flavor's FMUs built from the current sources:
+    ``<cache_root>/<version>/<flavor>-<sources_key>``. Other sources (another checkout,
+    an edit) get another folder, so the FMUs are rebuilt when stale."""
+    from .native import _version
+
+    if flavor not in FLAVORS:
+        raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
+    return cache_root() / _version() / f"{flavor}-{sources_key(flavor)}"
+
+
+def fmu_folder(fmu_dir: str | Path | None, flavor: str | None = None) -> Path:
+    """``fmu_dir`` as a path; None is the cache folder of ``flavor`` (python if None)."""
+    return Path(fmu_dir) if fmu_dir is not None else cache_dir(flavor or "python")
 
 
 def folder_flavor(folder: Path | str) -> str | None:
@@ -255,8 +325,8 @@ def add_fmu_options(parser: Any) -> None:
     parser.add_argument(
         "--fmu-dir",
         default=None,
-        help="FMU folder, built if missing or stale in the flavor it holds (default: fmus, "
-        "or fmus/native with --flavor native)",
+        help="FMU folder, built if missing or stale in the flavor it holds (default: the "
+        "per-user cache, e.g. ~/.cache/glider-cosim, built from the installed sources)",
     )
     parser.add_argument(
         "--flavor",
@@ -269,8 +339,11 @@ def add_fmu_options(parser: Any) -> None:
 
 def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None) -> Path:
     """The FMU folder a command's ``--fmu-dir``/``--flavor`` name; with ``--flavor`` the
-    FMUs there are built in that flavor first if missing, stale or of the other flavor."""
-    folder = Path(fmu_dir) if fmu_dir is not None else DEFAULT_DIRS[flavor or "python"]
+    FMUs there are built in that flavor first if missing, stale or of the other flavor.
+    Without a folder, the cache's (:func:`cache_dir`), built there first if missing."""
+    if fmu_dir is None:
+        flavor = flavor or "python"
+    folder = fmu_folder(fmu_dir, flavor)
     if flavor is not None:
         build_all(folder, only_stale=True, flavor=flavor)
     return folder

@@ -276,7 +276,7 @@ def _run(args: argparse.Namespace) -> int:
             ("--coupling", args.coupling, None),
             ("--step", args.step, None),
             ("--stop-time", args.stop_time, None),
-            ("--fmu-dir", args.fmu_dir, "fmus"),
+            ("--fmu-dir", args.fmu_dir, None),
             ("--no-plots", args.no_plots, False),
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
             ("--max-extract-mb", args.max_extract_mb, 256),
@@ -429,14 +429,16 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    if hasattr(args, "fmu_dir") and hasattr(args, "flavor"):  # the folder, in the flavor asked
-        from .build import prepare_fmus
+    # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
+    # asked; verify builds ours only for --write-references/--export
+    if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
+        from .build import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
         try:
-            args.fmu_dir = str(prepare_fmus(folder, args.flavor))
+            args.fmu_dir = str(prepare_fmus(folder, getattr(args, "flavor", None)))
         except OSError as err:
-            raise _os_error(err, {"--fmu-dir": folder or Path("fmus")}) from None
+            raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
         from .build import build_all
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
-from .build import build_all
+from .build import build_all, fmu_folder
 
 DOC = Path("docs") / "interfaces.md"
 HEADER = """# FMU interfaces
@@ -62,9 +62,9 @@ def interface_markdown(fmus: dict[str, Path]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
-    ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
-    text = interface_markdown(build_all(args.fmu_dir, only_stale=True))
+    text = interface_markdown(build_all(fmu_folder(args.fmu_dir), only_stale=True))
     if args.check:
         ok = DOC.exists() and DOC.read_text() == text
         print(f"{DOC}: {'up to date' if ok else 'out of date'}")

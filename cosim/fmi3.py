@@ -24,7 +24,7 @@ from xml.etree import ElementTree as ET
 from glider_fmi import compile as runtime
 
 from . import native
-from .build import COMPONENTS, build_component, source_hash
+from .build import COMPONENTS, build_component, replacing, source_hash
 
 log = logging.getLogger(__name__)
 
@@ -131,22 +131,18 @@ def _repackage(fmu2: Path, out: Path, binary: Path) -> Path:
     runtime replaced by the FMI 3 one, resources kept."""
     name = fmu2.stem
     fmu = out / f"{name}.fmu"
-    part = fmu.with_name(fmu.name + ".part")
     out.mkdir(parents=True, exist_ok=True)
-    try:
-        with zipfile.ZipFile(fmu2) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-            for item in src.infolist():
-                if item.filename.startswith("binaries/"):
-                    continue
-                if item.filename == "modelDescription.xml":
-                    z.writestr(item.filename, fmi3_model_description(src.read(item), True))
-                else:
-                    z.writestr(item, src.read(item))
-            z.write(binary, f"{LINUX}/{name}.so")
-            z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")
-        part.replace(fmu)  # into place in one step
-    finally:
-        part.unlink(missing_ok=True)
+    with replacing(fmu) as part, zipfile.ZipFile(fmu2) as src, \
+            zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:  # fmt: skip
+        for item in src.infolist():
+            if item.filename.startswith("binaries/"):
+                continue
+            if item.filename == "modelDescription.xml":
+                z.writestr(item.filename, fmi3_model_description(src.read(item), True))
+            else:
+                z.writestr(item, src.read(item))
+        z.write(binary, f"{LINUX}/{name}.so")
+        z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")
     return fmu
 
 

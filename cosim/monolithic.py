@@ -40,12 +40,19 @@ COLUMNS = [
 ]  # fmt: skip
 
 
+def _fmus(fmu_dir: str | Path | None) -> Path:
+    """The folder whose FMUs give the parameter defaults; None: the cache (built there)."""
+    from .build import prepare_fmus
+
+    return prepare_fmus(fmu_dir, None)
+
+
 def simulate_monolithic(
     scenario: Scenario,
     step: float | None = None,
     stop_time: float | None = None,
     row: Callable[[list[float]], Any] | None = None,
-    fmu_dir: str | Path = "fmus",
+    fmu_dir: str | Path | None = None,
 ) -> np.ndarray:
     """Run the scenario's closed loop without FMI (Gauss-Seidel semantics).
 
@@ -53,7 +60,8 @@ def simulate_monolithic(
     estimate at ``t_k``, then the observer (pre-filter + Eq. (34)) and the plant advance
     over the step with those values held. Events are not supported.
 
-    Parameter defaults come from the FMUs' model descriptions in ``fmu_dir``.
+    Parameter defaults come from the FMUs' model descriptions in ``fmu_dir`` (default:
+    the per-user cache).
 
     Returns
     -------
@@ -66,7 +74,7 @@ def simulate_monolithic(
         )
     h = step if step is not None else scenario.step
     stop = stop_time if stop_time is not None else scenario.stop_time
-    fmu_dir = Path(fmu_dir)
+    fmu_dir = _fmus(fmu_dir)
     params = with_sampling(scenario.parameters, h, scenario.source)  # f_sample follows h
     pp, op, cp = (
         {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
@@ -130,7 +138,7 @@ def simulate_monolithic(
 
 
 def simulate_continuous(
-    scenario: Scenario, output_step: float = 0.02, fmu_dir: str | Path = "fmus"
+    scenario: Scenario, output_step: float = 0.02, fmu_dir: str | Path | None = None
 ) -> np.ndarray:
     """The scenario's loop in continuous time: plant, servo, observer and controller
     integrated together with ``solve_ivp`` (no sampling, no pre-filter, no noise).
@@ -144,7 +152,7 @@ def simulate_continuous(
 
     if scenario.events or scenario.disturbances or scenario.fmus:
         raise ScenarioError(f"{scenario.source}: the continuous loop supports no events")
-    fmu_dir = Path(fmu_dir)
+    fmu_dir = _fmus(fmu_dir)
     pp, op, cp = (
         {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
         for inst, name in FMU_NAMES.items()

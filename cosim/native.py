@@ -355,27 +355,24 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
                 raise NativeBuildError(f"{c.name} (win64): not warning-free: {printed[:300]}")
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{c.name}.fmu"
-        part = fmu.with_name(fmu.name + ".part")
-        try:
-            linux, windows = BINARY_DIRS[fmi]
-            md = model_description(c, c_names)
-            if fmi == 3:
-                from .fmi3 import fmi3_model_description
+        from .build import replacing
 
-                md = fmi3_model_description(md)
-            with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", md)
-                z.write(so, f"{linux}/{c.name}.so")
-                if dll is not None:
-                    z.write(dll, f"{windows}/{c.name}.dll")
-                for p in files:
-                    z.write(p, f"sources/{p.name}")
-                z.writestr("sources/buildDescription.xml", build_description(c, c_names))
-                z.writestr(FLAVOR_FILE, "native\n")
-                z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi) + "\n")
-            part.replace(fmu)  # into place in one step
-        finally:
-            part.unlink(missing_ok=True)
+        linux, windows = BINARY_DIRS[fmi]
+        md = model_description(c, c_names)
+        if fmi == 3:
+            from .fmi3 import fmi3_model_description
+
+            md = fmi3_model_description(md)
+        with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", md)
+            z.write(so, f"{linux}/{c.name}.so")
+            if dll is not None:
+                z.write(dll, f"{windows}/{c.name}.dll")
+            for p in files:
+                z.write(p, f"sources/{p.name}")
+            z.writestr("sources/buildDescription.xml", build_description(c, c_names))
+            z.writestr(FLAVOR_FILE, "native\n")
+            z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi) + "\n")
     return fmu
 
 

@@ -65,7 +65,7 @@ class _Collect(logging.Handler):
 def export_one_fmu(
     out_path: str | Path,
     scenario: Scenario | str | Path | None = None,
-    fmu_dir: str | Path = "fmus",
+    fmu_dir: str | Path | None = None,
 ) -> Path:
     """Build the scenario's closed loop as one co-simulation FMU.
 
@@ -77,8 +77,9 @@ def export_one_fmu(
         The scenario (``None``: the default): its instances and connections
         (``feedback``, ``with_observer``), parameter values, constant inputs, step and
         stop time. Events, disturbances and swapped FMUs are refused.
-    fmu_dir : path
-        Where our FMUs are (built there first if missing or stale).
+    fmu_dir : path, optional
+        Where our FMUs are (built there first if missing or stale; default: the per-user
+        cache).
 
     Returns
     -------
@@ -94,7 +95,7 @@ def export_one_fmu(
     from fmpy import read_model_description
     from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
 
-    from .build import build_all
+    from .build import build_all, fmu_folder
     from .runner import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
     from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
@@ -105,7 +106,7 @@ def export_one_fmu(
                 f"{sc.source}: key '{key}': events, disturbances and swapped FMUs cannot be "
                 "exported into one FMU"
             )
-    built = build_all(fmu_dir, only_stale=True)
+    built = build_all(fmu_folder(fmu_dir), only_stale=True)
     files = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if sc.observer or i != "observer"}
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)

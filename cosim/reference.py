@@ -99,13 +99,13 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from .build import build_all
+    from .build import build_all, fmu_folder
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="rewrite the reference CSVs")
-    ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
-    fmus = build_all(args.fmu_dir, only_stale=True)
+    fmus = build_all(fmu_folder(args.fmu_dir), only_stale=True)
     for name, case in CASES.items():
         cols, data = run_reference(name, fmus[name])
         in_cols, in_data = reference_inputs(name)

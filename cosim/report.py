@@ -312,7 +312,7 @@ def _plot_steps(study: dict[str, Any], out: Path) -> Path:
 
 def build_report(
     out: str | Path = "out/report",
-    fmu_dir: str | Path = "fmus",
+    fmu_dir: str | Path | None = None,
     analysis: Callable[[], dict[str, Any]] | None = None,
     progress: bool = True,
     roa_grid: tuple[int, int] | None = (7, 5),
@@ -323,12 +323,13 @@ def build_report(
 
     ``roa_grid``: glide angles x speeds of the region-of-attraction map, run as a Dask
     sweep on ``workers`` local processes (or the cluster at ``scheduler``); None skips it.
+    ``fmu_dir``: our FMUs (default: the per-user cache), built there if missing or stale.
     """
-    from .build import build_all
+    from .build import build_all, fmu_folder
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fmu_dir = Path(fmu_dir)
+    fmu_dir = fmu_folder(fmu_dir)
     build_all(fmu_dir, only_stale=True)
     total = sum(len(f.runs) for f in FIGURES) + 4
     bar = Progress(total) if progress and progress_wanted() else None

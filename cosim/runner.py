@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .build import build_all
+from .build import build_all, fmu_folder
 from .inputs.check import check_system_values
 from .inputs.text import quote
 from .master import (
@@ -34,7 +34,9 @@ from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 log = logging.getLogger(__name__)
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
-DEFAULT_FMU_DIR = Path("fmus")
+#: ``simulate``'s FMU folder unless one is given: None, the per-user cache
+#: (:func:`glider_cosim.build.cache_dir`), never the current folder
+DEFAULT_FMU_DIR: Path | None = None
 DISTURBANCE_INPUTS = ("plant.F_x", "plant.F_z", "plant.M_y")
 
 
@@ -290,7 +292,7 @@ def simulate(
     scenario: Scenario | str | Path | None = None,
     out: str | Path | None = None,
     *,
-    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    fmu_dir: str | Path | None = DEFAULT_FMU_DIR,
     build: bool = True,
     coupling: str | None = None,
     step: float | None = None,
@@ -309,8 +311,10 @@ def simulate(
     out : path, optional
         Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
         it, nothing is written and the rows are kept in memory.
-    fmu_dir : path
+    fmu_dir : path, optional
         Where the FMUs are (built there first if missing or stale, when ``build``).
+        Default: the per-user cache (:func:`glider_cosim.build.cache_dir`), so nothing is
+        written outside ``out``.
     coupling, step, stop_time : optional
         Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
     plots : bool
@@ -369,7 +373,7 @@ def simulate(
         given = [f"{k} = {quote(v)}" for k, v in (("step", step), ("stop_time", stop_time))
                  if v is not None]  # fmt: skip
         raise SystemSpecError(f"{', '.join(given) or scenario.source}: {err}") from None
-    fmu_dir = Path(fmu_dir)
+    fmu_dir = fmu_folder(fmu_dir)
     if ssp_system is not None:
         system = ssp_system
         if "observer" in system.parameters:  # the SSP sets every value: only check it

@@ -90,7 +90,7 @@ def _format_value(value: Any, type_: str) -> str:
 def export_ssp(
     out_path: str | Path,
     scenario: Scenario | str | Path | None = None,
-    fmu_dir: str | Path = "fmus",
+    fmu_dir: str | Path | None = None,
 ) -> Path:
     """Write a scenario's system as an SSP 1.0 archive.
 
@@ -103,8 +103,9 @@ def export_ssp(
         connections (``feedback``, ``with_observer``), per-instance parameters, constant
         inputs, step and stop time are exported; events and disturbances have no SSP 1.0
         equivalent and are refused.
-    fmu_dir : path
-        Where our FMUs are (built there first if missing or stale).
+    fmu_dir : path, optional
+        Where our FMUs are (built there first if missing or stale; default: the per-user
+        cache).
 
     Returns
     -------
@@ -118,7 +119,7 @@ def export_ssp(
     """
     from fmpy import read_model_description
 
-    from .build import build_all
+    from .build import build_all, fmu_folder
     from .runner import FMU_NAMES, default_connections
     from .scenario import Scenario, has_our_observer, load_scenario, with_sampling
 
@@ -130,7 +131,7 @@ def export_ssp(
             "export a scenario without them"
         )
     insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
-    built = build_all(fmu_dir, only_stale=True) if set(insts) - set(sc.fmus) else {}
+    built = build_all(fmu_folder(fmu_dir), only_stale=True) if set(insts) - set(sc.fmus) else {}
     fmus: dict[str, Path] = {}
     for inst in insts:
         fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]

@@ -557,16 +557,16 @@ def verify(
 
 
 # --------------------------------------------------------------- references, export
-def write_references(fmu_dir: str | Path = "fmus", dest: Path | None = None) -> list[Path]:
+def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None) -> list[Path]:
     """Run every case on our FMUs (built if missing or stale) and write ``_ref.csv`` and the
     ``DiscardTime`` of ``_ref.opt``.
 
     ``dest`` (default: the shipped kit) receives a complete copy of the kit with the new
     references; the shipped case definitions are read from the shipped kit.
     """
-    from .build import build_all
+    from .build import build_all, fmu_folder
 
-    fmus = build_all(fmu_dir, only_stale=True)
+    fmus = build_all(fmu_folder(fmu_dir), only_stale=True)
     src = kit_root()
     dest = src if dest is None else Path(dest)
     written = []
@@ -610,7 +610,7 @@ def _version() -> str:
         return "0+unknown"
 
 
-def export(out: str | Path, fmu_dir: str | Path = "fmus", platform: str = "linux64") -> Path:
+def export(out: str | Path, fmu_dir: str | Path | None = None, platform: str = "linux64") -> Path:
     """Write the kit with our FMUs in the FMI Cross-Check layout; return the vendor folder.
 
     ``<out>/fmus/2.0/cs/<platform>/glider-cosim/<version>/<Model>/`` holds ``<Model>.fmu``
@@ -620,9 +620,9 @@ def export(out: str | Path, fmu_dir: str | Path = "fmus", platform: str = "linux
     case sets parameters. Cross-check tools find one FMU per model folder and run the
     default case; the subfolders hold no FMU and are not picked up by them.
     """
-    from .build import build_all
+    from .build import build_all, fmu_folder
 
-    fmus = build_all(fmu_dir, only_stale=True)
+    fmus = build_all(fmu_folder(fmu_dir), only_stale=True)
     base = Path(out) / "fmus" / "2.0" / "cs" / platform / "glider-cosim" / _version()
     for component, model in COMPONENTS.items():
         folder = base / model
@@ -739,8 +739,9 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
     )
     p.add_argument(
         "--fmu-dir",
-        default="fmus",
-        help="our FMUs for --write-references/--export (built if missing or stale)",
+        default=None,
+        help="our FMUs for --write-references/--export, built if missing or stale "
+        "(default: the per-user cache)",
     )
 
 

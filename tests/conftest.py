@@ -11,6 +11,9 @@ from pathlib import Path
 import pytest
 
 HERE = Path(__file__).parent
+#: the session's FMU cache, in its temporary folder (see :func:`pytest_configure`)
+CACHE_FOLDER = "glider-cosim-cache"
+CACHE_ENV = "GLIDER_COSIM_CACHE"
 
 
 def pytest_configure(config):
@@ -19,10 +22,20 @@ def pytest_configure(config):
     ``$TMPDIR`` (inherited by subprocesses) and :mod:`tempfile` point into it, so that
     pytest's ``tmp_path`` folders, our extracted FMUs and SSPs, and whatever the CLI
     subprocesses and Dask workers create all land there.
+
+    The FMU cache (``$GLIDER_COSIM_CACHE``, the default FMU folder of runs and of the CLI)
+    is one folder of it too, so that the session never writes into the user's cache and
+    builds each flavor once, for the fixtures and for runs without ``--fmu-dir`` alike.
     """
     base = tempfile.mkdtemp(prefix="glider-tests-")
-    config._glider_tmp = (base, os.environ.get("TMPDIR"), tempfile.tempdir)
+    config._glider_tmp = (
+        base,
+        os.environ.get("TMPDIR"),
+        tempfile.tempdir,
+        os.environ.get(CACHE_ENV),
+    )
     os.environ["TMPDIR"] = base
+    os.environ[CACHE_ENV] = os.path.join(base, CACHE_FOLDER)
     tempfile.tempdir = base
 
 
@@ -31,36 +44,39 @@ def _leaked_temp_files(config) -> list[str]:
     tree, after this process removed its extraction folder; the folder is then removed."""
     from glider_cosim import tempdirs
 
-    base, old_env, old_tempdir = config._glider_tmp
+    base, old_env, old_tempdir, old_cache = config._glider_tmp
     tempdirs.cleanup()
-    leaked = sorted(e.name for e in os.scandir(base) if not e.name.startswith("pytest-of-"))
+    leaked = sorted(
+        e.name
+        for e in os.scandir(base)
+        if not e.name.startswith("pytest-of-") and e.name != CACHE_FOLDER
+    )
     tempfile.tempdir = old_tempdir
-    if old_env is None:
-        os.environ.pop("TMPDIR", None)
-    else:
-        os.environ["TMPDIR"] = old_env
+    for name, old in (("TMPDIR", old_env), (CACHE_ENV, old_cache)):
+        if old is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = old
     shutil.rmtree(base, ignore_errors=True)
     return leaked
 
 
 @pytest.fixture(scope="session")
-def fmu_dir(tmp_path_factory) -> Path:
-    """Our three FMUs, built from the current sources."""
-    from glider_cosim.build import build_all
+def fmu_dir() -> Path:
+    """Our three FMUs, built from the current sources into the session's cache (the
+    folder runs without ``fmu_dir`` use too)."""
+    from glider_cosim.build import prepare_fmus
 
-    out = tmp_path_factory.mktemp("fmus")
-    build_all(out)
-    return out
+    return prepare_fmus(None, "python")
 
 
 @pytest.fixture(scope="session")
-def native_dir(tmp_path_factory) -> Path:
-    """Our three FMUs in the native flavor (C99), built from the current sources."""
-    from glider_cosim.build import build_all
+def native_dir() -> Path:
+    """Our three FMUs in the native flavor (C99), built from the current sources into
+    the session's cache."""
+    from glider_cosim.build import prepare_fmus
 
-    out = tmp_path_factory.mktemp("native_fmus")
-    build_all(out, flavor="native")
-    return out
+    return prepare_fmus(None, "native")
 
 
 @pytest.fixture(scope="session", params=["python", "native"])
