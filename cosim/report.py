@@ -884,8 +884,8 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
             row = stops[-1]
             reason.append(
                 f"below the limit the observer's transient is what fails first: at K_c = "
-                f"{row['K_c']:g} {row['observer']['text']} with the observer, while full-state "
-                f"feedback {row['state']['text']}"
+                f"{row['K_c']:g} the observer-fed run {row['observer']['text']}, the "
+                f"full-state one: {row['state']['text']}"
             )
     if reason:
         lines.append(
