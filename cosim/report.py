@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -310,6 +311,115 @@ def _plot_steps(study: dict[str, Any], out: Path) -> Path:
     return path
 
 
+def _feedback(r: RunResult) -> str:
+    return "observer" if r.scenario.feedback == "observer" else "full-state"
+
+
+#: fixed axes of Figs. 11-20 (deg): the angles, the tail command (symmetric log above 5)
+SEC53_ANGLES = (-70.0, 40.0)
+SEC53_TAIL = 100.0
+#: Figs. 11-20 start at 20 s: before the takeover (31.1 s) every run is the same 2 deg hold
+SEC53_FROM = 20.0
+
+
+def _plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """Figs. 11-20 as small multiples: one row per law family, one column per run; per
+    run the glide angle and pitch over the tail command, on the same fixed axes in every
+    panel (angles -70..40 deg, clipped with a triangle where a run leaves them; the tail
+    on a symmetric log scale to +-100 deg, its +-90 deg limit dotted). Each heading names
+    the run, its feedback and how it ends; the takeover (dash-dot) and a stop (cross)
+    are marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    groups = list(dict.fromkeys(run.group for run, _ in results))
+    handles: dict[str, Any] = {}
+    ncol = max(sum(1 for run, _ in results if run.group == g) for g in groups)
+    f = plt.figure(figsize=(4.6 * ncol, 4.4 * len(groups) + 0.8), layout="constrained")
+    sub = f.subfigures(len(groups), 1, squeeze=False)[:, 0]
+    stop = max(float(r.data[-1, 0]) for _, r in results)
+    start = SEC53_FROM if stop > SEC53_FROM + 10 else 0.0
+    colours = {"plant.theta_g": "C0", "plant.theta": "C1", "controller.delta_cmd": "C2"}
+    for gi, g in enumerate(groups):
+        runs = [(run, r) for run, r in results if run.group == g]
+        axes = sub[gi].subplots(2, ncol, sharex=True, squeeze=False,
+                                gridspec_kw={"height_ratios": [2, 1]})  # fmt: skip
+        sub[gi].suptitle(g, fontsize=11, fontweight="bold")
+        for j in range(ncol):
+            top, bottom = axes[0, j], axes[1, j]
+            if j >= len(runs):
+                top.set_visible(False)
+                bottom.set_visible(False)
+                continue
+            run, r = runs[j]
+            t = r.data[:, 0]
+            end = _kc_cell(r)
+            top.set_title(f"{run.label}\n{_feedback(r)} feedback: {end}", fontsize=8.5)
+            lo, hi = SEC53_ANGLES
+            for col, label, lw in (("plant.theta_g", "glide angle", 1.3),
+                                   ("plant.theta", "pitch", 0.8)):  # fmt: skip
+                y = r.column(col) * DEG
+                top.plot(t, np.clip(y, lo, hi), color=colours[col], lw=lw, label=label)
+                out_of = np.nonzero((y < lo) | (y > hi))[0]
+                if len(out_of):
+                    k = out_of[0]
+                    above = y[k] > hi
+                    top.plot(t[k], hi if above else lo, marker="^" if above else "v",
+                             color=colours[col], ms=7, clip_on=False, zorder=5,
+                             gid="clipped")  # fmt: skip
+            th = r.metrics.get("theta_ge_rad")
+            if th is not None:
+                top.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
+            d = r.column("controller.delta_cmd") * DEG
+            bottom.plot(t, d, color=colours["controller.delta_cmd"], lw=1.0, label="tail command")
+            dmax = float(r.scenario.parameters.get("controller", {}).get("delta_max", math.pi / 2))
+            for sign in (1, -1):
+                bottom.axhline(sign * dmax * DEG, color="0.4", ls=":", lw=0.8)
+            bottom.set_yscale("symlog", linthresh=5.0)
+            bottom.set_ylim(-SEC53_TAIL, SEC53_TAIL)
+            bottom.yaxis.set_major_locator(FixedLocator([-90, -10, 0, 10, 90]))
+            bottom.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            bottom.yaxis.set_minor_locator(FixedLocator([]))
+            top.set_ylim(lo, hi)
+            for ax in (top, bottom):
+                ax.set_xlim(start, stop)
+                ax.grid(alpha=0.3)
+                for ev in r.metrics.get("events") or ():
+                    if ev["kind"] == "takeover":
+                        ax.axvline(ev["time_s"], color="k", ls="-.", lw=0.9,
+                                   gid=f"event:{ev['kind']}",
+                                   label="takeover" if ax is top else None)  # fmt: skip
+            if r.status != "ok":
+                y_end = float(np.clip(r.column("plant.theta_g")[-1] * DEG, lo, hi))
+                top.plot(t[-1], y_end, marker="x", color="r", ms=9, mew=2, clip_on=False,
+                         zorder=6, gid="event:stop", label="stop")  # fmt: skip
+                bottom.axvline(t[-1], color="r", lw=0.8, gid="event:stop")
+            if j == 0:
+                top.set_ylabel("angle [deg]", fontsize=8)
+                bottom.set_ylabel("tail cmd [deg]", fontsize=8)
+            if gi == len(groups) - 1:
+                bottom.set_xlabel("time [s]")
+            if gi == 0 and j == 0:
+                handles = dict(zip(*reversed(top.get_legend_handles_labels()), strict=False))
+            elif r.status != "ok" and "stop" not in handles:
+                handles.update(zip(*reversed(top.get_legend_handles_labels()), strict=False))
+    f.legend(list(handles.values()), list(handles.keys()), loc="outside lower center",
+             ncol=len(handles), fontsize=8)  # fmt: skip
+    f.suptitle(
+        fig.title + f"\nfrom t = {start:g} s (before the takeover every run is the same 2 deg "
+        "hold); dash-dot: the controller takes over at 1 m depth;\ntriangle: the curve leaves "
+        "the axes (clipped there); cross: the run stops (stall)",
+        fontsize=10,
+    )
+    path = out / f"{fig.key}.png"
+    f.savefig(path, dpi=90)
+    plt.close(f)
+    return path
+
+
 def build_report(
     out: str | Path = "out/report",
     fmu_dir: str | Path | None = None,
@@ -331,7 +441,7 @@ def build_report(
     out.mkdir(parents=True, exist_ok=True)
     fmu_dir = fmu_folder(fmu_dir)
     build_all(fmu_dir, only_stale=True)
-    total = sum(len(f.runs) for f in FIGURES) + 4
+    total = sum(len(f.runs) for f in FIGURES) + 5
     bar = Progress(total) if progress and progress_wanted() else None
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
@@ -345,6 +455,9 @@ def build_report(
     an = analysis() if analysis is not None else None
     if bar:
         bar.step("analysis")
+    kc_rows = kc_map(fmu_dir)
+    if bar:
+        bar.step("K_c map")
     study = _step_study(fmu_dir)
     if bar:
         bar.step("communication step study")
@@ -368,11 +481,12 @@ def build_report(
         roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
-    pngs = {fig.key: _plot_figure(fig, results[fig.key], out) for fig in FIGURES}
+    pngs = {fig.key: (_plot_sec53 if fig.key == "fig11-20" else _plot_figure)(
+        fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
     pngs["steps"] = _plot_steps(study, out)
     pngs["fig8"] = plot_sec52(sec52, out)
     text = _markdown(results, an, study, pngs,
-                     sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines)  # fmt: skip
+                     sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     (out / "report.md").write_text(text)
     summary = {
         "metrics": {
@@ -383,6 +497,7 @@ def build_report(
         "step_study": {k: v for k, v in study.items() if k not in ("traces", "literal")},
         "held_tail": {"u_linear_rad": held["u_linear"], "u_release_rad": held["u_release"],
                       "k_star": held["k_star"], "rows": held["rows"]},
+        "kc_map": kc_rows,
         "sec52": [{"tail_deg": r.tail_deg, "K_udelta": r.k_udelta, "status": r.result.status,
                    "end_time_s": float(r.result.data[-1, 0]),
                    "est_minus_meas_rms_rad": r.est_minus_meas_rms,
@@ -396,7 +511,7 @@ def build_report(
     return out / "report.md"
 
 
-def _markdown(results, an, study, pngs, sec52: list[str]) -> str:
+def _markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> str:
     lines = [
         "# glider-cosim report",
         "",
@@ -423,14 +538,13 @@ def _markdown(results, an, study, pngs, sec52: list[str]) -> str:
         lines += [f"## {fig.title}", "", f"![{fig.key}]({pngs[fig.key].name})", "", header,
                   "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
         lines += [_metrics_row(run.label, r) for run, r in results[fig.key]]
-        stopped = [(run, r) for run, r in results[fig.key] if r.status != "ok"]
-        for run, r in stopped:
-            lines.append(
-                f"\n{run.label}: **disagrees** with the paper, whose run with these gains "
-                f"settles: here it stops at {r.data[-1, 0]:.2f} s ({r.message})"
-            )
+        for run, r in results[fig.key]:
+            comment = disagreement_comment(run, r, an)
+            if comment:
+                lines.append(f"\n{run.label}: {comment}")
         lines.append("")
     lines += sec52
+    lines += kc_map_markdown(kc_rows, an)
     lines += _analysis_section(an)
     lines += [
         "## Accuracy of the co-simulation",
@@ -649,3 +763,214 @@ def _agreement_section(results, an, study) -> list[str]:
     )
     lines.append("")
     return lines
+
+
+#: the K_c grid of the map where the observer-fed loop works (default scenario)
+KC_MAP = tuple(3.0 + 0.5 * i for i in range(19))  # 3 .. 12
+
+
+def kc_map(fmu_dir: str | Path, ks: Sequence[float] = KC_MAP) -> list[dict[str, Any]]:
+    """The default scenario over ``ks``: the passivity law fed by the observer, and with
+    full-state feedback (no observer instance, so that only the loop can stop the run).
+    One row per K_c: ``{"K_c": k, "observer": cell, "state": cell}``, a cell being the
+    run's ``status``, ``outcome`` (:mod:`glider_cosim.outcome`), its description, the
+    settling time, the end time and the message."""
+    rows = []
+    for k in ks:
+        row: dict[str, Any] = {"K_c": float(k)}
+        for fb in ("observer", "state"):
+            sc = apply_overrides(load_scenario("default"), {"controller.K_c": float(k)})
+            sc.feedback, sc.observer = fb, fb == "observer"
+            r = simulate(sc, None, fmu_dir=fmu_dir, build=False)
+            m = r.metrics
+            row[fb] = {
+                "status": r.status,
+                "outcome": m.get("outcome"),
+                "text": _kc_cell(r),
+                "settling_time_s": m.get("settling_time_s"),
+                "rate_per_s": m.get("outcome_rate_per_s"),
+                "end_time_s": float(r.data[-1, 0]) if len(r.data) else 0.0,
+                "message": r.message,
+            }
+        rows.append(row)
+    return rows
+
+
+def _kc_cell(r: RunResult) -> str:
+    m = r.metrics
+    if m.get("outcome") == "settled":
+        return f"settled in {m['settling_time_s']:.2f} s"
+    if r.status != "ok":
+        stall = _stall(r)
+        if stall:
+            return f"stops at {stall[2]:.2f} s ({stall[0]} stalls)"
+        return f"stops at {r.data[-1, 0]:.2f} s"
+    return describe_outcome(m, brief=True)
+
+
+def smallest_settling(rows: Sequence[dict[str, Any]], fb: str) -> float | None:
+    """The smallest K_c of the map from which every larger K_c settles too."""
+    best = None
+    for row in reversed(rows):
+        if row[fb]["outcome"] != "settled":
+            break
+        best = row["K_c"]
+    return best
+
+
+def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -> list[str]:
+    if not rows:
+        return []
+    lo_obs = lo_st = None
+    if an is not None:
+        lo_obs = an["stable_K_c"]["sampled_with_observer"][0]
+        lo_st = an["stable_K_c"]["sampled"][0]
+    k_obs, k_st = smallest_settling(rows, "observer"), smallest_settling(rows, "state")
+    lines = [
+        "## Where the observer-fed loop works over K_c",
+        "",
+        f"The default scenario (60 s, from theta_g = -35 deg, V = 0.2 m/s) with the passivity "
+        f"law at K_c = {rows[0]['K_c']:g} to {rows[-1]['K_c']:g} in steps of "
+        f"{rows[1]['K_c'] - rows[0]['K_c']:g}, fed by the observer, and with full-state "
+        "feedback (no observer instance). Outcome from the trajectory "
+        "(`glider_cosim.outcome`, README 'Metrics').",
+        "",
+        "| K_c | with the observer | full-state feedback |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {row['K_c']:g} | {row['observer']['text']} | {row['state']['text']} |"
+              for row in rows]  # fmt: skip
+
+    def limit(v):
+        return "n/a" if v is None else f"{v:.2f}"
+
+    lines += [
+        "",
+        "| | smallest K_c that settles (every larger one does too) | linear limit "
+        "(`glider-cosim analyze`, sampled at 50 Hz) |",
+        "|---|---|---|",
+        f"| with the observer | {_fmt(k_obs, 1, 1)} | {limit(lo_obs)} |",
+        f"| full-state feedback | {_fmt(k_st, 1, 1)} | {limit(lo_st)} |",
+        "",
+    ]
+    by_k = {row["K_c"]: row for row in rows}
+    reason = []
+    if k_obs is not None and lo_obs is not None:
+        below = [row for row in rows if lo_obs < row["K_c"] < k_obs]
+        if below:
+            row = below[-1]
+            c = row["observer"]
+            rate = c["rate_per_s"]
+            decay = (
+                f"its oscillation decays at {rate:+.3f} 1/s (half-life {math.log(2) / -rate:.0f} s)"
+                if rate is not None and rate < 0
+                else f"{c['text']}"
+            )
+            reason.append(
+                f"between the linear limit and {k_obs:g} the sampled loop is stable but "
+                f"barely damped: at K_c = {row['K_c']:g} {decay}, too slowly to stay in the "
+                "band for the hold the outcome needs (max(10 s, 3 periods)) within 60 s"
+            )
+        first = by_k.get(k_obs)
+        if first and first["state"]["outcome"] == "settled":
+            d = first["observer"]["settling_time_s"] - first["state"]["settling_time_s"]
+            reason.append(
+                f"the observer's transient (it starts from its own equilibrium guess, not "
+                f"the true -35 deg) costs {d:+.2f} s of settling at K_c = {k_obs:g} "
+                f"({first['observer']['settling_time_s']:.2f} against "
+                f"{first['state']['settling_time_s']:.2f} s)"
+            )
+        stops = [row for row in rows if row["observer"]["status"] != "ok"]
+        if stops:
+            row = stops[-1]
+            reason.append(
+                f"below the limit the observer's transient is what fails first: at K_c = "
+                f"{row['K_c']:g} the observer-fed run {row['observer']['text']}, the "
+                f"full-state one: {row['state']['text']}"
+            )
+    if reason:
+        lines.append(
+            f"Why K_c = {_fmt(k_obs, 1, 1)} (observer) and {_fmt(k_st, 1, 1)} (full state) "
+            f"rather than the linear {limit(lo_obs)} and {limit(lo_st)}: " + "; ".join(reason) + "."
+        )
+        lines.append("")
+    return lines
+
+
+_STALL = re.compile(r"(\w+): (?:observer estimate )?glider stalled: V = ([-+0-9.eE]+) m/s")
+
+
+def _stall(r: RunResult) -> tuple[str, float, float] | None:
+    """(variable, V, time) of the stall that stopped a run, from its message."""
+    m = _STALL.search(r.message or "")
+    if not m:
+        return None
+    name = "V_hat" if m.group(1) == "observer" else "V"
+    return name, float(m.group(2)), float(r.data[-1, 0])
+
+
+def _law_and_gains(sc: Scenario) -> str:
+    ctrl = sc.parameters.get("controller", {})
+    law = ctrl.get("law", LAWS["open-loop"])
+    for ev in sc.events:
+        law = ev.actions.get("controller.law", law)
+    kp, ki = ctrl.get("K_P", 0.5), ctrl.get("K_I", 0.2)
+    if law == LAWS["p"]:
+        return (f"P law, K_P = {kp:g} ({kp / 0.5:g} x the controller's default K_P = 0.5, "
+                "which settles this protocol)")  # fmt: skip
+    if law == LAWS["pi"]:
+        return (f"PI law, K_P = {kp:g}, K_I = {ki:g} (the defaults 0.5 and 0.2 settle this "
+                "protocol)")  # fmt: skip
+    return "open-loop law"
+
+
+def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> str | None:
+    """One line with the numbers for a run that does not settle (the paper's runs all
+    converge), else None: why (the linear limit, or the gain against ours), what the run
+    did after the takeover (largest error, time at the tail's limit), how it ended."""
+    m = r.metrics
+    if m.get("outcome") in ("settled", None):
+        return None
+    sc = r.scenario
+    parts = []
+    k = passivity_gain(sc)
+    fb = "with the observer" if sc.feedback == "observer" else "with full-state feedback"
+    if k is not None:
+        key = "sampled_with_observer" if sc.feedback == "observer" else "sampled"
+        lo = None if an is None else an["stable_K_c"][key][0]
+        if lo is None:
+            parts.append(f"passivity law, K_c = {k:g}")
+        elif k <= lo:
+            parts.append(f"K_c = {k:g} < {lo:.2f}: the sampled loop {fb} is unstable")
+        else:
+            parts.append(f"K_c = {k:g} > {lo:.2f}: inside the sampled stable range {fb}")
+    else:
+        parts.append(_law_and_gains(sc))
+    t = r.data[:, 0]
+    times = [ev["time_s"] for ev in m.get("events") or () if ev["kind"] in ("takeover", "enable")]
+    t0 = max(times) if times else 0.0
+    after = t >= t0
+    th_e = m.get("theta_ge_rad")
+    if th_e is not None and "plant.theta_g" in r.columns and after.any():
+        err = np.angle(np.exp(1j * (r.column("plant.theta_g")[after] - th_e)))
+        dmax = float(sc.parameters.get("controller", {}).get("delta_max", math.pi / 2))
+        sat = np.abs(r.column("controller.delta_cmd")[after]) >= 0.999 * dmax
+        where = f"after the takeover at {t0:.1f} s" if t0 > 0 else "from the start"
+        tail = float(np.max(np.abs(r.column("controller.delta_cmd")[after]))) * DEG
+        limit = (
+            f", at its +-{dmax * DEG:.0f} deg limit {100 * np.mean(sat):.0f} % of the time"
+            if sat.any()
+            else ""
+        )
+        parts.append(
+            f"{where} the glide angle swings up to {np.max(np.abs(err)) * DEG:.1f} deg from "
+            f"the equilibrium and the tail command up to {tail:.1f} deg{limit}"
+        )
+    stall = _stall(r)
+    if stall:
+        parts.append(f"{stall[0]} stalls at {stall[2]:.2f} s ({stall[0]} = {stall[1]:.2g} m/s)")
+    elif r.status != "ok":
+        parts.append(f"the run stops at {t[-1]:.2f} s ({r.message})")
+    else:
+        parts.append(describe_outcome(m))
+    return "**disagrees** with the paper, whose run with these gains settles: " + "; ".join(parts)

@@ -1,37 +1,198 @@
-"""One-FMU export of the closed loop: valid for fmpy, runs under fmpy.simulate_fmu and
-equals our master's Jacobi run (the container delays each link by one step)."""
+"""One-FMU export of the closed loop: valid for fmpy, with units and exposed parameters,
+quiet on a good run, runs under fmpy.simulate_fmu and libcosim and equals our master's
+Jacobi run (the container delays each link by one step)."""
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from glider_cosim.onefmu import OneFMUError, export_one_fmu
+from glider_cosim.onefmu import EXPOSED, OneFMUError, export_one_fmu
+from glider_cosim.report import apply_overrides
 from glider_cosim.runner import simulate
+from glider_cosim.scenario import load_scenario, parse_sets
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
 pytestmark = pytest.mark.integration
+OUT = ["plant.theta_g", "controller.delta_cmd"]
 
 
-def test_closed_loop_as_one_fmu(fmu_dir, tmp_path):
-    fmu = export_one_fmu(tmp_path / "GliderLoop.fmu", None, fmu_dir)
-    assert validate_fmu(str(fmu)) == []
-    r = simulate_fmu(str(fmu), stop_time=60.0, output_interval=0.02,
-                     output=["plant.theta_g", "controller.delta_cmd"])  # fmt: skip
+def with_sets(sets: list[str]):
+    """The default scenario with ``--set`` items, as the command line applies them."""
+    return apply_overrides(load_scenario(None), parse_sets(sets))
+
+
+@pytest.fixture(scope="module")
+def loop_fmu(fmu_dir, tmp_path_factory) -> Path:
+    return export_one_fmu(tmp_path_factory.mktemp("onefmu") / "GliderLoop.fmu", None, fmu_dir)
+
+
+@pytest.fixture(scope="module")
+def jacobi(fmu_dir):
+    return simulate(None, None, fmu_dir=fmu_dir, build=False, coupling="jacobi")
+
+
+def test_closed_loop_as_one_fmu(loop_fmu, fmu_dir, jacobi):
+    assert validate_fmu(str(loop_fmu)) == []
+    r = simulate_fmu(str(loop_fmu), stop_time=60.0, output_interval=0.02, output=OUT)
     assert len(r) == 3001
     th = r["plant.theta_g"]
     assert th[0] == pytest.approx(math.radians(-35.0), abs=1e-12)
     assert abs(th[-1] - equilibrium(GliderParams()).theta_g) < math.radians(0.01)
-    jacobi = simulate(None, None, fmu_dir=fmu_dir, build=False, coupling="jacobi")
-    assert np.abs(th - jacobi.column("plant.theta_g")).max() < 1e-12
+    assert np.array_equal(th, jacobi.column("plant.theta_g"))  # bit for bit
     gs = simulate(None, None, fmu_dir=fmu_dir, build=False)
     diff = np.degrees(np.abs(th - gs.column("plant.theta_g")).max())
     assert 0.1 < diff < 0.6  # 0.47 deg: one more sample of delay than Gauss-Seidel
+
+
+def test_container_carries_units_and_exposes_parameters(loop_fmu, fmu_dir):
+    md = read_model_description(str(loop_fmu))
+    inner = {
+        inst: {v.name: v for v in read_model_description(str(fmu_dir / f"{n}.fmu")).modelVariables}
+        for inst, n in (("plant", "GliderPlant"), ("observer", "GliderObserver"),
+                        ("controller", "GliderController"))
+    }  # fmt: skip
+    outer = {v.name: v for v in md.modelVariables}
+    units = {u.name: u for u in md.unitDefinitions}
+    assert units["rad"].displayUnits[0].name == "deg"
+    assert units["rad"].displayUnits[0].factor == pytest.approx(180 / math.pi)
+    checked = 0
+    for name, v in outer.items():
+        inst, _, var = name.partition(".")
+        if inst not in inner or v.type != "Real":
+            continue
+        ref = inner[inst][var]
+        assert (v.unit, v.displayUnit) == (ref.unit, ref.displayUnit), name
+        assert v.unit is None or v.unit in units
+        checked += 1
+    assert checked > 20
+    assert (outer["plant.theta_g"].unit, outer["plant.theta_g"].displayUnit) == ("rad", "deg")
+    assert outer["plant.V"].unit == "m/s" and outer["plant.M_y"].unit == "N.m"
+    assert outer["gliderplant.theta_meas"].unit == "rad"  # a link (local)
+    for ref in EXPOSED:
+        assert outer[ref].causality == "parameter", ref
+    # start values: the scenario's (default: K_c 10, passivity, -35 deg, no noise)
+    assert float(outer["controller.K_c"].start) == 10.0
+    assert int(outer["controller.law"].start) == 1
+    assert float(outer["plant.theta_g_0"].start) == math.radians(-35.0)
+    assert float(outer["plant.noise_std"].start) == 0.0
+    assert outer["plant.noise_std"].unit == "rad" and outer["plant.noise_seed"].type == "Integer"
+    # the container's description is still schema-valid after the rewrite
+    with zipfile.ZipFile(loop_fmu) as z:
+        ET.fromstring(z.read("modelDescription.xml"))
+
+
+QUIET_RUN = """
+import sys
+from fmpy import simulate_fmu
+r = simulate_fmu(sys.argv[1], stop_time=2.0, output_interval=0.02, output=["plant.theta_g"])
+print("rows", len(r))
+"""
+
+
+def test_a_good_run_prints_nothing(loop_fmu):
+    # a subprocess: what the FMUs and the container write to the file descriptors too
+    p = subprocess.run([sys.executable, "-c", QUIET_RUN, str(loop_fmu)],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert p.stdout == "rows 101\n"
+    assert p.stderr == ""
+
+
+def test_messages_other_than_the_start_lines_reach_the_host(loop_fmu, tmp_path):
+    # an error of an embedded FMU is not swallowed by the forwarder; unpacked here, since
+    # fmpy leaves its own unpacked copy behind when the run fails
+    unpacked = extract(str(loop_fmu), unzipdir=str(tmp_path / "loop"))
+    seen: list[tuple[int, str]] = []
+
+    def logger(env, instance, status, category, message):
+        seen.append((status, message.decode()))
+
+    with pytest.raises(FMICallException):
+        simulate_fmu(unpacked, stop_time=1.0, output_interval=0.02, output=OUT,
+                     start_values={"plant.noise_seed": -5}, logger=logger)  # fmt: skip
+    text = " | ".join(m for _, m in seen)
+    assert "noise_seed" in text
+    assert "Solver configure" not in text and "FMUContainer 'V" not in text
+
+
+@pytest.mark.parametrize(
+    ("start", "sets"),
+    [
+        ({"controller.K_c": 6.0}, ["controller.K_c=6"]),
+        ({"controller.law": 2}, ["controller.law=p"]),
+        (
+            {"plant.theta_g_0": math.radians(-30.0), "plant.noise_std": 0.02,
+             "plant.noise_seed": 7},
+            ["plant.theta_g_0=-30 deg", "plant.noise_std=0.02", "plant.noise_seed=7"],
+        ),
+    ],
+)  # fmt: skip
+def test_exposed_parameter_changes_the_run_like_set(loop_fmu, fmu_dir, jacobi, start, sets):
+    r = simulate_fmu(str(loop_fmu), stop_time=60.0, output_interval=0.02, output=OUT,
+                     start_values=start)  # fmt: skip
+    ours = simulate(with_sets(sets), None, fmu_dir=fmu_dir, build=False, coupling="jacobi")
+    for name in OUT:
+        assert np.array_equal(r[name], ours.column(name)), name
+    assert not np.array_equal(r["plant.theta_g"], jacobi.column("plant.theta_g"))
+
+
+LIBCOSIM_RUN = """
+import json, sys
+from libcosimpy.CosimEnums import CosimVariableType
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimObserver import CosimObserver
+from libcosimpy.CosimSlave import CosimLocalSlave
+
+path, k_c, n = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
+log_output_level(CosimLogLevel.ERROR)
+ex = CosimExecution.from_step_size(20_000_000)
+idx = ex.add_local_slave(CosimLocalSlave(fmu_path=path, instance_name="loop"))
+refs = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
+ex.real_initial_value(idx, refs["controller.K_c"], k_c)
+obs = CosimObserver.create_time_series()
+ex.add_observer(obs)
+obs.start_time_series(idx, refs["plant.theta_g"], CosimVariableType.REAL)
+assert ex.step(n)
+values, steps = {}, []
+for _ in range(3):
+    k = len(values)
+    t, got, vals = obs.time_series_real_samples(idx, refs["plant.theta_g"], k, n + 1 - k)
+    values.update(zip(got, vals))
+    if len(values) == n + 1:
+        break
+result = [values[k] for k in range(n + 1)]
+del obs, ex  # free the instances before the interpreter exits
+print("RESULT", json.dumps(result))
+"""
+
+
+@pytest.mark.parametrize("k_c", [10.0, 6.0])
+def test_libcosim_runs_the_container_like_our_jacobi_master(loop_fmu, fmu_dir, k_c):
+    n = 1000  # 20 s
+    p = subprocess.run([sys.executable, "-c", LIBCOSIM_RUN, str(loop_fmu), str(k_c), str(n)],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    (line,) = [x for x in p.stdout.splitlines() if x.startswith("RESULT ")]
+    th = np.array(json.loads(line.removeprefix("RESULT ")))
+    logged = (p.stdout.replace(line, "") + p.stderr).lower()
+    assert "[error]" not in logged and "[warning]" not in logged, logged[-2000:]
+    ours = simulate(with_sets([f"controller.K_c={k_c}"]), None, fmu_dir=fmu_dir, build=False,
+                    coupling="jacobi", stop_time=20.0)  # fmt: skip
+    assert np.array_equal(th, ours.column("plant.theta_g"))
 
 
 def test_one_fmu_export_refuses_events(fmu_dir, tmp_path):

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from glider_cosim.analysis import analyze
-from glider_cosim.report import FIGURES, apply_overrides, build_report, passivity_gain
+from glider_cosim.report import FIGURES, apply_overrides, build_report, kc_map, passivity_gain
 from glider_cosim.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
@@ -105,3 +105,68 @@ def test_scenario_notes_agree_with_the_analysis(report):
         assert f"{math.degrees(held[key]):.2f} deg" in notes, key
     for tail in (15, 30, 45):
         assert f"K_udelta={held['k_star']:g}" in load_scenario(f"sec52-tail{tail}").notes
+
+
+def test_kc_map_table_agrees_with_runs(report, fmu_dir):
+    """The K_c map's table, its smallest settling gains and limits, checked against runs
+    made here (three gains of the grid) and against the analysis."""
+    text, an, _ = report
+    sec = _section(text, "Where the observer-fed loop works over K_c")
+    rows = {float(m.group(1)): (m.group(2).strip(), m.group(3).strip()) for m in re.finditer(
+        r"^\| ([0-9.]+) \| ([^|]+) \| ([^|]+) \|$", sec, re.M)}  # fmt: skip
+    assert sorted(rows) == [3.0 + 0.5 * i for i in range(19)]
+    for row in kc_map(fmu_dir, [3.0, 6.5, 7.0]):
+        assert rows[row["K_c"]] == (row["observer"]["text"], row["state"]["text"]), row["K_c"]
+    for fb, col, key in (("observer", 0, "sampled_with_observer"), ("full-state", 1, "sampled")):
+        k_min = min(k for k in rows if all(rows[j][col].startswith("settled")
+                                           for j in rows if j >= k))  # fmt: skip
+        label = "with the observer" if fb == "observer" else "full-state feedback"
+        assert f"| {label} | {k_min:.1f} | {an['stable_K_c'][key][0]:.2f} |" in sec
+    assert rows[3.0][0].startswith("stops at 21.44 s (V_hat stalls)")
+    assert "the sampled loop is stable but barely damped" in sec
+    assert "the observer's transient" in sec
+
+
+def test_disagreement_comments_carry_the_reason_with_numbers(report):
+    text, an, _ = report
+    sec = _section(text, FIGURES[3].title)
+    lo = an["stable_K_c"]["sampled_with_observer"][0]
+    for label, reason in (("passivity K_c = 3", f"K_c = 3 < {lo:.2f}: the sampled loop with "
+                           "the observer is unstable"),
+                          ("P K_P = 2", "P law, K_P = 2 (4 x the controller's default"),
+                          ("PI K_P = 2, K_I = 1", "PI law, K_P = 2, K_I = 1")):  # fmt: skip
+        end = re.search(rf"^\| {re.escape(label)} \| stopped \| stopped at ([0-9.]+) s \|", sec,
+                        re.M).group(1)  # fmt: skip
+        (line,) = [x for x in sec.splitlines() if x.startswith(f"{label}: ")]
+        assert "**disagrees** with the paper" in line and reason in line, line
+        assert f"V_hat stalls at {end} s (V_hat = " in line, line
+        assert "after the takeover at 31.1 s the glide angle swings up to" in line
+    assert not [x for x in sec.splitlines() if x.startswith("passivity K_c = 10 (ours): ")]
+
+
+def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    from glider_cosim.report import _plot_sec53
+    from glider_cosim.runner import simulate
+
+    fig = FIGURES[3]
+    results = [(run, simulate(apply_overrides(load_scenario(run.scenario), run.overrides), None,
+                              fmu_dir=fmu_dir, build=False)) for run in fig.runs]  # fmt: skip
+    kept = []
+    monkeypatch.setattr(plt, "close", kept.append)
+    _plot_sec53(fig, results, tmp_path)
+    (f,) = kept
+    tops = [ax for ax in f.get_axes() if ax.get_title()]
+    assert len(tops) == len(fig.runs)  # one panel per run
+    groups = list(dict.fromkeys(run.group for run, _ in results))
+    in_order = sorted(results, key=lambda rr: groups.index(rr[0].group))  # panels by law
+    for ax, (run, r) in zip(tops, in_order, strict=True):
+        title = ax.get_title()
+        assert title.startswith(run.label) and "observer feedback:" in title
+        assert ax.get_ylim() == (-70.0, 40.0) and ax.get_xlim() == (20.0, 90.0)
+        take = [ln.get_xdata()[0] for ln in ax.get_lines() if ln.get_gid() == "event:takeover"]
+        assert take == [pytest.approx(31.1, abs=0.05)]
+        stops = [ln for ln in ax.get_lines() if ln.get_gid() == "event:stop"]
+        assert len(stops) == (r.status != "ok")
+        assert ("settled in" in title) == (r.metrics["outcome"] == "settled")
