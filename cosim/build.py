@@ -24,6 +24,8 @@ import glider_observer
 import glider_plant
 from glider_fmi import compile as runtime
 
+from . import osp
+
 #: resource file in each FMU holding the hash of the sources it was built from
 HASH_FILE = "resources/glider_cosim_source.sha256"
 
@@ -70,6 +72,7 @@ def source_hash(c: Component) -> str:
     h = hashlib.sha256(shim_text(c).encode())
     h.update(runtime.runtime_fingerprint().encode())
     h.update(runtime.python_config().encode())
+    h.update(osp.fingerprint().encode())
     for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -147,10 +150,12 @@ def package_slave(
             )
         )
         _replace_binaries(staged, staged.stem, binary)
+        osp.add_to_fmu(staged)
         fmu = out / staged.name
         # into place in one step: a process reading the FMU meanwhile sees old or new
         shutil.copyfile(staged, fmu.with_name(fmu.name + ".part"))
         fmu.with_name(fmu.name + ".part").replace(fmu)
+    osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 
@@ -238,7 +243,7 @@ def build_all(
     if flavor == "native":
         from .native import build_native
 
-        return build_native(out, only_stale)
+        return _with_osp(build_native(out, only_stale))
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     if todo:
@@ -247,7 +252,14 @@ def build_all(
             runtime.compile_runtime(binary)
             for c in todo:
                 result[c.name] = build_component(c, out, binary)
-    return result
+    return _with_osp(result)
+
+
+def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
+    """Write each FMU's OSP-IS description beside it (also for FMUs not rebuilt)."""
+    for fmu in fmus.values():
+        osp.write_beside(fmu)
+    return fmus
 
 
 def add_fmu_options(parser: Any) -> None:

@@ -36,6 +36,8 @@ import glider_observer
 import glider_plant
 from glider_fmi import compile as runtime
 
+from . import osp
+
 log = logging.getLogger(__name__)
 
 #: resource naming the flavor of an FMU ("python" or "native")
@@ -204,6 +206,7 @@ def native_hash(c: NativeComponent) -> str:
     h = hashlib.sha256(vars_header(c).encode())
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(_version().encode())
+    h.update(osp.fingerprint().encode())
     for f in source_files(c):
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -349,7 +352,9 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None) -> 
         part = fmu.with_name(fmu.name + ".part")
         try:
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(c, c_names))
+                md = model_description(c, c_names)
+                z.writestr("modelDescription.xml", md)
+                z.writestr(osp.extra_path(md), osp.generate(md))
                 z.write(so, f"binaries/linux64/{c.name}.so")
                 if dll is not None:
                     z.write(dll, f"binaries/win64/{c.name}.dll")
@@ -361,6 +366,7 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None) -> 
             part.replace(fmu)  # into place in one step
         finally:
             part.unlink(missing_ok=True)
+    osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 
