@@ -28,6 +28,8 @@ import glider_observer
 import glider_plant
 from glider_fmi import compile as runtime
 
+from . import osp
+
 #: resource file in each FMU holding the hash of the sources it was built from
 HASH_FILE = "resources/glider_cosim_source.sha256"
 
@@ -74,6 +76,7 @@ def source_hash(c: Component) -> str:
     h = hashlib.sha256(shim_text(c).encode())
     h.update(runtime.runtime_fingerprint().encode())
     h.update(runtime.python_config().encode())
+    h.update(osp.fingerprint().encode())
     for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -167,9 +170,11 @@ def package_slave(
             )
         )
         _replace_binaries(staged, staged.stem, binary)
+        osp.add_to_fmu(staged)
         fmu = out / staged.name
         with replacing(fmu) as part:  # a process reading the FMU meanwhile sees old or new
             shutil.copyfile(staged, part)
+    osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 
@@ -308,7 +313,7 @@ def build_all(
     if flavor == "native":
         from .native import build_native
 
-        return build_native(out, only_stale)
+        return _with_osp(build_native(out, only_stale))
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     if todo:
@@ -317,7 +322,14 @@ def build_all(
             runtime.compile_runtime(binary)
             for c in todo:
                 result[c.name] = build_component(c, out, binary)
-    return result
+    return _with_osp(result)
+
+
+def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
+    """Write each FMU's OSP-IS description beside it (also for FMUs not rebuilt)."""
+    for fmu in fmus.values():
+        osp.write_beside(fmu)
+    return fmus
 
 
 def add_fmu_options(parser: Any) -> None:

@@ -23,7 +23,7 @@ from xml.etree import ElementTree as ET
 
 from glider_fmi import compile as runtime
 
-from . import native
+from . import native, osp
 from .build import COMPONENTS, build_component, replacing, source_hash
 
 log = logging.getLogger(__name__)
@@ -134,15 +134,18 @@ def _repackage(fmu2: Path, out: Path, binary: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     with replacing(fmu) as part, zipfile.ZipFile(fmu2) as src, \
             zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:  # fmt: skip
+        md = fmi3_model_description(src.read("modelDescription.xml"), True)
         for item in src.infolist():
-            if item.filename.startswith("binaries/"):
+            if item.filename.startswith(("binaries/", "extra/")):
                 continue
             if item.filename == "modelDescription.xml":
-                z.writestr(item.filename, fmi3_model_description(src.read(item), True))
+                z.writestr(item.filename, md)
             else:
                 z.writestr(item, src.read(item))
+        z.writestr(osp.extra_path(md), osp.generate(md))
         z.write(binary, f"{LINUX}/{name}.so")
         z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")
+    osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 

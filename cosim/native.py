@@ -36,6 +36,8 @@ import glider_observer
 import glider_plant
 from glider_fmi import compile as runtime
 
+from . import osp
+
 log = logging.getLogger(__name__)
 
 #: resource naming the flavor of an FMU ("python" or "native")
@@ -207,6 +209,7 @@ def native_hash(c: NativeComponent, fmi: int = 2) -> str:
     h.update(f"fmi{fmi}".encode())
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(_version().encode())
+    h.update(osp.fingerprint().encode())
     for f in source_files(c, fmi):
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -365,6 +368,7 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
             md = fmi3_model_description(md)
         with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", md)
+            z.writestr(osp.extra_path(md), osp.generate(md))
             z.write(so, f"{linux}/{c.name}.so")
             if dll is not None:
                 z.write(dll, f"{windows}/{c.name}.dll")
@@ -373,6 +377,7 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
             z.writestr("sources/buildDescription.xml", build_description(c, c_names))
             z.writestr(FLAVOR_FILE, "native\n")
             z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi) + "\n")
+    osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 

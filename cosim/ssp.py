@@ -47,6 +47,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from . import osp
 from .inputs.archives import InputFileError, confined
 from .inputs.ssp_files import SSD_NAME, SSPError, locate, parse_value
 from .inputs.text import quote
@@ -66,6 +67,10 @@ for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
 
 OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
+#: our annotation on a component naming its OSP-IS model description in ``resources/``
+OSP_MD_ANNOTATION_TYPE = "org.glider-cosim.osp-model-description"
+OSP_MD_NS = "urn:glider-cosim:osp-model-description"
+ET.register_namespace("gcosp", OSP_MD_NS)
 FMU_MIME = "application/x-fmu-sharedlibrary"
 _VALUE_TYPES = ("Real", "Integer", "Boolean")
 
@@ -139,6 +144,11 @@ def export_ssp(
     if len(set(resources.values())) != len(resources):
         raise SSPError(f"{sc.source}: key 'fmus': two instances use FMU files of the same name")
     conns = default_connections(sc.feedback, sc.observer)
+    ospmd = {}  # inst -> (path in the archive, content): beside its FMU, as OSP looks
+    for inst, fmu in fmus.items():
+        found = osp.read_from_fmu(fmu)
+        if found is not None:
+            ospmd[inst] = (f"resources/{Path(resources[inst]).stem}{osp.SUFFIX}", found[1])
 
     root = ET.Element(
         _q("ssd", "SystemStructureDescription"),
@@ -146,10 +156,11 @@ def export_ssp(
     )
     system = ET.SubElement(root, _q("ssd", "System"), {"name": "glider"})
     elements = ET.SubElement(system, _q("ssd", "Elements"))
+    comps = {}
     for inst in insts:
         md = read_model_description(str(fmus[inst]))
         variables = {v.name: v for v in md.modelVariables}
-        comp = ET.SubElement(
+        comp = comps[inst] = ET.SubElement(
             elements,
             _q("ssd", "Component"),
             {"name": inst, "source": resources[inst], "type": FMU_MIME},
@@ -187,6 +198,13 @@ def export_ssp(
                 raise SSPError(f"{sc.source}: key '{inst}.{name}': type {v.type} is not supported")
             p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": name})
             ET.SubElement(p, _q("ssv", v.type), {"value": _format_value(value, v.type)})
+    for inst, (path, _) in ospmd.items():  # Annotations come last in an ssd:Component
+        annotation = ET.SubElement(
+            ET.SubElement(comps[inst], _q("ssd", "Annotations")),
+            _q("ssc", "Annotation"),
+            {"type": OSP_MD_ANNOTATION_TYPE},
+        )
+        ET.SubElement(annotation, f"{{{OSP_MD_NS}}}OspModelDescription", {"source": path})
     connections = ET.SubElement(system, _q("ssd", "Connections"))
     for src, dst in conns:
         (se, sc_), (de, dc) = src.split(".", 1), dst.split(".", 1)
@@ -217,6 +235,8 @@ def export_ssp(
         z.writestr(SSD_NAME, ET.tostring(root, xml_declaration=True, encoding="UTF-8"))
         for inst in insts:
             z.write(fmus[inst], resources[inst])
+        for path, content in dict(ospmd.values()).items():
+            z.writestr(path, content)
     return out
 
 
