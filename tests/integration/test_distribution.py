@@ -116,8 +116,10 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
         assert p.returncode == 0, (cmd[3:], p.stderr[-2000:])
         assert list(here.iterdir()) == [], cmd[3:]
     (folder,) = (tmp_path / "cache" / "glider-cosim").glob("*/python-*")
-    assert sorted(f.name for f in folder.iterdir()) == [
-        "GliderController.fmu", "GliderObserver.fmu", "GliderPlant.fmu"]  # fmt: skip
+    names = ["GliderController", "GliderObserver", "GliderPlant"]
+    assert sorted(f.name for f in folder.iterdir()) == sorted(
+        [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
+    )  # each FMU and its OSP-IS file beside it, nothing else
 
 
 @pytest.mark.parametrize("flavor", ["python", "native"])
@@ -135,12 +137,14 @@ def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, fl
     folders = {Path(o.strip()) for o, _ in outs}
     assert len(folders) == 1
     (folder,) = folders
-    assert sorted(f.name for f in folder.iterdir()) == [
-        "GliderController.fmu", "GliderObserver.fmu", "GliderPlant.fmu"]  # fmt: skip
+    names = ["GliderController", "GliderObserver", "GliderPlant"]
+    assert sorted(f.name for f in folder.iterdir()) == sorted(
+        [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
+    )  # each FMU and its OSP-IS file beside it, nothing else
     from glider_cosim import native
     from glider_cosim.build import COMPONENTS, is_current
 
-    for fmu in folder.iterdir():
+    for fmu in folder.glob("*.fmu"):
         with zipfile.ZipFile(fmu) as z:
             assert z.testzip() is None
             assert "modelDescription.xml" in z.namelist()
