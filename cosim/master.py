@@ -90,9 +90,13 @@ class FMUCallError(MasterError, RuntimeError):
         errors = [m for m in self.log if m.startswith(("[fmi2Error]", "[fmi2Discard]"))]
         detail = (errors[0] if errors else self.log[-1]) if self.log else "no log message"
         detail = " ".join(detail.split())
-        # the FMU's message often starts with the call's name, which is said already
+        # the FMU's message often starts with the instance's and the call's names (ours
+        # do), which are said already
         status_tag, _, text = detail.partition("] ")
         base = call.partition("(")[0]
+        if text.startswith(f"{instance}: {base}: "):
+            text = text.removeprefix(f"{instance}: ")
+            detail = f"{status_tag}] {text}"
         if text.startswith(f"{base}: "):
             detail = f"{status_tag}] {text[len(base) + 2 :]}"
         super().__init__(

@@ -184,7 +184,7 @@ def vars_header(c: NativeComponent) -> str:
             high = math.inf if r.high is None else r.high
             rng = (
                 f"1, {_c_double(low)}, {_c_double(high)}, {int(r.low_open)}, "
-                f"{int(r.high_open)}, {_c_string(r.describe())}"
+                f"{int(r.high_open)}, {_c_string(r.describe(v.type == 'Integer'))}"
             )
         lines.append(
             f"    {{{_c_string(v.name)}, '{v.type[0]}', {causality[v.causality]}, "

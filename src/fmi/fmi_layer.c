@@ -111,8 +111,11 @@ fmi2Status glider_fail(Ctx *x, const char *fmt, ...) {
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    glider_add_msg(x, fmi2Error, x->inst ? x->inst->cat_error : -1, "%s: %s",
-                   glider_call_name(x), buf);
+    if (x->inst) /* the instance named in every message: FMI 3's logger is not told it */
+        glider_add_msg(x, fmi2Error, x->inst->cat_error, "%s: %s: %s", x->inst->name,
+                       glider_call_name(x), buf);
+    else
+        glider_add_msg(x, fmi2Error, -1, "%s: %s", glider_call_name(x), buf);
     return fmi2Error;
 }
 
@@ -193,8 +196,8 @@ static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
     if (!inst) return fmi2Error; /* not an instance of this FMU: nobody to log to */
     if ((st = B.enter(x)) != fmi2OK) return st;
     if (inst->state == S_FATAL) {
-        glider_add_msg(x, fmi2Fatal, inst->cat_error, "%s: the instance failed fatally earlier",
-                       glider_call_name(x));
+        glider_add_msg(x, fmi2Fatal, inst->cat_error, "%s: %s: the instance failed fatally earlier",
+                       inst->name, glider_call_name(x));
         return fmi2Fatal;
     }
     if (!(GLIDER_CALLS[call].allowed & inst->state)) {
@@ -361,7 +364,7 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
     Ctx x;
     fmi2Status st;
     if (!B.start(resources, err, sizeof err)) {
-        snprintf(text, sizeof text, "%s: %s", call, err);
+        snprintf(text, sizeof text, "%s: %s: %s", name, call, err);
         glider_log_orphan(logger, name, fmi2Fatal, text);
         return NULL;
     }
@@ -370,7 +373,7 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
         !(inst->resources = glider_dup_text(resources))) {
         if (inst) free(inst->name);
         free(inst);
-        snprintf(text, sizeof text, "%s: out of memory", call);
+        snprintf(text, sizeof text, "%s: %s: out of memory", name, call);
         glider_log_orphan(logger, name, fmi2Fatal, text);
         return NULL;
     }
@@ -677,8 +680,8 @@ int glider_op_do_step(void *c, double t, double h, int *terminated, double *last
         inst->terminated = 1;
         inst->time = t;
         glider_add_msg(&x, fmi2Discard, inst->cat_discard,
-                       "%s: the slave stopped the simulation at t = %.17g s", glider_call_name(&x),
-                       t);
+                       "%s: %s: the model stopped the simulation at t = %.17g s", inst->name,
+                       glider_call_name(&x), t);
     }
     if (terminated) *terminated = !go_on;
     if (last) *last = inst->time;

@@ -36,7 +36,7 @@ class ValidRange(Protocol):
 
     def contains(self, value: float) -> bool: ...
 
-    def describe(self) -> str: ...
+    def describe(self, integer: bool = False) -> str: ...
 
 
 class Var(NamedTuple):
@@ -78,6 +78,11 @@ _UNITS: dict[str, dict[str, str]] = {
     "rad.s": {"rad": "1", "s": "1"},
 }
 _DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad.s": ("deg.s", DEG)}
+
+
+def _expected(v: Var) -> str:
+    """A variable's valid range in words (an Integer's bounds as integers)."""
+    return v.valid.describe(v.type == "Integer")
 
 
 def _tuple_attrgetter(names: Sequence[str]) -> Any:
@@ -216,7 +221,7 @@ class GliderSlave(Fmi2Slave):
                 continue
             value = getattr(self, v.name)
             if not v.valid.contains(float(value)):
-                self.fail(f"{v.name} = {value!r} is invalid: expected {v.valid.describe()}")
+                self.fail(f"{v.name} = {value!r} is invalid: expected {_expected(v)}")
 
     def check_inputs(self) -> None:
         """Refuse non-finite inputs at a step."""
@@ -293,7 +298,7 @@ class GliderSlave(Fmi2Slave):
                     "(only tunable parameters can)"
                 )
             if v.valid is not None and not v.valid.contains(float(value)):
-                self.fail(f"{v.name} = {value!r} is invalid: expected {v.valid.describe()}")
+                self.fail(f"{v.name} = {value!r} is invalid: expected {_expected(v)}")
         setter([vr], [value])
 
     # ------------------------------------------------------------ lifecycle

@@ -4,6 +4,7 @@
  * equations are observer_model.c's (Butterworth pre-filter, observer, Riccati gain) and
  * plant_model.c's (the glider model the observer runs).
  */
+#include <math.h>
 #include <stdio.h>
 
 #include "GliderObserver_vars.h"
@@ -15,6 +16,7 @@ typedef struct {
     double H[4];
     Butterworth filter;
     double xh[4]; /* estimate V, theta_g, alpha, omega2 */
+    int step_warned; /* the step's mismatch with f_sample was reported */
 } ObserverData;
 
 static void params_from(const GliderObserverVars *v, GliderParams *p) {
@@ -68,6 +70,7 @@ static int initialize(void *data, char *msg, size_t size) {
         d->xh[3] = v->omega2_hat_0;
     }
     v->theta_filt = v->theta_meas;
+    d->step_warned = 0;
     publish(d);
     return NATIVE_OK;
 }
@@ -77,7 +80,19 @@ static int step(void *data, double t, double time, double h, char *msg, size_t s
     ObserverData *d = data;
     GliderObserverVars *v = &d->v;
     char stall[512], tg[64];
-    (void)time, (void)warning, (void)wsize;
+    (void)time;
+    if (v->filter_enabled && !d->step_warned && fabs(h * v->f_sample - 1.0) > 1e-9) {
+        /* the pre-filter runs once per step: its coefficients assume 1/step = f_sample */
+        char hs[64], fs[64], rs[64];
+        d->step_warned = 1;
+        py_float_g(h, 6, hs, sizeof hs);
+        py_float_g(v->f_sample, 6, fs, sizeof fs);
+        py_float_g(1.0 / h, 6, rs, sizeof rs);
+        snprintf(warning, wsize,
+                 "communication step %s s does not match f_sample = %s Hz (1/step = %s Hz): "
+                 "the pre-filter runs once per step, its coefficients assume f_sample",
+                 hs, fs, rs);
+    }
     if (t < v->t_start - 1e-9) { /* not initialised yet (Sec. 5.2: 2 s after release) */
         v->theta_filt = v->theta_meas;
         return NATIVE_OK;
@@ -96,7 +111,8 @@ static int step(void *data, double t, double time, double h, char *msg, size_t s
 
 static int valid(const void *data) {
     const ObserverData *d = data;
-    return d->filter.primed == 0 || d->filter.primed == 1;
+    return (d->filter.primed == 0 || d->filter.primed == 1) &&
+           (d->step_warned == 0 || d->step_warned == 1);
 }
 
 const NativeModel GLIDER_NATIVE_MODEL = {

@@ -5,6 +5,8 @@ Thin pythonfmu wrapper over :mod:`glider_observer.filter` and :mod:`glider_obser
 
 from __future__ import annotations
 
+from pythonfmu.enums import Fmi2Status
+
 from glider_fmi.slave_base import GliderSlave, Var
 from glider_observer.filter import DEFAULT_F_CUTOFF, DEFAULT_F_SAMPLE, ButterworthFilter
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
@@ -124,7 +126,8 @@ class GliderObserver(GliderSlave):
             valid=NON_NEGATIVE,
         ),
     )
-    INTERNAL_STATE = ("_p", "_H", "_filter", "_xh")
+    INTERNAL_STATE = ("_p", "_H", "_filter", "_xh", "_step_warned")
+    _step_warned = False  # a step that does not match f_sample was reported
 
     def initialize(self) -> None:
         self._p = GliderParams.from_mapping(vars(self))
@@ -137,6 +140,7 @@ class GliderObserver(GliderSlave):
         else:
             self._xh = (self.V_hat_0, self.theta_g_hat_0, self.alpha_hat_0, self.omega2_hat_0)
         self.theta_filt = self.theta_meas
+        self._step_warned = False
         self._publish()
 
     def _publish(self) -> None:
@@ -145,6 +149,15 @@ class GliderObserver(GliderSlave):
 
     def step(self, t: float, h: float) -> bool:
         self.check_inputs()
+        if self.filter_enabled and not self._step_warned and abs(h * self.f_sample - 1.0) > 1e-9:
+            # the pre-filter runs once per step: its coefficients assume 1/step = f_sample
+            self._step_warned = True
+            self.log(
+                f"{self.instance_name}: communication step {h:g} s does not match f_sample = "
+                f"{self.f_sample:g} Hz (1/step = {1.0 / h:g} Hz): the pre-filter runs once per "
+                "step, its coefficients assume f_sample",
+                Fmi2Status.warning,
+            )
         if t < self.t_start - 1e-9:  # not initialised yet (Sec. 5.2: 2 s after release)
             self.theta_filt = self.theta_meas
             return True

@@ -37,10 +37,12 @@ class Range:
             return False
         return True
 
-    def describe(self) -> str:
-        lo = "(-inf" if self.low is None else ("(" if self.low_open else "[") + f"{self.low:g}"
-        hi = "inf)" if self.high is None else f"{self.high:g}" + (")" if self.high_open else "]")
-        return f"a finite value in {lo}, {hi}"
+    def describe(self, integer: bool = False) -> str:
+        """The range in words; ``integer``: for an Integer variable (bounds as integers)."""
+        fmt = (lambda x: f"{int(x)}") if integer else (lambda x: f"{x:g}")
+        lo = "(-inf" if self.low is None else ("(" if self.low_open else "[") + fmt(self.low)
+        hi = "inf)" if self.high is None else fmt(self.high) + (")" if self.high_open else "]")
+        return f"{'an integer' if integer else 'a finite value'} in {lo}, {hi}"
 
 
 @dataclass(frozen=True)

@@ -132,8 +132,8 @@ def test_c_host_with_another_python_configuration_gets_one_line_not_a_crash(host
     bad.write_text("libpython=/nonexistent/libpython3.11.so\nhome=/nonexistent\n")
     p = run_host(host, plan, EMPTY_ENV | {"GLIDER_FMI_PYTHON_CONFIG": str(bad)})
     assert p.returncode == 4, p.stderr  # fmi2Instantiate returned NULL, no signal
-    assert "status 4 logStatusFatal: fmi2Instantiate: Python is not available: cannot load " \
-           "/nonexistent/libpython3.11.so" in p.stderr  # fmt: skip
+    assert "status 4 logStatusFatal: plant: fmi2Instantiate: Python is not available: cannot " \
+           "load /nonexistent/libpython3.11.so" in p.stderr  # fmt: skip
     assert "GLIDER_FMI_PYTHON_CONFIG" in p.stderr
 
 

@@ -213,7 +213,7 @@ def test_reference_csv(fmu_dir, name):
         ("GliderObserver", {"f_cutoff": 25.0}, "f_cutoff = 25.0 is invalid: expected a value in"),
         ("GliderObserver", {"m0": float("inf")}, "m0 = inf is invalid"),
         ("GliderController", {"K_c": -2.0}, "K_c = -2.0 is invalid"),
-        ("GliderController", {"law": 7}, "law = 7 is invalid: expected a finite value in [0, 3]"),
+        ("GliderController", {"law": 7}, "law = 7 is invalid: expected an integer in [0, 3]"),
     ],
 )
 def test_invalid_parameters_are_refused_before_the_first_step(fmu_dir, name, params, message):

@@ -80,7 +80,7 @@ REFUSALS = {
     "Integer parameter out of range": (
         "plant",
         lambda r, c: _set_int_then_init(r, c, noise_seed=-1),
-        "noise_seed = -1 is invalid: expected a finite value in [0, 2.14748e+09]",
+        "noise_seed = -1 is invalid: expected an integer in [0, 2147483647]",
     ),
     "inconsistent parameters": (
         "plant",
@@ -164,6 +164,7 @@ def test_refusals_are_fmi2error_with_their_message_logged(raw, case, logging):
     assert status == 3  # fmi2Error: never fmi2Fatal
     assert len(errors) == 1, [m.text for m in errors]
     assert expected in errors[0].text
+    assert errors[0].text.startswith("x: ")  # the instance named in the message itself
     assert errors[0].status == 3 and errors[0].category == "logStatusError"
     assert errors[0].instance == "x"
     debug = [m for m in r.messages if m.status == 0]
@@ -483,7 +484,7 @@ def test_fmpy_simulate_fmu_reports_the_refusal(fmu_dir, case, logging, tmp_path,
                      output_interval=0.02, debug_logging=logging)  # fmt: skip
     printed = capsys.readouterr().out.splitlines()
     errors = [line.removeprefix("[ERROR] ") for line in printed if line.startswith("[ERROR] ")]
-    assert len(errors) == 1 and errors[0].startswith(f"{call}: {expected}"), errors
+    assert len(errors) == 1 and f": {call}: {expected}" in errors[0], errors
 
 
 CURRENT_AFTER_RUN = """
