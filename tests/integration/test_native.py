@@ -380,3 +380,30 @@ def test_fmpy_simulate_fmu_runs_each_native_fmu(native_dir, fmu_dir, name):
     assert a.dtype.names == b.dtype.names
     for col in a.dtype.names:
         assert np.array_equal(a[col], b[col]), col  # the same under fmpy's own loop
+
+
+def test_a_step_that_does_not_match_f_sample_is_a_warning_once(fmu_dir, native_dir):
+    """Another host never learns of a mismatch from our master: the observer says it."""
+    seen = {}
+    for flavor, d in (("python", fmu_dir), ("native", native_dir)):
+        r = RawFMU(d / "GliderObserver.fmu")
+        c = r.instantiate("obs")  # logging off: warnings pass all the same
+        assert r.initialize(c) == 0
+        statuses = [r.DoStep(c, k * 0.07, 0.07, 1) for k in range(3)]
+        assert statuses == [0, 0, 0]  # fmi2OK: the host does not stop
+        seen[flavor] = [(m.status, m.category, m.text) for m in r.messages if m.status == 1]
+        r.FreeInstance(c)
+        # a matching step says nothing
+        c = r.instantiate("obs2")
+        r.messages.clear()
+        assert r.initialize(c) == 0 and r.DoStep(c, 0.0, 0.02, 1) == 0
+        assert [m for m in r.messages if m.status == 1] == []
+        r.FreeInstance(c)
+    assert seen["python"] == seen["native"]
+    assert len(seen["native"]) == 1
+    status, category, text = seen["native"][0]
+    assert category == "logStatusWarning"
+    assert text == (
+        "obs: communication step 0.07 s does not match f_sample = 50 Hz (1/step = 14.2857 Hz): "
+        "the pre-filter runs once per step, its coefficients assume f_sample"
+    )
