@@ -1,0 +1,271 @@
+"""FMI 3.0 FMUs (both flavors) under our master, fmpy, fmpy's FMI 3 API and a C host.
+
+- the default and the noise scenario through our master on each FMI 3 flavor equal the
+  FMI 2 runs (bit for bit), alone and mixed with FMI 2 FMUs in one system, with the C
+  fast loop serving the FMI 3 instances;
+- a stall is a clean stop (status "stopped") through our master;
+- ``fmpy.simulate_fmu`` on every FMI 3 FMU equals the FMI 2 build;
+- an invalid start value ends a host's run with fmi3Error and our message, logging off;
+- fmi3GetFMUState/SetFMUState and serialization round trip, bit for bit;
+- the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
+  the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
+  to our master.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import subprocess
+import zipfile
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi3 import FMU3Slave
+from test_native import (
+    MINGW,
+    RECORD,
+    STOP,
+    compile_host,
+    hidden_run,
+    rows,
+    wine_env,
+    write_plan,
+)
+
+from glider_cosim.build import folder_fmi
+from glider_cosim.master import CoSimulation
+from glider_cosim.runner import ArrayRecorder, simulate, system_for
+from glider_cosim.scenario import load_scenario
+
+pytestmark = pytest.mark.integration
+NAMES = ("GliderPlant", "GliderObserver", "GliderController")
+FLAVORS = ("python", "native")
+FMI3_HOST = ["-DGLIDER_HOST_FMI3"]
+
+
+def fmi2_dir(request, flavor: str):
+    return request.getfixturevalue("fmu_dir" if flavor == "python" else "native_dir")
+
+
+@pytest.fixture
+def fast_loop_seen(monkeypatch):
+    """The FMI versions and fast-loop use of every CoSimulation planned in the test."""
+    seen: list[tuple[dict[str, int], bool]] = []
+    orig = CoSimulation._plan_calls
+
+    def spy(self):
+        orig(self)
+        seen.append(({n: i.fmi for n, i in self.instances.items()}, self._fast is not None))
+
+    monkeypatch.setattr(CoSimulation, "_plan_calls", spy)
+    return seen
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+@pytest.mark.parametrize("scenario", ["default", "fig5-6-observer-noise"])
+def test_master_on_fmi3_equals_fmi2_bit_for_bit(
+    request, fmi3_dirs, flavor, scenario, fast_loop_seen
+):
+    assert folder_fmi(fmi3_dirs[flavor]) == 3
+    a = simulate(scenario, None, fmu_dir=fmi2_dir(request, flavor), build=False)
+    b = simulate(scenario, None, fmu_dir=fmi3_dirs[flavor], build=False)
+    assert a.status == b.status == "ok"
+    assert a.columns == b.columns and a.data.shape == b.data.shape == (3001, len(a.columns))
+    diff = np.abs(a.data - b.data).max()
+    print(f"{scenario} {flavor}: max |FMI 3 - FMI 2| = {diff:.3g}")
+    assert diff <= 1e-9  # the issue's bound
+    assert np.array_equal(a.data, b.data)  # what we reach: bit for bit
+    versions, fast = fast_loop_seen[-1]
+    assert set(versions.values()) == {3} and fast  # the C fast loop served FMI 3
+
+
+def test_mixed_system_fmi3_plant_fmi2_observer_and_controller(
+    fmu_dir, native_dir, fmi3_dirs, fast_loop_seen
+):
+    sc = load_scenario("default")
+    a = simulate(sc, None, fmu_dir=fmu_dir, build=False)
+    for plant_dir, ctrl_dir in [(fmi3_dirs["native"], fmu_dir), (fmi3_dirs["python"], native_dir)]:
+        swaps = {
+            "plant": str(plant_dir / "GliderPlant.fmu"),
+            "controller": str(ctrl_dir / "GliderController.fmu"),
+        }
+        b = simulate(dataclasses.replace(sc, fmus=swaps), None, fmu_dir=fmu_dir, build=False)
+        assert b.status == "ok"
+        assert np.array_equal(a.data, b.data)
+        versions, fast = fast_loop_seen[-1]
+        assert versions == {"plant": 3, "observer": 2, "controller": 2} and fast
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+def test_stall_through_our_master_is_a_clean_stop(request, fmi3_dirs, flavor):
+    a = simulate("sec53-literal", None, fmu_dir=fmi2_dir(request, flavor), build=False)
+    b = simulate("sec53-literal", None, fmu_dir=fmi3_dirs[flavor], build=False)
+    assert a.status == b.status == "stopped"
+    assert "observer: fmi3DoStep at t = 9.8 s returned fmi3Discard" in b.message
+    assert "glider stalled: V = " in b.message
+    assert np.array_equal(a.data, b.data) and len(b.data) == 491
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+def test_invalid_start_value_through_our_master_is_fmi3error(fmu_dir, fmi3_dirs, flavor):
+    sc = load_scenario("default")
+    sc = dataclasses.replace(
+        sc,
+        fmus={"controller": str(fmi3_dirs[flavor] / "GliderController.fmu")},
+        parameters={**sc.parameters, "controller": {"K_c": -1.0}},
+    )
+    r = simulate(sc, None, fmu_dir=fmu_dir, build=False)
+    assert r.status == "error"
+    assert (
+        "controller: fmi3ExitInitializationMode at t = 0 s returned fmi3Error: "
+        "[fmi3Error] K_c = -1.0 is invalid: expected a finite value in (0, inf)"
+    ) in r.message
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+@pytest.mark.parametrize("name", NAMES)
+def test_fmpy_simulate_fmu_on_fmi3_equals_fmi2(request, fmi3_dirs, flavor, name):
+    fmu3 = fmi3_dirs[flavor] / f"{name}.fmu"
+    fmu2 = fmi2_dir(request, flavor) / f"{name}.fmu"
+    a = fmpy.simulate_fmu(str(fmu3), stop_time=5.0, output_interval=0.02)
+    b = fmpy.simulate_fmu(str(fmu2), stop_time=5.0, output_interval=0.02)
+    assert len(a) == len(b) == 251
+    assert a.dtype.names == b.dtype.names
+    for col in a.dtype.names:
+        assert np.array_equal(a[col], b[col]), col
+
+
+def slave3(fmu, tmp_path, name: str = "x", log: list | None = None) -> FMU3Slave:
+    md = fmpy.read_model_description(str(fmu))
+    folder = tmp_path / f"{fmu.stem}_{name}"
+    if not folder.is_dir():
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(folder)
+    s = FMU3Slave(guid=md.guid, unzipDirectory=str(folder),
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)  # fmt: skip
+    sink = log if log is not None else []
+    s.instantiate(loggingOn=False, logMessage=lambda env, st, cat, msg: sink.append((st, msg)))
+    s.md = md
+    return s
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+def test_invalid_start_value_ends_an_fmpy_fmi3_host_with_fmi3error(fmi3_dirs, tmp_path, flavor):
+    log: list = []
+    s = slave3(fmi3_dirs[flavor] / "GliderController.fmu", tmp_path, log=log)
+    vr = {v.name: v.valueReference for v in s.md.modelVariables}
+    s.enterInitializationMode(startTime=0.0)
+    s.setFloat64([vr["K_c"]], [-1.0])
+    with pytest.raises(fmpy.fmi1.FMICallException) as err:
+        s.exitInitializationMode()
+    assert err.value.status == 3  # fmi3Error
+    msg = b"fmi3ExitInitializationMode: K_c = -1.0 is invalid: expected a finite value in (0, inf)"
+    assert (3, msg) in log
+    s.freeInstance()
+
+
+def _plant_steps(s: FMU3Slave, vrs: list[int], t0: float, n: int) -> list[list[float]]:
+    out = []
+    for k in range(n):
+        s.doStep(t0 + k * 0.02, 0.02)
+        out.append(s.getFloat64(vrs))
+    return out
+
+
+@pytest.mark.parametrize("flavor", FLAVORS)
+def test_fmu_state_and_serialization_round_trip_bit_for_bit(fmi3_dirs, tmp_path, flavor):
+    fmu = fmi3_dirs[flavor] / "GliderPlant.fmu"
+    a = slave3(fmu, tmp_path, "a")
+    outs = [v.valueReference for v in a.md.modelVariables if v.causality == "output"]
+    a.enterInitializationMode(startTime=0.0)
+    a.exitInitializationMode()
+    a.setFloat64([v.valueReference for v in a.md.modelVariables if v.name == "delta_cmd"], [0.05])
+    _plant_steps(a, outs, 0.0, 100)
+    state = a.getFMUState()
+    blob = a.serializeFMUState(state)
+    ahead = _plant_steps(a, outs, 2.0, 100)
+    a.setFMUState(state)  # back to t = 2 s in the same instance
+    assert _plant_steps(a, outs, 2.0, 100) == ahead
+    b = slave3(fmu, tmp_path, "b")
+    b.enterInitializationMode(startTime=0.0)
+    b.exitInitializationMode()
+    restored = b.deserializeFMUState(blob)
+    b.setFMUState(restored)
+    assert _plant_steps(b, outs, 2.0, 100) == ahead  # bit for bit in a fresh instance
+    b.freeFMUState(restored)
+    a.freeFMUState(state)
+    for s in (a, b):
+        s.terminate()
+        s.freeInstance()
+
+
+# ---------------------------------------------------------------- the C host, FMI 3
+@pytest.fixture(scope="module")
+def fmi3_system(fmi3_dirs):
+    return system_for(load_scenario("default"), fmi3_dirs["native"])
+
+
+@pytest.fixture(scope="module")
+def fmi3_master_rows(fmi3_system, native_dir) -> np.ndarray:
+    def run(system):
+        system.record = list(RECORD)
+        sim = CoSimulation(system, step=0.02, coupling="jacobi")
+        rec = ArrayRecorder()
+        try:
+            sim.run(STOP, rec)
+        finally:
+            sim.close()
+        return rec.array()
+
+    got = run(fmi3_system)
+    assert np.array_equal(got, run(system_for(load_scenario("default"), native_dir)))
+    return got
+
+
+def test_c_host_fmi3_with_no_python_reachable_equals_our_master(
+    fmi3_system, fmi3_master_rows, tmp_path
+):
+    host = compile_host(
+        "gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-ldl", "-lm", "-lpthread"]
+    )
+    plan = write_plan(fmi3_system, tmp_path)
+    p = hidden_run(host, plan, tmp_path)
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = rows(p.stdout)
+    assert got.shape == fmi3_master_rows.shape == (round(STOP / 0.02) + 1, 1 + len(RECORD))
+    assert np.array_equal(got, fmi3_master_rows)  # bit for bit
+
+
+def test_c_host_fmi3_invalid_start_value_is_fmi3error_with_our_message(fmi3_system, tmp_path):
+    host = compile_host(
+        "gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-ldl", "-lm", "-lpthread"]
+    )
+    system = dataclasses.replace(
+        fmi3_system,
+        parameters={**fmi3_system.parameters, "controller": {"K_c": -1.0}},
+    )
+    plan = write_plan(system, tmp_path)
+    p = subprocess.run([str(host), str(plan)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 5  # initialisation failed
+    assert "status 3" in p.stderr and "K_c = -1.0 is invalid" in p.stderr, p.stderr
+
+
+def test_c_host_fmi3_win64_dlls_under_wine_equal_linux64(fmi3_system, fmi3_master_rows, tmp_path):
+    if shutil.which(MINGW) is None:
+        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    host = compile_host(MINGW, tmp_path / "host3.exe", list(FMI3_HOST))
+    plan = write_plan(fmi3_system, tmp_path, dir_of=lambda p: "Z:" + str(p))
+    env = wine_env(tmp_path)
+    try:
+        p = subprocess.run(["wine", str(host), "Z:" + str(plan)], capture_output=True,
+                           text=True, timeout=600, env=env)  # fmt: skip
+    finally:
+        subprocess.run(["wineserver", "-k"], env=env, capture_output=True, timeout=60)
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = rows(p.stdout.replace("\r", ""))
+    assert got.shape == fmi3_master_rows.shape
+    diff = np.abs(got - fmi3_master_rows).max()
+    print(f"FMI 3 win64 under wine vs linux64: max diff {diff:.3g}")
+    assert diff <= 1e-9
