@@ -7,6 +7,9 @@
 - ``fmpy.simulate_fmu`` on every FMI 3 FMU equals the FMI 2 build;
 - an invalid start value ends a host's run with fmi3Error and our message, logging off;
 - fmi3GetFMUState/SetFMUState and serialization round trip, bit for bit;
+- the call-sequence fuzz on FMI 3 calls: test_fmi_fuzz.py (fmi3_fuzz.py);
+- ``build --fmi 3``, ``run --fmi 3``/``--fmu-dir``, ``export-ssp --fmi 3``; build_all keeps
+  a folder's FMI version;
 - the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
   the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
   to our master.
@@ -17,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import shutil
 import subprocess
+import sys
 import zipfile
 
 import fmpy
@@ -34,7 +38,7 @@ from test_native import (
     write_plan,
 )
 
-from glider_cosim.build import folder_fmi
+from glider_cosim.build import build_all, folder_flavor, folder_fmi
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner import ArrayRecorder, simulate, system_for
 from glider_cosim.scenario import load_scenario
@@ -269,3 +273,45 @@ def test_c_host_fmi3_win64_dlls_under_wine_equal_linux64(fmi3_system, fmi3_maste
     diff = np.abs(got - fmi3_master_rows).max()
     print(f"FMI 3 win64 under wine vs linux64: max diff {diff:.3g}")
     assert diff <= 1e-9
+
+
+# ---------------------------------------------------------------- the CLI
+def cli(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-c", "from glider_cosim.cli import console_main; console_main()", *args],
+        capture_output=True, text=True, cwd=cwd, timeout=300,
+    )  # fmt: skip
+
+
+def test_cli_build_run_and_export_ssp_with_fmi3(tmp_path):
+    p = cli("build", "--fmi", "3", "--flavor", "native", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    folder = tmp_path / "fmus" / "fmi3" / "native"
+    assert folder_fmi(folder) == 3 and folder_flavor(folder) == "native"
+    # run --fmi 3 --flavor native uses that set; --fmu-dir takes it as it is
+    for args in (["--fmi", "3", "--flavor", "native"], ["--fmu-dir", str(folder)]):
+        p = cli("run", "--no-plots", "--stop-time", "2", "--out", "o", *args, cwd=tmp_path)
+        assert p.returncode == 0, p.stderr
+    assert folder_fmi(folder) == 3  # not rebuilt as FMI 2
+    p = cli("export-ssp", "x.ssp", "--fmi", "3", "--flavor", "native", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    with zipfile.ZipFile(tmp_path / "x.ssp") as z:
+        ssd = z.read("SystemStructure.ssd").decode()
+        for name in NAMES:
+            z.extract(f"resources/{name}.fmu", tmp_path / "ssp")
+    assert folder_fmi(tmp_path / "ssp" / "resources") == 3
+    assert ssd.count("<ssc:Real") >= 10  # FMI 3 Float64 connectors as SSP 1.0 Real
+    p = cli("run", "x.ssp", "--no-plots", "--stop-time", "2", "--out", "s", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    a = np.loadtxt(tmp_path / "o" / "results.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(tmp_path / "s" / "results.csv", delimiter=",", skiprows=1)
+    assert a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_build_all_keeps_a_folder_fmi3_and_fmi_2_replaces_it(fmi3_dirs, tmp_path):
+    folder = tmp_path / "n"
+    shutil.copytree(fmi3_dirs["native"], folder)
+    build_all(folder, only_stale=True)
+    assert folder_fmi(folder) == 3 and folder_flavor(folder) == "native"
+    build_all(folder, only_stale=True, fmi=2)
+    assert folder_fmi(folder) == 2 and folder_flavor(folder) == "native"
