@@ -145,6 +145,9 @@ class FastLoop:
             return None
         if any(op[7]._type_ is not ctypes.c_double for op in ops):
             return None
+        fns = [op[2] for op in ops] + [fn for _, fn, _ in steppers]
+        if not all(isinstance(fn, ctypes._CFuncPtr) for fn in fns):
+            return None  # Python stand-ins (FMI 3 shims without a C compiler)
         for read, _inst, _fn, _call, _comp, _vr, _n, _value, names, _src in ops:
             if not read and any("." not in s for s in names):
                 return None

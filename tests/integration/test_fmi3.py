@@ -315,3 +315,38 @@ def test_build_all_keeps_a_folder_fmi3_and_fmi_2_replaces_it(fmi3_dirs, tmp_path
     assert folder_fmi(folder) == 3 and folder_flavor(folder) == "native"
     build_all(folder, only_stale=True, fmi=2)
     assert folder_fmi(folder) == 2 and folder_flavor(folder) == "native"
+
+
+@pytest.mark.parametrize("shims", ["c", "python"])
+def test_integer_and_boolean_values_through_the_shims(
+    fmu_dir, fmi3_dirs, monkeypatch, fast_loop_seen, shims
+):
+    """Int32 and Boolean variables set and recorded through the FMI 3 adapter and its
+    shims (C, or the Python stand-ins used without a C compiler), equal to FMI 2."""
+    import glider_cosim.fmi3_slave as fmi3_slave
+
+    if shims == "python":
+        monkeypatch.setattr(fmi3_slave, "shim_library", lambda hold_gil: None)
+    sc = load_scenario("default")
+    record = ["plant.theta_g", "controller.law", "observer.start_at_equilibrium",
+              "plant.noise_seed"]  # fmt: skip
+    params = {**sc.parameters, "observer": {**sc.parameters.get("observer", {}),
+                                            "start_at_equilibrium": False}}  # fmt: skip
+    sc = dataclasses.replace(sc, record=record, parameters=params, stop_time=10.0)
+    a = simulate(sc, None, fmu_dir=fmu_dir, build=False)
+    b = simulate(sc, None, fmu_dir=fmi3_dirs["native"], build=False)
+    assert a.status == b.status == "ok"
+    assert np.array_equal(a.data, b.data)
+    assert set(b.data[:, 2]) == {1.0} and set(b.data[:, 3]) == {0.0}  # law 1, False
+    assert fast_loop_seen[-1][0] == {"plant": 3, "observer": 3, "controller": 3}
+
+
+def test_python_shims_without_a_compiler_equal_the_c_ones(native_dir, fmi3_dirs, monkeypatch):
+    import glider_cosim.fmi3_slave as fmi3_slave
+
+    a = simulate("default", None, fmu_dir=native_dir, build=False)
+    monkeypatch.setattr(fmi3_slave, "shim_library", lambda hold_gil: None)
+    b = simulate("default", None, fmu_dir=fmi3_dirs["native"], build=False)
+    c = simulate("sec53-literal", None, fmu_dir=fmi3_dirs["native"], build=False)
+    assert a.status == b.status == "ok" and np.array_equal(a.data, b.data)
+    assert c.status == "stopped" and len(c.data) == 491  # the stall, through Python too
