@@ -12,7 +12,7 @@
   a folder's FMI version;
 - the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
   the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
-  to our master.
+  to our master, and runs clean under valgrind memcheck.
 """
 
 from __future__ import annotations
@@ -350,3 +350,18 @@ def test_python_shims_without_a_compiler_equal_the_c_ones(native_dir, fmi3_dirs,
     c = simulate("sec53-literal", None, fmu_dir=fmi3_dirs["native"], build=False)
     assert a.status == b.status == "ok" and np.array_equal(a.data, b.data)
     assert c.status == "stopped" and len(c.data) == 491  # the stall, through Python too
+
+
+def test_c_host_fmi3_run_is_clean_under_valgrind(fmi3_system, tmp_path):
+    if shutil.which("valgrind") is None:
+        pytest.fail("valgrind is not installed (.ci/run installs it)")
+    host = compile_host("gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-g", "-ldl",
+                                                    "-lm", "-lpthread"])  # fmt: skip
+    plan = write_plan(fmi3_system, tmp_path, threads=True)
+    p = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full",
+                        "--errors-for-leak-kinds=definite", "--track-origins=yes",
+                        str(host), str(plan)], capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in p.stderr
+    assert "definitely lost: 0 bytes" in p.stderr or "no leaks are possible" in p.stderr
