@@ -306,6 +306,8 @@ def test_cli_build_run_and_export_ssp_with_fmi3(tmp_path):
     a = np.loadtxt(tmp_path / "o" / "results.csv", delimiter=",", skiprows=1)
     b = np.loadtxt(tmp_path / "s" / "results.csv", delimiter=",", skiprows=1)
     assert a.shape == b.shape and np.array_equal(a, b)
+    p = cli("export-fmu", "one.fmu", "--fmu-dir", str(folder), cwd=tmp_path)
+    assert p.returncode == 2 and "holds FMI 3.0 FMUs: the one-FMU export takes FMI 2.0" in p.stderr
 
 
 def test_build_all_keeps_a_folder_fmi3_and_fmi_2_replaces_it(fmi3_dirs, tmp_path):
