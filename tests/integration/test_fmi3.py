@@ -10,6 +10,7 @@
 - the call-sequence fuzz on FMI 3 calls: test_fmi_fuzz.py (fmi3_fuzz.py);
 - ``build --fmi 3``, ``run --fmi 3``/``--fmu-dir``, ``export-ssp --fmi 3``; build_all keeps
   a folder's FMI version;
+- Ecos (when ecospy is installed) on the FMI 3 SSP, equal to our Jacobi master;
 - the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
   the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
   to our master, and runs clean under valgrind memcheck.
@@ -18,6 +19,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
 import subprocess
 import sys
@@ -367,3 +369,40 @@ def test_c_host_fmi3_run_is_clean_under_valgrind(fmi3_system, tmp_path):
     assert p.returncode == 0, p.stderr[-3000:]
     assert "ERROR SUMMARY: 0 errors" in p.stderr
     assert "definitely lost: 0 bytes" in p.stderr or "no leaks are possible" in p.stderr
+
+
+ECOS_SCRIPT = """
+import json, sys
+from ecospy import EcosSimulation
+sim = EcosSimulation(step_size=0.02, ssp_path=sys.argv[1])
+sim.init()
+rows = [sim.get_real("plant::theta_g")]
+for _ in range(1000):
+    sim.step()
+    rows.append(sim.get_real("plant::theta_g"))
+sim.terminate()
+sim.free()
+print(json.dumps(rows))
+"""
+
+
+def test_ecos_runs_the_fmi3_ssp_equal_to_our_jacobi_master(fmi3_dirs, tmp_path):
+    """Ecos (``pip install ecospy``, not a dependency: skipped without it) on the SSP of the
+    native FMI 3 FMUs, in a subprocess (it steps on its own thread pool)."""
+    import json
+
+    pytest.importorskip("ecospy")
+    from glider_cosim.ssp import export_ssp, run_ssp
+
+    ssp = export_ssp(tmp_path / "glider3.ssp", None, fmi3_dirs["native"])
+    scratch = tmp_path / "ecos_tmp"  # Ecos leaves its unpacked SSP in $TMPDIR
+    scratch.mkdir()
+    env = {**os.environ, "TMPDIR": str(scratch)}
+    p = subprocess.run([sys.executable, "-c", ECOS_SCRIPT, str(ssp)], capture_output=True,
+                       text=True, timeout=300, env=env)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    ecos = np.array(json.loads(p.stdout.strip().splitlines()[-1]))
+    ours = run_ssp(ssp, None, coupling="jacobi", stop_time=20.0).column("plant.theta_g")
+    assert ecos.shape == ours.shape == (1001,)
+    print(f"Ecos on FMI 3 vs our jacobi master: max |d theta_g| = {np.abs(ecos - ours).max():.3g}")
+    assert np.array_equal(ecos, ours)
