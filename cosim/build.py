@@ -258,20 +258,54 @@ def sources_key(flavor: str = "python") -> str:
     return hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:16]
 
 
-def cache_dir(flavor: str = "python") -> Path:
-    """The cache folder of the flavor's FMUs built from the current sources:
-    ``<cache_root>/<version>/<flavor>-<sources_key>``. Other sources (another checkout,
-    an edit) get another folder, so the FMUs are rebuilt when stale."""
+def cache_dir(flavor: str = "python", fmi: int = 2) -> Path:
+    """The cache folder of the flavor's FMUs (of FMI ``fmi``) built from the current
+    sources: ``<cache_root>/<version>/<flavor>[-fmi3]-<sources_key>``. Other sources
+    (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale."""
     from .native import _version
 
     if flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
-    return cache_root() / _version() / f"{flavor}-{sources_key(flavor)}"
+    kind = flavor if fmi == 2 else f"{flavor}-fmi{fmi}"
+    return cache_root() / _version() / f"{kind}-{sources_key(flavor)}"
 
 
 def fmu_folder(fmu_dir: str | Path | None, flavor: str | None = None) -> Path:
     """``fmu_dir`` as a path; None is the cache folder of ``flavor`` (python if None)."""
     return Path(fmu_dir) if fmu_dir is not None else cache_dir(flavor or "python")
+
+
+#: the FMI versions we build (``--fmi``)
+FMI_VERSIONS = (2, 3)
+#: where each flavor's FMI 3.0 FMUs are built unless a folder is given
+DEFAULT_DIRS_FMI3 = {"python": Path("fmus") / "fmi3", "native": Path("fmus") / "fmi3" / "native"}
+
+
+def default_dir(flavor: str | None = None, fmi: int | None = None) -> Path:
+    """The folder a flavor (python if None) of FMI ``fmi`` (2 if None) is built in."""
+    return (DEFAULT_DIRS_FMI3 if fmi == 3 else DEFAULT_DIRS)[flavor or "python"]
+
+
+def fmu_fmi_version(fmu: Path | str) -> int | None:
+    """The FMI version (2 or 3) an FMU's model description declares, None if unreadable."""
+    import re
+
+    try:
+        with zipfile.ZipFile(fmu) as z, z.open("modelDescription.xml") as f:
+            head = f.read(4096).decode("utf-8", "replace")
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return None
+    m = re.search(r'fmiVersion\s*=\s*"([23])\.', head)
+    return int(m.group(1)) if m else None
+
+
+def folder_fmi(folder: Path | str) -> int | None:
+    """The FMI version of the FMUs of ours in ``folder`` (the first found), or None."""
+    for c in COMPONENTS:
+        found = fmu_fmi_version(Path(folder) / f"{c.name}.fmu")
+        if found:
+            return found
+    return None
 
 
 def folder_flavor(folder: Path | str) -> str | None:
@@ -286,7 +320,10 @@ def folder_flavor(folder: Path | str) -> str | None:
 
 
 def build_all(
-    out: Path | str = "fmus", only_stale: bool = False, flavor: str | None = None
+    out: Path | str = "fmus",
+    only_stale: bool = False,
+    flavor: str | None = None,
+    fmi: int | None = None,
 ) -> dict[str, Path]:
     """Build GliderPlant, GliderObserver and GliderController into ``out``.
 
@@ -299,6 +336,9 @@ def build_all(
     flavor : {"python", "native"} or None
         Which build: None keeps the flavor the FMUs already in ``out`` record (so a folder
         of native FMUs is never rebuilt as Python ones), Python if there are none.
+    fmi : {2, 3} or None
+        FMI version: None keeps the one the FMUs already in ``out`` declare (a folder of
+        FMI 3.0 FMUs stays FMI 3.0), 2 if there are none.
 
     Returns
     -------
@@ -310,6 +350,16 @@ def build_all(
         flavor = folder_flavor(out) or "python"
     if flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
+    if fmi is None:
+        fmi = folder_fmi(out) or 2
+    if fmi not in FMI_VERSIONS:
+        raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
+    if fmi == 3:
+        from .fmi3 import build_fmi3
+
+        return build_fmi3(out, flavor, only_stale)
+    if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
+        only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
         from .native import build_native
 
@@ -332,8 +382,9 @@ def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
     return fmus
 
 
-def add_fmu_options(parser: Any) -> None:
-    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs."""
+def add_fmu_options(parser: Any, fmi: bool = False) -> None:
+    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
+    with ``fmi``)."""
     parser.add_argument(
         "--fmu-dir",
         default=None,
@@ -347,15 +398,28 @@ def add_fmu_options(parser: Any) -> None:
         help="which FMUs: the Python reference or the native C99 build (default: the "
         "flavor the FMU folder holds, python if it is empty)",
     )
+    if fmi:
+        parser.add_argument(
+            "--fmi",
+            type=int,
+            choices=FMI_VERSIONS,
+            default=None,
+            help="FMI version of our FMUs (default: the one the FMU folder holds, 2 if it is "
+            "empty; FMI 3 FMUs are built in fmus/fmi3, fmus/fmi3/native)",
+        )
 
 
-def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None) -> Path:
-    """The FMU folder a command's ``--fmu-dir``/``--flavor`` name; with ``--flavor`` the
-    FMUs there are built in that flavor first if missing, stale or of the other flavor.
-    Without a folder, the cache's (:func:`cache_dir`), built there first if missing."""
+def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None, fmi: int | None = None) -> Path:
+    """The FMU folder a command's ``--fmu-dir``/``--flavor``/``--fmi`` name. Without a
+    folder: the per-user cache's (:func:`cache_dir`), built there first if missing or
+    stale. With a folder and ``--flavor`` or ``--fmi``: the FMUs there are built in that
+    flavor and FMI version first if missing, stale or of another flavor or version."""
     if fmu_dir is None:
         flavor = flavor or "python"
-    folder = fmu_folder(fmu_dir, flavor)
-    if flavor is not None:
-        build_all(folder, only_stale=True, flavor=flavor)
+        folder = cache_dir(flavor, fmi or 2)
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2)
+        return folder
+    folder = Path(fmu_dir)
+    if flavor is not None or fmi is not None:
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi)
     return folder

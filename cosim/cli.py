@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .build import DEFAULT_DIRS, FLAVORS, add_fmu_options
+from .build import FLAVORS, FMI_VERSIONS, add_fmu_options, default_dir
 from .inputs.text import one_line, quote, shown_path
 from .master import DEFAULT_MAX_STEPS, Interrupted, MasterError, SystemSpecError
 from .scenario import ScenarioError, shipped_scenarios
@@ -80,10 +80,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
     b.add_argument(
-        "--out", default=None, help="output folder (default: fmus, or fmus/native for native)"
+        "--out",
+        default=None,
+        help="output folder (default: fmus, fmus/native for native, fmus/fmi3 and "
+        "fmus/fmi3/native with --fmi 3)",
     )
     b.add_argument(
         "--flavor", choices=FLAVORS, default="python", help="Python reference or native C99"
+    )
+    b.add_argument(
+        "--fmi", type=int, choices=FMI_VERSIONS, default=2, help="FMI version: 2.0 or 3.0"
     )
 
     r = sub.add_parser(
@@ -100,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
         "file; default: default",
     )
     r.add_argument("--out", default="out", help="results folder ('out' means out/<scenario>)")
-    add_fmu_options(r)
+    add_fmu_options(r, fmi=True)
     r.add_argument(
         "--coupling",
         type=str.lower,
@@ -138,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
     e.add_argument("out", help="output .ssp file")
     e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
-    add_fmu_options(e)
+    add_fmu_options(e, fmi=True)
 
     he = sub.add_parser(
         "host-env", help="environment a C/C++ host on another machine needs for our FMUs"
@@ -436,16 +442,16 @@ def _dispatch(args: argparse.Namespace) -> int:
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
         try:
-            args.fmu_dir = str(prepare_fmus(folder, getattr(args, "flavor", None)))
+            args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
         from .build import build_all
 
-        out = Path(args.out) if args.out is not None else DEFAULT_DIRS[args.flavor]
+        out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
         _check_out_dir(out, "build --out")
         try:
-            built = build_all(out, flavor=args.flavor)
+            built = build_all(out, flavor=args.flavor, fmi=args.fmi)
         except OSError as err:
             raise _os_error(err, {"build --out": out}) from None
         for name, path in built.items():

@@ -43,6 +43,25 @@ def library() -> ctypes.CDLL | None:
     return _library(True)
 
 
+#: the FMI 2.0-signature shims over an FMI 3.0 instance (``fastloop.c``), by the call
+#: they stand for
+SHIMS = {
+    "fmi2GetReal": "glider_shim_get_float64",
+    "fmi2SetReal": "glider_shim_set_float64",
+    "fmi2GetInteger": "glider_shim_get_int32",
+    "fmi2SetInteger": "glider_shim_set_int32",
+    "fmi2GetBoolean": "glider_shim_get_boolean",
+    "fmi2SetBoolean": "glider_shim_set_boolean",
+    "fmi2DoStep": "glider_shim_do_step",
+}
+
+
+def shim_library(hold_gil: bool) -> ctypes.CDLL | None:
+    """The compiled helper for its FMI 3 shims (whatever ``GLIDER_COSIM_FASTLOOP`` says:
+    the master's Python loop calls them too), or None without a C compiler."""
+    return _library(hold_gil)
+
+
 def _library(hold_gil: bool) -> ctypes.CDLL | None:
     """The compiled helper (``PyDLL`` when the FMUs run Python under the GIL anyway)."""
     if hold_gil in _LIB:
@@ -60,6 +79,8 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
         lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
+        for name in SHIMS.values():
+            getattr(lib, name).restype = ctypes.c_int
     except (OSError, subprocess.SubprocessError, RuntimeBuildError):
         lib = None  # the Python loop runs instead
     _LIB[hold_gil] = lib
@@ -124,6 +145,9 @@ class FastLoop:
             return None
         if any(op[7]._type_ is not ctypes.c_double for op in ops):
             return None
+        fns = [op[2] for op in ops] + [fn for _, fn, _ in steppers]
+        if not all(isinstance(fn, ctypes._CFuncPtr) for fn in fns):
+            return None  # Python stand-ins (FMI 3 shims without a C compiler)
         for read, _inst, _fn, _call, _comp, _vr, _n, _value, names, _src in ops:
             if not read and any("." not in s for s in names):
                 return None

@@ -1,4 +1,9 @@
-"""Fixed-step co-simulation master on ``fmpy.fmi2`` for any FMI 2.0 co-simulation FMUs.
+"""Fixed-step co-simulation master on fmpy for FMI 2.0 and FMI 3.0 co-simulation FMUs.
+
+FMI 2.0 instances run on ``fmpy.fmi2``; FMI 3.0 ones on ``fmpy.fmi3.FMU3Slave`` behind
+the same FMI 2.0-named calls (:mod:`glider_cosim.fmi3_slave`: Float64, Int32 and Boolean
+for Real, Integer and Boolean; a doStep that sets terminateSimulation is a Discard), so
+both kinds mix in one system and share the C fast loop.
 
 Instances are connected output -> input by variable name; value references come from
 each FMU's model description. Time is ``t0 + k*h`` with an integer step counter.
@@ -15,7 +20,7 @@ Coupling schemes (what happens at every communication point ``t_k``):
     All outputs are read, then all inputs are set, then all instances step: a
     feedthrough output acts on the inputs of the previous point (one extra sample).
 
-Failures: an FMU call that returns fmi2Discard stops the run cleanly
+Failures: an FMU call that returns fmi2Discard (fmi3Discard) stops the run cleanly
 (:class:`FMUStopped`); fmi2Error/fmi2Fatal raise :class:`FMUCallError`. Either way the
 rows recorded so far are kept (the recorder streams them); an instance that stopped or is
 fine is terminated and freed, one in the error state is only freed (FMI allows nothing
@@ -53,6 +58,7 @@ from fmpy.fmi2 import (
 from glider_fmi.compile import PYTHON_CONFIG_FILE
 
 from .fastloop import FastLoop
+from .fmi3_slave import TYPE_AS_FMI2, FMU3Adapter, fmi3_call_name, fmi3LogMessageCallback
 from .inputs.archives import InputFileError, read_fmu, safe_extract
 from .inputs.text import one_line, quote
 from .tempdirs import new_temp_dir
@@ -65,6 +71,7 @@ _HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Inte
 _HOT_CALLS += ("fmi2DoStep",)
 _C_TRUE = ctypes.c_int(1)
 _STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
+_STATUS3 = {k: v.replace("fmi2", "fmi3") for k, v in _STATUS.items()}
 _CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 
 
@@ -78,16 +85,21 @@ class SystemSpecError(MasterError, ValueError):
 
 
 class FMUCallError(MasterError, RuntimeError):
-    """An FMI call returned fmi2Error or fmi2Fatal.
+    """An FMI call returned fmi2Error or fmi2Fatal (fmi3Error, fmi3Fatal).
 
-    Attributes ``instance``, ``call``, ``time`` (s), ``status`` and ``log`` (the FMU's
-    own messages for that instance).
+    Attributes ``instance``, ``call``, ``time`` (s), ``status``, ``log`` (the FMU's own
+    messages for that instance) and ``fmi`` (the FMI version, 2 or 3: the call and the
+    status are named in its terms).
     """
 
-    def __init__(self, instance: str, call: str, time: float, status: int, log: Sequence[str]):
+    def __init__(
+        self, instance: str, call: str, time: float, status: int, log: Sequence[str], fmi: int = 2
+    ):
         self.instance, self.call, self.time, self.status = instance, call, time, status
         self.log = list(log)
-        errors = [m for m in self.log if m.startswith(("[fmi2Error]", "[fmi2Discard]"))]
+        self.fmi = fmi
+        names = _STATUS3 if fmi == 3 else _STATUS
+        errors = [m for m in self.log if m.startswith((f"[{names[3]}]", f"[{names[2]}]"))]
         detail = (errors[0] if errors else self.log[-1]) if self.log else "no log message"
         detail = " ".join(detail.split())
         # the FMU's message often starts with the instance's and the call's names (ours
@@ -100,13 +112,13 @@ class FMUCallError(MasterError, RuntimeError):
         if text.startswith(f"{base}: "):
             detail = f"{status_tag}] {text[len(base) + 2 :]}"
         super().__init__(
-            f"{instance}: {call} at t = {time:.6g} s returned {_STATUS.get(status, status)}: "
-            f"{detail}"
+            f"{instance}: {call} at t = {time:.6g} s returned {names.get(status, status)}: {detail}"
         )
 
 
 class FMUStopped(FMUCallError):
-    """An FMI call returned fmi2Discard: the FMU stopped the run cleanly (e.g. a stall)."""
+    """An FMI call returned fmi2Discard (fmi3Discard, or fmi3DoStep set
+    terminateSimulation): the FMU stopped the run cleanly (e.g. a stall)."""
 
 
 class Interrupted(KeyboardInterrupt):
@@ -330,7 +342,8 @@ def count_steps(span: float, step: float, max_steps: int = DEFAULT_MAX_STEPS) ->
 
 
 class Instance:
-    """One FMU instance under a name (fmpy ``FMU2Slave`` with batched value access)."""
+    """One FMU instance under a name (fmpy ``FMU2Slave``, or ``FMU3Slave`` behind
+    :class:`~glider_cosim.fmi3_slave.FMU3Adapter`, with batched value access)."""
 
     def __init__(self, name: str, fmu: Path):
         self.name = name
@@ -339,6 +352,11 @@ class Instance:
             self.md = read_fmu(self.fmu, f"instance {name}")
         except InputFileError as err:
             raise SystemSpecError(str(err)) from None
+        #: FMI version, 2 or 3
+        self.fmi = 3 if self.md.fmiVersion.startswith("3") else 2
+        if self.fmi == 3:  # Float64, Int32 as Real, Integer (this description is ours)
+            for v in self.md.modelVariables:
+                v.type = TYPE_AS_FMI2.get(v.type, v.type)
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
@@ -353,7 +371,7 @@ class Instance:
         except InputFileError as err:
             raise SystemSpecError(f"instance {name}: {err}") from None
         try:
-            self.slave = FMU2Slave(
+            self.slave = (FMU3Adapter if self.fmi == 3 else FMU2Slave)(
                 guid=self.md.guid,
                 unzipDirectory=self.unzipdir,
                 modelIdentifier=self.md.coSimulation.modelIdentifier,
@@ -370,8 +388,9 @@ class Instance:
         self.fatal = False
         self.failed = False  # returned fmi2Error: only getters, reset and free are allowed
 
-    def call_dll(self) -> ctypes.CDLL:
-        """The FMU's binary for the per-step calls.
+    def call_dll(self) -> Any:
+        """The FMU's binary for the per-step calls (for FMI 3, the shims of
+        :meth:`~glider_cosim.fmi3_slave.FMU3Adapter.calls` under the FMI 2 names).
 
         An FMU on our FMI runtime runs its code under the GIL, which the runtime takes for
         every call: it is called with the GIL held (``ctypes.PyDLL``), saving a release
@@ -380,7 +399,11 @@ class Instance:
         """
         if self._call_dll is None:
             dll = self.slave.dll
-            if (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file():
+            on_runtime = (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file()
+            if self.fmi == 3:  # the FMI 2-signature shims over the fmi3 calls
+                self._call_dll = self.slave.calls(holds_gil=on_runtime)
+                return self._call_dll
+            if on_runtime:
                 # the master passes ctypes objects of the exact types: no argtypes to check
                 gil_dll = ctypes.PyDLL(dll._name)
                 for name in _HOT_CALLS:
@@ -615,11 +638,18 @@ class CoSimulation:
         except FMICallException as err:
             self._raise(inst, call, int(err.status))
 
-    def _make_callbacks(self, inst: Instance) -> fmi2CallbackFunctions:
+    def _make_callbacks(self, inst: Instance) -> Any:
+        names = _STATUS3 if inst.fmi == 3 else _STATUS
+
         def logger(env, instance_name, status, category, message):
             text = message.decode("utf-8", "replace") if message else ""
-            inst.log.append(f"[{_STATUS.get(status, status)}] {text}")
+            inst.log.append(f"[{names.get(status, status)}] {text}")
             del inst.log[:-50]
+
+        if inst.fmi == 3:  # fmi3LogMessageCallback(env, status, category, message)
+            cb3 = fmi3LogMessageCallback(lambda env, st, cat, msg: logger(env, None, st, cat, msg))
+            self._keep_callbacks.append(cb3)
+            return cb3
 
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(logger)
@@ -649,9 +679,13 @@ class CoSimulation:
         for inst in self.instances.values():
             cb = self._make_callbacks(inst)
             try:
-                inst.slave.instantiate(callbacks=cb, loggingOn=True)
+                if inst.fmi == 3:
+                    inst.slave.instantiate(log_message=cb, loggingOn=True)
+                else:
+                    inst.slave.instantiate(callbacks=cb, loggingOn=True)
             except Exception as err:  # fmpy raises plain Exception here
-                raise FMUCallError(inst.name, "fmi2Instantiate", self.t0, 3, inst.log) from err
+                call = fmi3_call_name("fmi2Instantiate") if inst.fmi == 3 else "fmi2Instantiate"
+                raise FMUCallError(inst.name, call, self.t0, 3, inst.log, inst.fmi) from err
             inst.alive = True
         self._setup_instances()
         self._plan_calls()
@@ -718,7 +752,9 @@ class CoSimulation:
         elif status == 3:
             inst.failed = True
         cls = FMUStopped if status == 2 else FMUCallError
-        raise cls(inst.name, call, t, status, inst.log)
+        if inst.fmi == 3:
+            call = fmi3_call_name(call)
+        raise cls(inst.name, call, t, status, inst.log, inst.fmi)
 
     def _plan_calls(self) -> None:
         """Raw ctypes functions with preallocated arrays for the per-step calls."""
@@ -749,7 +785,10 @@ class CoSimulation:
             for inst in self.instances.values()
         ]
         # the same calls from C, one ctypes call per exchange and per step (if possible)
-        hold_gil = all(isinstance(i.call_dll(), ctypes.PyDLL) for i in self.instances.values())
+        hold_gil = all(
+            getattr(i.call_dll(), "holds_gil", isinstance(i.call_dll(), ctypes.PyDLL))
+            for i in self.instances.values()
+        )
         self._fast = FastLoop.plan(self._exchange_ops, self._steppers, hold_gil)
         self._reads = [(op[8], op[7]) for op in self._exchange_ops if op[0]]
         # the recorded row straight from the read arrays (no value table) when possible

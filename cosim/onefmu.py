@@ -147,6 +147,14 @@ def export_one_fmu(
                 f"{sc.source}: key '{key}': events, disturbances and swapped FMUs cannot be "
                 "exported into one FMU"
             )
+    from .build import folder_fmi
+    from .inputs.text import quote
+
+    if fmu_dir is not None and folder_fmi(fmu_dir) == 3:
+        raise OneFMUError(
+            f"{quote(str(fmu_dir))} holds FMI 3.0 FMUs: the one-FMU export takes FMI 2.0 ones "
+            "(the container is an FMI 2.0 FMU); use --fmu-dir with an FMI 2 folder"
+        )
     built = build_all(fmu_folder(fmu_dir), only_stale=True)
     files = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if sc.observer or i != "observer"}
     out = Path(out_path)

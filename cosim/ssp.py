@@ -92,6 +92,17 @@ def _format_value(value: Any, type_: str) -> str:
 
 
 # --------------------------------------------------------------------------- export
+def _as_fmi2_types(md: Any) -> Any:
+    """An FMI 3.0 model description's Float64/Int32 variables as SSP 1.0's Real/Integer
+    (the types an FMI 2.0 one declares); an FMI 2.0 one as it is."""
+    from .fmi3_slave import TYPE_AS_FMI2
+
+    if str(md.fmiVersion).startswith("3"):
+        for v in md.modelVariables:
+            v.type = TYPE_AS_FMI2.get(v.type, v.type)
+    return md
+
+
 def export_ssp(
     out_path: str | Path,
     scenario: Scenario | str | Path | None = None,
@@ -158,7 +169,7 @@ def export_ssp(
     elements = ET.SubElement(system, _q("ssd", "Elements"))
     comps = {}
     for inst in insts:
-        md = read_model_description(str(fmus[inst]))
+        md = _as_fmi2_types(read_model_description(str(fmus[inst])))
         variables = {v.name: v for v in md.modelVariables}
         comp = comps[inst] = ET.SubElement(
             elements,
@@ -275,7 +286,7 @@ def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
     if not fmu.exists():
         raise SSPError(f"{cwhere}: FMU {quote(source)} is missing")
     try:  # complete (binary, pythonfmu script) and readable; nothing loaded
-        md = read_fmu(fmu, cwhere)
+        md = _as_fmi2_types(read_fmu(fmu, cwhere))
     except InputFileError as err:
         raise SSPError(str(err)) from None
     variables = {v.name: v for v in md.modelVariables}

@@ -79,6 +79,18 @@ def native_dir() -> Path:
     return prepare_fmus(None, "native")
 
 
+@pytest.fixture(scope="session")
+def fmi3_dirs(tmp_path_factory) -> dict[str, Path]:
+    """Our three FMUs as FMI 3.0, in both flavors (flavor -> folder), built once."""
+    from glider_cosim.fmi3 import build_fmi3
+
+    dirs = {}
+    for flavor in ("python", "native"):
+        dirs[flavor] = tmp_path_factory.mktemp(f"fmi3_{flavor}")
+        build_fmi3(dirs[flavor], flavor)
+    return dirs
+
+
 @pytest.fixture(scope="session", params=["python", "native"])
 def flavor_dir(request) -> Path:
     """The three FMUs of each flavor in turn: tests that take it run on both."""

@@ -132,12 +132,13 @@ def _is_pythonfmu(md: Any, names: set[str]) -> bool:
 
 
 def read_fmu(path: str | Path, where: str) -> Any:
-    """Check that ``path`` is a complete FMI 2.0 co-simulation FMU; return its model
-    description (``fmpy.model_description.ModelDescription``).
+    """Check that ``path`` is a complete FMI 2.0 or 3.0 co-simulation FMU; return its
+    model description (``fmpy.model_description.ModelDescription``).
 
     Checked without loading anything: a regular zip file, ``modelDescription.xml``, FMI
-    2.0 co-simulation, the binary for this platform (``binaries/<platform>/<model
-    identifier><ext>``, with the platform's executable header), and for a pythonfmu FMU
+    2.0 or 3.0 co-simulation, the binary for this platform (``binaries/<platform>/<model
+    identifier><ext>``, FMI 3's platform tuple such as ``x86_64-linux`` for FMI 3, with
+    the platform's executable header), and for a pythonfmu FMU
     ``resources/slavemodule.txt`` and the script it names (without them pythonfmu's
     binary crashes at instantiation).
 
@@ -146,7 +147,7 @@ def read_fmu(path: str | Path, where: str) -> Any:
     InputFileError
         What is missing or unreadable, after ``where``.
     """
-    from fmpy import platform, read_model_description, sharedLibraryExtension
+    from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
 
     p = regular_file(path, where, "FMU")
     name = quote(p.name)
@@ -165,10 +166,13 @@ def read_fmu(path: str | Path, where: str) -> Any:
                 raise InputFileError(
                     f"{where}: FMU {name} has no readable model description ({one_line(err)})"
                 ) from None
-            if md.fmiVersion != "2.0" or md.coSimulation is None:
-                raise InputFileError(f"{where}: FMU {name} is not an FMI 2.0 co-simulation FMU")
+            if md.fmiVersion not in ("2.0", "3.0") or md.coSimulation is None:
+                raise InputFileError(
+                    f"{where}: FMU {name} is not an FMI 2.0 or 3.0 co-simulation FMU"
+                )
             mi = md.coSimulation.modelIdentifier
-            binary = f"binaries/{platform}/{mi}{sharedLibraryExtension}"
+            folder = platform_tuple if md.fmiVersion == "3.0" else platform
+            binary = f"binaries/{folder}/{mi}{sharedLibraryExtension}"
             if binary not in infos:
                 raise InputFileError(
                     f"{where}: FMU {name} has no binary for this platform ({quote(binary)})"

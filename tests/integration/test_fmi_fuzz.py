@@ -1,4 +1,5 @@
-"""300 random FMI call sequences per FMU, in one process: statuses only, never a crash.
+"""300 random FMI call sequences per FMU, in one process: statuses only, never a crash
+(FMI 2.0 through fmi_fuzz.py, FMI 3.0 through fmi3_fuzz.py).
 
 The sequences come from tests/integration/fmi_fuzz.py with a fixed seed; a failure
 prints the FMU, sequence and seed to replay with
@@ -30,6 +31,28 @@ def test_random_call_sequences_return_statuses_and_never_crash(flavor_dir, test_
     assert lines[-1] == "done"
     for fmu in fmus:
         m = re.search(rf"^{fmu.stem}: (\d+) calls, (\d+) steps OK, (\d+) fmi2Error$", p.stdout,
+                      re.MULTILINE)  # fmt: skip
+        assert m, p.stdout[-500:]
+        calls, steps, errors = map(int, m.groups())
+        assert calls > 3000 and steps > 10 and errors > 1000  # real steps, real refusals
+        assert sum(ln.startswith(f"sequence {fmu.stem} ") for ln in lines) == 300
+
+
+FUZZ3 = Path(__file__).parent / "fmi3_fuzz.py"
+
+
+@pytest.mark.parametrize("flavor", ["python", "native"])
+def test_random_fmi3_call_sequences_return_statuses_and_never_crash(fmi3_dirs, flavor):
+    fmus = [fmi3_dirs[flavor] / f"{n}.fmu" for n in ("GliderPlant", "GliderObserver",
+                                                     "GliderController")]  # fmt: skip
+    p = subprocess.run([sys.executable, str(FUZZ3), str(SEED), "300", *map(str, fmus)],
+                       capture_output=True, text=True, timeout=600)  # fmt: skip
+    lines = p.stdout.splitlines()
+    last = next((ln for ln in reversed(lines) if ln.startswith(("sequence", "FAILED"))), "")
+    assert p.returncode == 0, f"exit {p.returncode} at '{last}': {p.stderr[-2000:]}"
+    assert lines[-1] == "done"
+    for fmu in fmus:
+        m = re.search(rf"^{fmu.stem}: (\d+) calls, (\d+) steps OK, (\d+) fmi3Error$", p.stdout,
                       re.MULTILINE)  # fmt: skip
         assert m, p.stdout[-500:]
         calls, steps, errors = map(int, m.groups())

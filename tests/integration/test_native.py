@@ -136,7 +136,9 @@ def write_plan(system, root: Path, dir_of=str, threads: bool = False) -> Path:
     for inst, params in system.parameters.items():
         for name, value in params.items():
             v = vars_[inst][name]
-            kind = {"Real": "real", "Integer": "integer"}[v.type]
+            kind = {"Real": "real", "Integer": "integer", "Float64": "real", "Int32": "integer"}[
+                v.type
+            ]
             lines.append(f"{kind} {inst} {v.valueReference} {float(value)!r}")
     for src, dst in system.connections:
         (si, sn), (di, dn) = src.split("."), dst.split(".")

@@ -1,4 +1,5 @@
-/* A minimal FMI 2.0 co-simulation host in C, for tests/integration/test_c_host.py.
+/* A minimal FMI 2.0 co-simulation host in C, for tests/integration/test_c_host.py; with
+ * -DGLIDER_HOST_FMI3 the same host for FMI 3.0 (tests/integration/test_fmi3.py).
  *
  * Reads a plan (one directive per line), loads the binaries of unzipped FMUs with
  * dlopen, instantiates them with a logger callback, sets parameters, initialises them
@@ -21,6 +22,14 @@
  * libwinpthread, which wine lacks), where DIR is a Windows path such as Z:/tmp/x.
  * Exit codes: 0 ok, 2 usage or plan, 3 dlopen/dlsym, 4 instantiate, 5 initialisation,
  * 6 step, 7 get/set.
+ *
+ * FMI 3.0 (-DGLIDER_HOST_FMI3, against fmpy's FMI 3.0 headers): GUID is the
+ * instantiation token, binaries come from x86_64-linux or x86_64-windows, the resource
+ * location is the native path of resources/ with a trailing '/', the start time goes to
+ * fmi3EnterInitializationMode (stopTimeDefined false), Real and Integer are Float64 and
+ * Int32, and a doStep returning terminateSimulation ends the run (exit 6) as a Discard.
+ * Logging is off (loggingOn false): the messages printed are those an FMU must send
+ * anyway (errors).
  */
 #include <math.h>
 #include <stdarg.h>
@@ -28,13 +37,29 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef GLIDER_HOST_FMI3
+#include "fmi3Functions.h"
+typedef fmi3Status fmi2Status;
+typedef fmi3ValueReference fmi2ValueReference;
+typedef fmi3Int32 fmi2Integer;
+#define fmi2OK fmi3OK
+#define fmi2Warning fmi3Warning
+#define fmi2True fmi3True
+#define fmi2False fmi3False
+#else
 #include "fmi2Functions.h"
+#endif
 
 #ifdef _WIN32
 #include <windows.h>
+#ifdef GLIDER_HOST_FMI3
+#define PLATFORM "x86_64-windows"
+#define URI_FORMAT "%s/resources/"
+#else
 #define PLATFORM "win64"
-#define SUFFIX ".dll"
 #define URI_FORMAT "file:///%s/resources"
+#endif
+#define SUFFIX ".dll"
 typedef HANDLE thread_t;
 static void *open_library(const char *path) { return (void *)LoadLibraryA(path); }
 static void *library_symbol(void *lib, const char *name) {
@@ -51,9 +76,14 @@ static const char *library_error(void) {
 #else
 #include <dlfcn.h>
 #include <pthread.h>
+#ifdef GLIDER_HOST_FMI3
+#define PLATFORM "x86_64-linux"
+#define URI_FORMAT "%s/resources/"
+#else
 #define PLATFORM "linux64"
-#define SUFFIX ".so"
 #define URI_FORMAT "file://%s/resources"
+#endif
+#define SUFFIX ".so"
 typedef pthread_t thread_t;
 static void *open_library(const char *path) { return dlopen(path, RTLD_NOW | RTLD_LOCAL); }
 static void *library_symbol(void *lib, const char *name) { return dlsym(lib, name); }
@@ -62,6 +92,47 @@ static const char *library_error(void) { return dlerror(); }
 
 #define MAX 32
 
+#ifdef GLIDER_HOST_FMI3
+typedef struct {
+    char name[4096];
+    void *lib;
+    fmi3Instance c;
+    fmi3InstantiateCoSimulationTYPE *instantiate;
+    fmi3EnterInitializationModeTYPE *enter3;
+    fmi3ExitInitializationModeTYPE *exit_init;
+    fmi3SetFloat64TYPE *set_float64;
+    fmi3SetInt32TYPE *set_int32;
+    fmi3GetFloat64TYPE *get_float64;
+    fmi3DoStepTYPE *do_step3;
+    fmi3TerminateTYPE *terminate;
+    fmi3FreeInstanceTYPE *free_instance;
+} Fmu;
+
+/* the FMI 2.0 calls main() makes, in FMI 3.0 */
+static fmi2Status setup(Fmu *f, double stop) {
+    (void)f, (void)stop; /* the experiment goes to fmi3EnterInitializationMode */
+    return fmi3OK;
+}
+static fmi2Status enter(Fmu *f, double stop) {
+    (void)stop;
+    return f->enter3(f->c, fmi3False, 0.0, 0.0, fmi3False, 0.0);
+}
+static fmi2Status set_real(Fmu *f, const fmi2ValueReference *vr, double *v) {
+    return f->set_float64(f->c, vr, 1, v, 1);
+}
+static fmi2Status set_integer(Fmu *f, const fmi2ValueReference *vr, fmi2Integer *v) {
+    return f->set_int32(f->c, vr, 1, v, 1);
+}
+static fmi2Status get_real(Fmu *f, const fmi2ValueReference *vr, double *v) {
+    return f->get_float64(f->c, vr, 1, v, 1);
+}
+static fmi2Status do_step(Fmu *f, double t, double h) {
+    fmi3Boolean event = fmi3False, terminate = fmi3False, early = fmi3False;
+    fmi3Float64 last = t;
+    fmi3Status st = f->do_step3(f->c, t, h, fmi3True, &event, &terminate, &early, &last);
+    return st <= fmi3Warning && terminate ? fmi3Discard : st;
+}
+#else
 typedef struct {
     char name[4096];
     void *lib;
@@ -77,6 +148,25 @@ typedef struct {
     fmi2TerminateTYPE *terminate;
     fmi2FreeInstanceTYPE *free_instance;
 } Fmu;
+
+static fmi2Status setup(Fmu *f, double stop) {
+    return f->setup(f->c, fmi2False, 0.0, 0.0, fmi2True, stop);
+}
+static fmi2Status enter(Fmu *f, double stop) {
+    (void)stop;
+    return f->enter(f->c);
+}
+static fmi2Status set_real(Fmu *f, const fmi2ValueReference *vr, double *v) {
+    return f->set_real(f->c, vr, 1, v);
+}
+static fmi2Status set_integer(Fmu *f, const fmi2ValueReference *vr, fmi2Integer *v) {
+    return f->set_integer(f->c, vr, 1, v);
+}
+static fmi2Status get_real(Fmu *f, const fmi2ValueReference *vr, double *v) {
+    return f->get_real(f->c, vr, 1, v);
+}
+static fmi2Status do_step(Fmu *f, double t, double h) { return f->do_step(f->c, t, h, fmi2True); }
+#endif
 
 typedef struct {
     int fmu;
@@ -100,7 +190,7 @@ typedef struct {
 
 static void *step_job(void *arg) {
     StepJob *j = arg;
-    j->status = j->f->do_step(j->f->c, j->t, j->h, fmi2True);
+    j->status = do_step(j->f, j->t, j->h);
     return NULL;
 }
 
@@ -122,6 +212,14 @@ static int start_thread(thread_t *t, StepJob *j) { return pthread_create(t, NULL
 static void join_thread(thread_t t) { pthread_join(t, NULL); }
 #endif
 
+#ifdef GLIDER_HOST_FMI3
+static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category,
+                    fmi3String message) {
+    (void)env;
+    fprintf(stderr, "[fmi3] status %d %s: %s\n", (int)status, category ? category : "",
+            message ? message : "");
+}
+#else
 static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
                    fmi2String category, fmi2String message, ...) {
     char text[4096];
@@ -133,6 +231,7 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
     fprintf(stderr, "[%s] status %d %s: %s\n", instance ? instance : "?", (int)status,
             category ? category : "", text);
 }
+#endif
 
 static int find(const char *name) {
     for (int i = 0; i < n_fmus; ++i)
@@ -158,6 +257,25 @@ static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
         fprintf(stderr, "loading %s failed: %s\n", path, library_error());
         return 3;
     }
+    snprintf(uri, sizeof uri, URI_FORMAT, dir);
+#ifdef GLIDER_HOST_FMI3
+    f->instantiate = (fmi3InstantiateCoSimulationTYPE *)sym(f->lib, "fmi3InstantiateCoSimulation");
+    f->enter3 = (fmi3EnterInitializationModeTYPE *)sym(f->lib, "fmi3EnterInitializationMode");
+    f->exit_init = (fmi3ExitInitializationModeTYPE *)sym(f->lib, "fmi3ExitInitializationMode");
+    f->set_float64 = (fmi3SetFloat64TYPE *)sym(f->lib, "fmi3SetFloat64");
+    f->set_int32 = (fmi3SetInt32TYPE *)sym(f->lib, "fmi3SetInt32");
+    f->get_float64 = (fmi3GetFloat64TYPE *)sym(f->lib, "fmi3GetFloat64");
+    f->do_step3 = (fmi3DoStepTYPE *)sym(f->lib, "fmi3DoStep");
+    f->terminate = (fmi3TerminateTYPE *)sym(f->lib, "fmi3Terminate");
+    f->free_instance = (fmi3FreeInstanceTYPE *)sym(f->lib, "fmi3FreeInstance");
+    f->c = f->instantiate(f->name, guid, uri, fmi3False, fmi3False, fmi3False, fmi3False, NULL,
+                          0, NULL, logger3, NULL);
+    if (!f->c) {
+        fprintf(stderr, "fmi3InstantiateCoSimulation of %s failed\n", f->name);
+        return 4;
+    }
+    return 0;
+#else
     f->instantiate = (fmi2InstantiateTYPE *)sym(f->lib, "fmi2Instantiate");
     f->setup = (fmi2SetupExperimentTYPE *)sym(f->lib, "fmi2SetupExperiment");
     f->enter = (fmi2EnterInitializationModeTYPE *)sym(f->lib, "fmi2EnterInitializationMode");
@@ -169,7 +287,6 @@ static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
     f->terminate = (fmi2TerminateTYPE *)sym(f->lib, "fmi2Terminate");
     f->free_instance = (fmi2FreeInstanceTYPE *)sym(f->lib, "fmi2FreeInstance");
     static const fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
-    snprintf(uri, sizeof uri, URI_FORMAT, dir);
     f->c = f->instantiate(f->name, fmi2CoSimulation, guid, uri, &callbacks, fmi2False,
                           fmi2False);
     if (!f->c) {
@@ -177,6 +294,7 @@ static int load(Fmu *f, const char *dir, const char *model, const char *guid) {
         return 4;
     }
     return 0;
+#endif
 }
 
 int main(int argc, char **argv) {
@@ -224,16 +342,16 @@ int main(int argc, char **argv) {
         return 2;
     }
     for (int i = 0; i < n_fmus; ++i)
-        if (fmus[i].setup(fmus[i].c, fmi2False, 0.0, 0.0, fmi2True, stop) > fmi2Warning) return 5;
+        if (setup(&fmus[i], stop) > fmi2Warning) return 5;
     for (int i = 0; i < n_params; ++i) {
         Fmu *f = &fmus[params[i].fmu];
         fmi2Integer iv = (fmi2Integer)params[i].value;
-        fmi2Status st = params[i].integer ? f->set_integer(f->c, &params[i].vr, 1, &iv)
-                                          : f->set_real(f->c, &params[i].vr, 1, &params[i].value);
+        fmi2Status st = params[i].integer ? set_integer(f, &params[i].vr, &iv)
+                                          : set_real(f, &params[i].vr, &params[i].value);
         if (st > fmi2Warning) return 5;
     }
     for (int i = 0; i < n_fmus; ++i)
-        if (fmus[i].enter(fmus[i].c) > fmi2Warning || fmus[i].exit_init(fmus[i].c) > fmi2Warning)
+        if (enter(&fmus[i], stop) > fmi2Warning || fmus[i].exit_init(fmus[i].c) > fmi2Warning)
             return 5;
     const long steps = lround(stop / h);
     for (long k = 0;; ++k) {
@@ -241,20 +359,20 @@ int main(int argc, char **argv) {
         double v[MAX];
         for (int i = 0; i < n_conns; ++i) {
             Fmu *f = &fmus[conn_src[i].fmu];
-            if (f->get_real(f->c, &conn_src[i].vr, 1, &v[i]) > fmi2Warning) return 7;
+            if (get_real(f, &conn_src[i].vr, &v[i]) > fmi2Warning) return 7;
         }
         printf("%.17g", t);
         for (int i = 0; i < n_records; ++i) {
             Fmu *f = &fmus[records[i].fmu];
             double r;
-            if (f->get_real(f->c, &records[i].vr, 1, &r) > fmi2Warning) return 7;
+            if (get_real(f, &records[i].vr, &r) > fmi2Warning) return 7;
             printf(",%.17g", r);
         }
         printf("\n");
         if (k == steps) break;
         for (int i = 0; i < n_conns; ++i) {
             Fmu *f = &fmus[conn_dst[i].fmu];
-            if (f->set_real(f->c, &conn_dst[i].vr, 1, &v[i]) > fmi2Warning) return 7;
+            if (set_real(f, &conn_dst[i].vr, &v[i]) > fmi2Warning) return 7;
         }
         StepJob jobs[MAX];
         thread_t tids[MAX];
