@@ -223,9 +223,10 @@ def write_beside(fmu: Path) -> Path:
     target = fmu.with_name(name)
     if target.is_file() and target.read_bytes() == content:
         return target
-    part = target.with_name(target.name + ".part")
-    part.write_bytes(content)
-    part.replace(target)
+    from .build import replacing
+
+    with replacing(target) as part:  # a name of its own: builds may run at once
+        part.write_bytes(content)
     return target
 
 
