@@ -213,18 +213,23 @@ class Run:
     seconds: float = 0.0
 
 
+#: FMI 3.0 types as the FMI 2.0 ones the cases use
+_KIND = {"Float64": "Real", "Int32": "Integer"}
+
+
 def _value(text: str, var: Any, where: str) -> float | int | bool:
     """A parameter's text as the variable's FMI type."""
     t = text.strip()
-    if var.type == "Boolean":
+    kind = _KIND.get(var.type, var.type)
+    if kind == "Boolean":
         if t.lower() in ("true", "1"):
             return True
         if t.lower() in ("false", "0"):
             return False
-    elif var.type == "Integer":
+    elif kind == "Integer":
         if re.fullmatch(r"[+-]?\d{1,10}", t) and -(2**31) <= int(t) < 2**31:
             return int(t)
-    elif var.type == "Real":
+    elif kind == "Real":
         try:
             v = float(t)
         except ValueError:
@@ -234,8 +239,8 @@ def _value(text: str, var: Any, where: str) -> float | int | bool:
     raise CaseFileError(f"{where}: {quote(text)} is not a valid {var.type} value")
 
 
-def _run_fmi2(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
-    """Run ``case`` on an FMI 2.0 co-simulation FMU with our master."""
+def _run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
+    """Run ``case`` on an FMI 2.0 or 3.0 co-simulation FMU with our master."""
     from .master import CoSimulation, FMUCallError, FMUStopped, System
     from .runner import ArrayRecorder
 
@@ -252,7 +257,9 @@ def _run_fmi2(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
     driven = {
         f"fmu.{v.name}": float(v.start or 0.0)
         for v in md.modelVariables
-        if v.causality == "input" and v.name not in case.input_columns and v.type == "Real"
+        if v.causality == "input"
+        and v.name not in case.input_columns
+        and _KIND.get(v.type, v.type) == "Real"
     }
     system = System(
         fmus={"fmu": fmu},
@@ -278,8 +285,11 @@ def _run_fmi2(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
     return Run(cols, rec.array(len(cols)), stop, time.perf_counter() - t0)
 
 
-#: FMI version of the model description -> runner (FMI 3.0 plugs in here)
-RUNNERS: dict[str, Callable[[Path, Any, Case, Sequence[str]], Run]] = {"2.0": _run_fmi2}
+#: FMI version of the model description -> runner (our master runs both)
+RUNNERS: dict[str, Callable[[Path, Any, Case, Sequence[str]], Run]] = {
+    "2.0": _run_case,
+    "3.0": _run_case,
+}
 
 
 def _fmi_version(path: Path) -> str | None:
@@ -580,7 +590,7 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
         outputs = [v.name for v in md.modelVariables if v.causality == "output"]
         for name in case_names(component, src):
             c = load_case(component, name, src, with_reference=False)
-            run = _run_fmi2(fmus[model], md, c, outputs)
+            run = _run_case(fmus[model], md, c, outputs)
             if run.stop is not None and run.stop[0] != "discard":
                 raise RuntimeError(f"{component} case {name}: {run.stop[2]}")
             ref = dest / component / f"{name}_ref.csv"

@@ -183,14 +183,14 @@ def test_not_an_fmu_is_one_line(capsys, tmp_path):
     )
 
 
-def test_an_fmi3_fmu_is_refused_in_one_line(capsys, tmp_path):
-    fmu = tmp_path / "Three.fmu"
+def test_an_fmi1_fmu_is_refused_in_one_line(capsys, tmp_path):
+    fmu = tmp_path / "One.fmu"
     with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", '<fmiModelDescription fmiVersion="3.0"/>')
+        z.writestr("modelDescription.xml", '<fmiModelDescription fmiVersion="1.0"/>')
     assert main(["verify", str(fmu)]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'Three.fmu' is an FMI 3.0 FMU: this build runs FMI "
-        "2.0 co-simulation FMUs\n"
+        "glider-cosim: error: verify: FMU 'One.fmu' is an FMI 1.0 FMU: this build runs FMI "
+        "2.0, 3.0 co-simulation FMUs\n"
     )
 
 

@@ -35,7 +35,7 @@ pytestmark = pytest.mark.integration
 
 #: the flavors of our three FMUs; each needs a fixture ``<flavor>_fmus`` returning a folder
 #: holding GliderPlant.fmu, GliderObserver.fmu and GliderController.fmu
-FMU_SETS = ["python", "native"]
+FMU_SETS = ["python", "native", "fmi3_python", "fmi3_native"]
 ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]
 
 
@@ -49,6 +49,18 @@ def python_fmus(fmu_dir) -> Path:
 def native_fmus(native_dir) -> Path:
     """Our FMUs in the native flavor (C99 behind the same FMI layer)."""
     return native_dir
+
+
+@pytest.fixture(scope="session")
+def fmi3_python_fmus(fmi3_dirs) -> Path:
+    """Our Python-flavor FMUs as FMI 3.0."""
+    return fmi3_dirs["python"]
+
+
+@pytest.fixture(scope="session")
+def fmi3_native_fmus(fmi3_dirs) -> Path:
+    """Our native FMUs as FMI 3.0."""
+    return fmi3_dirs["native"]
 
 
 @pytest.fixture(scope="session", params=FMU_SETS)
