@@ -16,25 +16,9 @@ typedef struct {
 
 enum { LAW_OPEN_LOOP = 0, LAW_PASSIVITY = 1, LAW_P = 2, LAW_PI = 3 };
 
-static void params_from(const GliderControllerVars *v, GliderParams *p) {
-    p->m = v->m;
-    p->J2 = v->J2;
-    p->K_L0 = v->K_L0;
-    p->K_L = v->K_L;
-    p->K_D0 = v->K_D0;
-    p->K_D = v->K_D;
-    p->K_q = v->K_q;
-    p->K_M0 = v->K_M0;
-    p->K_M = v->K_M;
-    p->K_Fdelta = v->K_Fdelta;
-    p->K_udelta = v->K_udelta;
-    p->m0 = v->m0;
-    p->g = v->g;
-}
-
 static int initialize(void *data, char *msg, size_t size) {
     ControllerData *d = data;
-    params_from(&d->v, &d->p);
+    GLIDER_PARAMS_FROM(&d->p, &d->v);
     if (glider_params_check(&d->p, msg, size)) return NATIVE_REFUSED;
     glider_equilibrium(&d->p, &d->eq);
     pi_init(&d->pi, d->v.K_P, d->v.K_I, d->v.delta_max);

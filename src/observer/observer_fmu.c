@@ -19,22 +19,6 @@ typedef struct {
     int step_warned; /* the step's mismatch with f_sample was reported */
 } ObserverData;
 
-static void params_from(const GliderObserverVars *v, GliderParams *p) {
-    p->m = v->m;
-    p->J2 = v->J2;
-    p->K_L0 = v->K_L0;
-    p->K_L = v->K_L;
-    p->K_D0 = v->K_D0;
-    p->K_D = v->K_D;
-    p->K_q = v->K_q;
-    p->K_M0 = v->K_M0;
-    p->K_M = v->K_M;
-    p->K_Fdelta = v->K_Fdelta;
-    p->K_udelta = v->K_udelta;
-    p->m0 = v->m0;
-    p->g = v->g;
-}
-
 static void publish(ObserverData *d) {
     GliderObserverVars *v = &d->v;
     v->V_hat = d->xh[0];
@@ -48,7 +32,7 @@ static int initialize(void *data, char *msg, size_t size) {
     ObserverData *d = data;
     GliderObserverVars *v = &d->v;
     double Q[4];
-    params_from(v, &d->p);
+    GLIDER_PARAMS_FROM(&d->p, v);
     if (glider_params_check(&d->p, msg, size)) return NATIVE_REFUSED;
     Q[0] = v->Q_V;
     Q[1] = v->Q_theta_g;

@@ -17,22 +17,6 @@ typedef struct {
     double x[6]; /* V, theta_g, alpha, omega2, x, z */
 } PlantData;
 
-static void params_from(const GliderPlantVars *v, GliderParams *p) {
-    p->m = v->m;
-    p->J2 = v->J2;
-    p->K_L0 = v->K_L0;
-    p->K_L = v->K_L;
-    p->K_D0 = v->K_D0;
-    p->K_D = v->K_D;
-    p->K_q = v->K_q;
-    p->K_M0 = v->K_M0;
-    p->K_M = v->K_M;
-    p->K_Fdelta = v->K_Fdelta;
-    p->K_udelta = v->K_udelta;
-    p->m0 = v->m0;
-    p->g = v->g;
-}
-
 static void publish(PlantData *d) {
     GliderPlantVars *v = &d->v;
     v->V = d->x[0];
@@ -48,7 +32,7 @@ static void publish(PlantData *d) {
 static int initialize(void *data, char *msg, size_t size) {
     PlantData *d = data;
     GliderPlantVars *v = &d->v;
-    params_from(v, &d->p);
+    GLIDER_PARAMS_FROM(&d->p, v);
     if (glider_params_check(&d->p, msg, size)) return NATIVE_REFUSED;
     if (pitch_sensor_init(&d->sensor, v->noise_std, (uint32_t)v->noise_seed, msg, size))
         return NATIVE_REFUSED;

@@ -31,6 +31,25 @@ typedef struct {
     double V, theta_g, alpha, omega2, K_De, K_Le;
 } GliderEquilibrium;
 
+/* The model constants from any struct with fields of the same names (a component's
+ * generated variables), as GliderParams.from_mapping does in Python. */
+#define GLIDER_PARAMS_FROM(p, v)                                                            \
+    do {                                                                                    \
+        (p)->m = (v)->m;                                                                    \
+        (p)->J2 = (v)->J2;                                                                  \
+        (p)->K_L0 = (v)->K_L0;                                                              \
+        (p)->K_L = (v)->K_L;                                                                \
+        (p)->K_D0 = (v)->K_D0;                                                              \
+        (p)->K_D = (v)->K_D;                                                                \
+        (p)->K_q = (v)->K_q;                                                                \
+        (p)->K_M0 = (v)->K_M0;                                                              \
+        (p)->K_M = (v)->K_M;                                                                \
+        (p)->K_Fdelta = (v)->K_Fdelta;                                                      \
+        (p)->K_udelta = (v)->K_udelta;                                                      \
+        (p)->m0 = (v)->m0;                                                                  \
+        (p)->g = (v)->g;                                                                    \
+    } while (0)
+
 /* GliderParams.__post_init__'s consistency check (K_L0 + K_L*alpha_e > 0): 0 ok, else 1 and
  * the ParameterError text. The per-constant range checks are done elsewhere. */
 int glider_params_check(const GliderParams *p, char *msg, size_t n);
