@@ -21,6 +21,7 @@ from _common import emit
 from glider_cosim.build import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.monolithic import COLUMNS, simulate_monolithic
+from glider_cosim.parquet import ParquetRecorder
 from glider_cosim.runner import ArrayRecorder, CsvRecorder, system_for
 from glider_cosim.scenario import load_scenario
 
@@ -165,11 +166,15 @@ def main() -> None:
         native_csv = run_seconds_per_step(
             native_dir, lambda: CsvRecorder(out / "native.csv"), args.repeat * 3
         )
+        native_parquet = run_seconds_per_step(
+            native_dir, lambda: ParquetRecorder(out / "native.parquet"), args.repeat * 3
+        )
         python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
         csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
     result = {
         "native_us_per_macro_step": round(native_mem * 1e6, 2),
         "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
+        "native_parquet_us_per_macro_step": round(native_parquet * 1e6, 2),
         "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
         "csv_us_per_row": round(csv_row * 1e6, 2),
         "csv_us_per_value": round(csv_row * 1e6 / 17, 3),

@@ -125,6 +125,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     r.add_argument(
+        "--format",
+        choices=("csv", "parquet"),
+        default="csv",
+        help="results file: results.csv (text) or results.parquet (binary float64, read by "
+        "pandas and polars; needs pyarrow)",
+    )
+    r.add_argument(
         "--set",
         action="append",
         default=[],
@@ -286,6 +293,7 @@ def _run(args: argparse.Namespace) -> int:
             ("--no-plots", args.no_plots, False),
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
             ("--max-extract-mb", args.max_extract_mb, 256),
+            ("--format", args.format, "csv"),
         )
         if value != default
     }
@@ -300,6 +308,7 @@ def _run(args: argparse.Namespace) -> int:
             plots=not args.no_plots,
             max_steps=args.max_steps,
             options=options,
+            results_format=args.format,
         )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None

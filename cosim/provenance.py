@@ -20,6 +20,7 @@ from typing import Any
 #: files a run writes into its folder (removed before a run into the same folder)
 OWNED = (
     "results.csv",
+    "results.parquet",
     "metrics.json",
     "glide_angle.png",
     "pitch.png",

@@ -300,6 +300,7 @@ def simulate(
     plots: bool = True,
     max_steps: int = DEFAULT_MAX_STEPS,
     options: dict[str, Any] | None = None,
+    results_format: str = "csv",
 ) -> RunResult:
     """Run a scenario and return its results.
 
@@ -321,6 +322,9 @@ def simulate(
         Write the PNG plots (with ``out``).
     max_steps : int
         Most communication steps; a longer run is refused before it starts.
+    results_format : {"csv", "parquet"}
+        ``results.csv`` (text, 17 significant digits) or ``results.parquet`` (float64 as
+        they are; pandas and polars read it; needs pyarrow; about 4 us a row faster here).
     options : dict, optional
         The options to record in ``metrics.json`` (``run.options``; the CLI passes the
         ones given on its command line). Default: the ``coupling``, ``step`` and
@@ -352,6 +356,14 @@ def simulate(
         )
     if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
         raise ValueError(f"max_steps {quote(max_steps)} is invalid: expected an integer >= 1")
+    if results_format not in ("csv", "parquet"):
+        raise ValueError(
+            f"results_format {quote(results_format)} is invalid: expected 'csv' or 'parquet'"
+        )
+    if results_format == "parquet" and out is not None:
+        from .parquet import _pyarrow
+
+        _pyarrow()  # one line now, not after the run
     for key, value in (("step", step), ("stop_time", stop_time)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
@@ -403,8 +415,14 @@ def simulate(
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
-        files["results"] = out / "results.csv"
-        recorder: ArrayRecorder | CsvRecorder = CsvRecorder(files["results"])
+        if results_format == "parquet":
+            from .parquet import ParquetRecorder
+
+            files["results"] = out / "results.parquet"
+            recorder: Any = ParquetRecorder(files["results"])
+        else:
+            files["results"] = out / "results.csv"
+            recorder = CsvRecorder(files["results"])
     else:
         recorder = ArrayRecorder()
     from .progress import RunProgress, wanted
@@ -434,7 +452,10 @@ def simulate(
         del files["results"]  # the run failed before its first row
     if isinstance(recorder, RunProgress):
         recorder = recorder.inner
-    if isinstance(recorder, CsvRecorder):
+    if hasattr(recorder, "read"):  # Parquet
+        data = recorder.read() if recorder.n_rows else np.empty((0, len(sim.columns)))
+        columns = sim.columns
+    elif isinstance(recorder, CsvRecorder):
         data = (
             np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
             if recorder.n_rows
