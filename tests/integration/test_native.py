@@ -409,3 +409,43 @@ def test_a_step_that_does_not_match_f_sample_is_a_warning_once(fmu_dir, native_d
         "obs: communication step 0.07 s does not match f_sample = 50 Hz (1/step = 14.2857 Hz): "
         "the pre-filter runs once per step, its coefficients assume f_sample"
     )
+
+
+def test_every_command_takes_the_native_flavor(native_dir, tmp_path):
+    """report, sweep, export-ssp and export-fmu run on the native FMUs (--fmu-dir)."""
+    cli = [sys.executable, "-m", "glider_cosim.cli"]
+    runs = {
+        "export-ssp": [*cli, "export-ssp", str(tmp_path / "g.ssp"), "--fmu-dir", str(native_dir)],
+        "export-fmu": [*cli, "export-fmu", str(tmp_path / "g.fmu"), "--fmu-dir", str(native_dir)],
+        "sweep": [*cli, "sweep", "--param", "controller.K_c=8,10", "--workers", "1",
+                  "--stop-time", "5", "--no-plots", "--out", str(tmp_path / "sw"),
+                  "--fmu-dir", str(native_dir)],
+        "report": [*cli, "report", "--roa-grid", "none", "--out", str(tmp_path / "rep"),
+                   "--fmu-dir", str(native_dir), "--no-progress"],
+    }  # fmt: skip
+    for name, cmd in runs.items():
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert p.returncode == 0, (name, p.stderr[-2000:])
+    assert folder_flavor(native_dir) == "native"  # used as they are, never rebuilt
+    with zipfile.ZipFile(tmp_path / "g.ssp") as z:
+        plant = next(n for n in z.namelist() if n.endswith("GliderPlant.fmu"))
+        (tmp_path / "p.fmu").write_bytes(z.read(plant))
+    md = fmpy.read_model_description(str(tmp_path / "p.fmu"))
+    assert md.generationTool.endswith("(native C99)")  # the SSP carries the native FMUs
+    assert (tmp_path / "rep" / "report.md").is_file()
+    assert "K_c" in (tmp_path / "sw" / "sweep.csv").read_text().splitlines()[0]
+
+
+def test_build_without_mingw_says_so_in_one_line(tmp_path, monkeypatch, caplog):
+    from glider_cosim import native
+
+    monkeypatch.setattr(native, "mingw", lambda: None)
+    with caplog.at_level("WARNING", logger="glider_cosim.native"):
+        native.build_native(tmp_path)
+    lines = [r.getMessage() for r in caplog.records if r.name == "glider_cosim.native"]
+    assert lines == [
+        "no x86_64-w64-mingw32-gcc found: the native FMUs carry linux64 only (win64 left "
+        "out; install gcc-mingw-w64-x86-64)"
+    ]
+    with zipfile.ZipFile(tmp_path / "GliderPlant.fmu") as z:
+        assert not any(n.startswith("binaries/win64") for n in z.namelist())
