@@ -289,7 +289,9 @@ def _run(args: argparse.Namespace) -> int:
             ("--coupling", args.coupling, None),
             ("--step", args.step, None),
             ("--stop-time", args.stop_time, None),
-            ("--fmu-dir", args.fmu_dir, None),
+            ("--fmu-dir", getattr(args, "fmu_dir_given", args.fmu_dir), None),
+            ("--flavor", getattr(args, "flavor", None), None),
+            ("--fmi", getattr(args, "fmi", None), None),
             ("--no-plots", args.no_plots, False),
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
             ("--max-extract-mb", args.max_extract_mb, 256),
@@ -450,6 +452,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         from .build import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
+        args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         try:
             args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
         except OSError as err:
