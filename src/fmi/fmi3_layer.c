@@ -149,21 +149,16 @@ fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference vr[], s
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                           fmi3Boolean values[], size_t nValues) {
     fmi2Boolean buf[BOOL_BATCH];
-    size_t done = 0;
+    size_t done = 0, i;
     int st = 0;
-    if (!vr || !values || nvr != nValues || nvr <= BOOL_BATCH)
-        st = glider_op_access(instance, C_GET_BOOLEAN, T_BOOLEAN, vr, nvr, nValues, NULL,
-                              values ? (void *)buf : NULL);
-    else
-        while (done < nvr && st <= fmi3Warning) { /* in batches: no heap */
-            size_t k = nvr - done < BOOL_BATCH ? nvr - done : BOOL_BATCH, i;
-            st = glider_op_access(instance, C_GET_BOOLEAN, T_BOOLEAN, vr + done, k, k, NULL, buf);
-            for (i = 0; st <= fmi3Warning && i < k; ++i) values[done + i] = buf[i] != 0;
-            done += k;
-        }
-    if (values && nvr <= BOOL_BATCH && nvr == nValues && st <= fmi3Warning) {
-        size_t i;
-        for (i = 0; i < nvr; ++i) values[i] = buf[i] != 0;
+    if (!vr || !values || nvr != nValues || nvr == 0) /* the layer says what is wrong */
+        return S(glider_op_access(instance, C_GET_BOOLEAN, T_BOOLEAN, vr, nvr, nValues, NULL,
+                                  values ? (void *)buf : NULL));
+    while (done < nvr && st <= fmi3Warning) { /* in batches: no heap */
+        size_t k = nvr - done < BOOL_BATCH ? nvr - done : BOOL_BATCH;
+        st = glider_op_access(instance, C_GET_BOOLEAN, T_BOOLEAN, vr + done, k, k, NULL, buf);
+        for (i = 0; st <= fmi3Warning && i < k; ++i) values[done + i] = buf[i] != 0;
+        done += k;
     }
     return S(st);
 }
