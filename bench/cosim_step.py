@@ -18,12 +18,13 @@ from pathlib import Path
 
 from _common import emit
 
-from glider_cosim.build import build_all
+from glider_cosim.build.folders import build_all
 from glider_cosim.master import CoSimulation
-from glider_cosim.monolithic import COLUMNS, simulate_monolithic
-from glider_cosim.parquet import ParquetRecorder
-from glider_cosim.runner import ArrayRecorder, CsvRecorder, system_for
-from glider_cosim.scenario import load_scenario
+from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
+from glider_cosim.runner.parquet import ParquetRecorder
+from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.scenarios.system import system_for
 
 
 def cosim_step_times(fmu_dir: Path, out: Path) -> list[float]:
@@ -125,7 +126,7 @@ print(json.dumps(statistics.median(times)))
 
 def libcosim_step_seconds(fmu_dir: Path, out: Path) -> float:
     """Median seconds per macro step of libcosimpy on the exported default SSP."""
-    from glider_cosim.ssp import export_ssp
+    from glider_cosim.interop.ssp_export import export_ssp
 
     ssp = export_ssp(out / "default.ssp", None, fmu_dir)
     p = subprocess.run([sys.executable, "-c", LIBCOSIM_TIMING, str(ssp), "2999"],

@@ -5,7 +5,7 @@ Usage: python bench/fmi3_step.py [--flavor native|python] [--runs N]
 
 Builds both sets into a temporary folder, then runs them interleaved (N runs each after
 one warm-up) and prints the medians. The stepping goes through the C fast loop on both
-(for FMI 3 through the shims of ``cosim/fastloop.c``).
+(for FMI 3 through the shims of ``cosim/master/fastloop.c``).
 """
 
 from __future__ import annotations
@@ -16,11 +16,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from glider_cosim.build import build_all
-from glider_cosim.fmi3 import build_fmi3
+from glider_cosim.build.fmi3 import build_fmi3
+from glider_cosim.build.folders import build_all
 from glider_cosim.master import CoSimulation
-from glider_cosim.runner import ArrayRecorder, system_for
-from glider_cosim.scenario import load_scenario
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.scenarios.system import system_for
 
 
 def one_run(sc, folder: Path) -> tuple[float, float, bool]:

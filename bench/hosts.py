@@ -12,8 +12,8 @@ per macro step, best of R runs (default 3), and ours / Ecos (target <= 0.8).
   libtbb.so.12: cannot open shared object file``. Ecos steps the instances on its
   thread pool (threads Python has never seen).
 - libcosim: libcosimpy (a dependency), ``CosimExecution.from_ssp_file``; its thread pool too.
-- ours: ``glider_cosim.ssp.load_ssp`` and :class:`~glider_cosim.master.CoSimulation` with
-  Jacobi coupling (the scheme the other two use).
+- ours: ``glider_cosim.interop.ssp_import.load_ssp`` and
+  :class:`~glider_cosim.master.CoSimulation` with Jacobi coupling (the scheme the other two use).
 """
 
 from __future__ import annotations
@@ -92,9 +92,9 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    from glider_cosim.build import build_all
-    from glider_cosim.scenario import load_scenario
-    from glider_cosim.ssp import export_ssp
+    from glider_cosim.build.folders import build_all
+    from glider_cosim.interop.ssp_export import export_ssp
+    from glider_cosim.scenarios.scenario import load_scenario
 
     build_all(Path(args.fmu_dir), only_stale=True)
     step = load_scenario(None).step

@@ -12,10 +12,10 @@ from pathlib import Path
 
 from _common import emit
 
-from glider_cosim.build import build_all
+from glider_cosim.build.folders import build_all
 from glider_cosim.master import CoSimulation
-from glider_cosim.runner import system_for
-from glider_cosim.scenario import load_scenario
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.scenarios.system import system_for
 
 
 def rss_mib() -> float:

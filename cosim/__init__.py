@@ -1,0 +1,2 @@
+"""glider-cosim: passivity-based glide stabilisation of an underwater glider as FMI co-simulation
+components, the master that runs them, and the studies of the paper (README "Where things are")."""

@@ -19,10 +19,15 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .build import FLAVORS, FMI_VERSIONS, add_fmu_options, default_dir
-from .inputs.text import one_line, quote, shown_path
-from .master import DEFAULT_MAX_STEPS, Interrupted, MasterError, SystemSpecError
-from .scenario import ScenarioError, shipped_scenarios
+from glider_cosim.build.folders import FLAVORS, FMI_VERSIONS, add_fmu_options, default_dir
+from glider_cosim.inputs.text import one_line, quote, shown_path
+from glider_cosim.master.cosimulation import (
+    DEFAULT_MAX_STEPS,
+    Interrupted,
+    MasterError,
+    SystemSpecError,
+)
+from glider_cosim.scenarios.scenario import ScenarioError, shipped_scenarios
 
 
 class UsageError(ValueError):
@@ -180,11 +185,11 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
 
-    from .sweep import add_parser as add_sweep_parser
+    from glider_cosim.sweeps.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from .verify import _tolerance
-    from .verify import add_arguments as add_verify_arguments
+    from glider_cosim.verify.kit import _tolerance
+    from glider_cosim.verify.kit import add_arguments as add_verify_arguments
 
     v = sub.add_parser(
         "verify",
@@ -242,20 +247,20 @@ def _time(seconds: float | None) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .inputs.archives import set_extract_limit
-    from .inputs.check import check_ranges, our_kinds
-    from .master import count_steps
-    from .metrics import describe_outcome
-    from .report import apply_overrides
-    from .runner import origin_of, simulate
-    from .scenario import load_scenario, parse_sets
+    from glider_cosim.inputs.archives import set_extract_limit
+    from glider_cosim.inputs.check import check_ranges, our_kinds
+    from glider_cosim.master.cosimulation import count_steps
+    from glider_cosim.runner.metrics import describe_outcome
+    from glider_cosim.runner.run import origin_of, simulate
+    from glider_cosim.scenarios.overrides import apply_overrides
+    from glider_cosim.scenarios.scenario import load_scenario, parse_sets
 
     set_extract_limit(args.max_extract_mb * 2**20)
     if args.scenario and str(args.scenario).endswith((".ssp", ".ssd")):
         if args.set:
             raise UsageError("--set does not apply to an SSP (edit its parameter values)")
-        from .inputs.ssp_files import ssp_name
-        from .ssp import load_ssp
+        from glider_cosim.inputs.ssp_files import ssp_name
+        from glider_cosim.interop.ssp_import import load_ssp
 
         system, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
         scenario = args.scenario
@@ -341,13 +346,13 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from .report import build_report
+    from glider_cosim.studies.report import build_report
 
     try:
-        from .analysis import analyze
+        from glider_cosim.studies.analysis import analyze
     except ImportError:  # pragma: no cover - analysis is part of the package
         analyze = None
-    from .roa import parse_grid
+    from glider_cosim.studies.roa import parse_grid
 
     grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
     if args.workers < 1:
@@ -359,7 +364,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _analyze(args: argparse.Namespace) -> int:
-    from .analysis import analyze, format_report
+    from glider_cosim.studies.analysis import analyze, format_report
 
     result = analyze()
     if args.json:
@@ -397,7 +402,7 @@ def _private_matplotlib_cache() -> None:
     command writes nothing outside its output and FMU folders (unless the user points
     ``MPLCONFIGDIR`` somewhere). Rebuilding the cache costs about 0.1 s of CPU."""
     if "MPLCONFIGDIR" not in os.environ and "matplotlib" not in sys.modules:
-        from .tempdirs import new_temp_dir
+        from glider_cosim.inputs.tempdirs import new_temp_dir
 
         os.environ["MPLCONFIGDIR"] = str(new_temp_dir("matplotlib_"))
 
@@ -449,7 +454,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
     # asked; verify builds ours only for --write-references/--export
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
-        from .build import cache_root, prepare_fmus
+        from glider_cosim.build.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
@@ -458,7 +463,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
-        from .build import build_all
+        from glider_cosim.build.folders import build_all
 
         out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
         _check_out_dir(out, "build --out")
@@ -475,9 +480,9 @@ def _dispatch(args: argparse.Namespace) -> int:
         out = Path(args.out)
         _check_out_file(out, f"{args.command} OUT")
         if args.command == "export-fmu":
-            from .onefmu import export_one_fmu as export
+            from glider_cosim.interop.onefmu import export_one_fmu as export
         else:
-            from .ssp import export_ssp as export
+            from glider_cosim.interop.ssp_export import export_ssp as export
         try:
             print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
         except OSError as err:
@@ -486,11 +491,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             ) from None
         return 0
     if args.command == "host-env":
-        from .hostenv import main as host_env_main
+        from glider_cosim.interop.hostenv import main as host_env_main
 
         return host_env_main(["--config"] if args.config else [])
     if args.command == "sweep":
-        from .sweep import main as sweep_main
+        from glider_cosim.sweeps.sweep import main as sweep_main
 
         return sweep_main(args)
     if args.command == "report":
@@ -499,7 +504,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "analyze":
         return _analyze(args)
     if args.command == "verify":
-        from .verify import run_command
+        from glider_cosim.verify.kit import run_command
 
         if args.export:
             _check_out_dir(Path(args.export), "verify --export")

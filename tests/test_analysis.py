@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from glider_cosim.analysis import (
+from glider_cosim.studies.analysis import (
     analyze,
     closed_loop_matrix,
     observer_analysis,

@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from glider_cosim.heldtail import (
+from glider_cosim.runner.heldtail import (
     HeldTailError,
     carried,
     held_glide,
     largest_carried_u,
     release_run,
 )
-from glider_cosim.metrics import reference_glide_angle
+from glider_cosim.runner.metrics import reference_glide_angle
 from glider_plant.model import derivatives, equilibrium
 from glider_plant.params import GliderParams
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from glider_cosim.metrics import describe_outcome, glide_metrics
-from glider_cosim.outcome import (
+from glider_cosim.runner.metrics import describe_outcome, glide_metrics
+from glider_cosim.runner.outcome import (
     DIVERGING,
     HOLD_PERIODS,
     LIMIT_CYCLE,

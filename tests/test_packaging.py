@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from glider_cosim import build
+from glider_cosim.build import folders as build
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,7 +52,7 @@ def test_the_cache_follows_xdg_then_the_platform(monkeypatch, tmp_path):
 
 
 def test_the_cache_folder_is_keyed_by_version_flavor_and_sources(monkeypatch, tmp_path):
-    from glider_cosim.native import _version
+    from glider_cosim.build.native import _version
 
     monkeypatch.setenv(build.CACHE_ENV, str(tmp_path))
     python, native = build.cache_dir("python"), build.cache_dir("native")
@@ -70,7 +70,12 @@ def test_the_cache_folder_is_keyed_by_version_flavor_and_sources(monkeypatch, tm
 def test_the_api_defaults_are_the_cache_not_the_current_folder():
     import inspect
 
-    from glider_cosim import monolithic, onefmu, report, runner, ssp, verify
+    from glider_cosim.interop import onefmu
+    from glider_cosim.interop import ssp_export as ssp
+    from glider_cosim.runner import monolithic
+    from glider_cosim.runner import run as runner
+    from glider_cosim.studies import report
+    from glider_cosim.verify import kit as verify
 
     assert runner.DEFAULT_FMU_DIR is None
     for f in (runner.simulate, report.build_report, ssp.export_ssp, onefmu.export_one_fmu,

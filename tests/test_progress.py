@@ -6,7 +6,7 @@ import io
 
 import pytest
 
-from glider_cosim import progress
+from glider_cosim.runner import progress
 
 
 class _Tty(io.StringIO):

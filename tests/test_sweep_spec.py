@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from glider_cosim.scenario import load_scenario
-from glider_cosim.sweep import SweepSpecError, parse_param, run_id
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.sweeps.sweep import SweepSpecError, parse_param, run_id
 
 
 def test_lists_ranges_and_degrees():

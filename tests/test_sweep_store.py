@@ -6,7 +6,7 @@ import csv
 
 import pytest
 
-from glider_cosim.sweep_store import SweepStore
+from glider_cosim.sweeps.store import SweepStore
 
 COLS = ["run_id", "seed", "controller.K_c", "status", "message", "control_effort"]
 

@@ -15,17 +15,14 @@ from fmpy.util import read_ref_opt_file
 from glider_cosim.cli import main
 from glider_cosim.verify import (
     COMPONENTS,
-    DEFAULT_CASE,
-    Run,
     VerifyInputError,
     case_names,
-    check_tolerance,
-    compare,
     kit_files,
     kit_root,
     load_case,
     verify,
 )
+from glider_cosim.verify.kit import DEFAULT_CASE, Run, check_tolerance, compare
 
 ROOT = Path(__file__).resolve().parents[1]
 ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]

@@ -15,8 +15,15 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from .text import quote
-from .values import Degrees, ValueCheckError, check_value, has_unit, is_angle, unit_of
+from glider_cosim.inputs.text import quote
+from glider_cosim.inputs.values import (
+    Degrees,
+    ValueCheckError,
+    check_value,
+    has_unit,
+    is_angle,
+    unit_of,
+)
 
 #: the slave class holding each of our FMUs' variable table
 SLAVES = {

@@ -1,6 +1,6 @@
 """SSP archives on disk: unpacking (bounded, once per process), names, values.
 
-Used by :mod:`glider_cosim.ssp`; :class:`SSPError` is re-exported there.
+Used by :mod:`glider_cosim.interop.ssp_import`; :class:`SSPError` is re-exported there.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import re
 import shutil
 from pathlib import Path
 
-from ..tempdirs import new_temp_dir
-from .archives import InputFileError, regular_file, safe_extract
-from .text import quote, shown_path
-from .values import INT_MAX, INT_MIN
+from glider_cosim.inputs.archives import InputFileError, regular_file, safe_extract
+from glider_cosim.inputs.tempdirs import new_temp_dir
+from glider_cosim.inputs.text import quote, shown_path
+from glider_cosim.inputs.values import INT_MAX, INT_MIN
 
 SSD_NAME = "SystemStructure.ssd"
 

@@ -1,0 +1,1 @@
+"""The controller: passivity-based, P, PI and open-loop laws (model and FMU slave)."""

@@ -1,0 +1,1 @@
+"""The observer: Butterworth pre-filter and nonlinear speed/glide-angle observer."""

@@ -23,10 +23,11 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from glider_cosim.hostenv import host_env, libpython
+from glider_cosim.interop.hostenv import host_env, libpython
 from glider_cosim.master import CoSimulation
-from glider_cosim.runner import ArrayRecorder, system_for
-from glider_cosim.scenario import load_scenario
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.scenarios.system import system_for
 
 pytestmark = pytest.mark.integration
 HOST_C = Path(__file__).parent / "c_host" / "host.c"
@@ -141,7 +142,7 @@ def test_c_host_with_a_written_configuration_runs(host, loop, tmp_path):
     """What another machine does: write the configuration there and point at it."""
     _, plan = loop
     cfg = tmp_path / "py.cfg"
-    out = subprocess.run([sys.executable, "-m", "glider_cosim.hostenv", "--config"],
+    out = subprocess.run([sys.executable, "-m", "glider_cosim.interop.hostenv", "--config"],
                          capture_output=True, text=True, timeout=60, check=True).stdout  # fmt: skip
     cfg.write_text(out)
     p = run_host(host, plan, EMPTY_ENV | {"GLIDER_FMI_PYTHON_CONFIG": str(cfg)})
@@ -151,7 +152,7 @@ def test_c_host_with_a_written_configuration_runs(host, loop, tmp_path):
 
 def host_env_under(path: str) -> dict[str, str]:
     """What ``glider-cosim host-env`` prints when PATH is ``path``."""
-    p = subprocess.run([sys.executable, "-m", "glider_cosim.hostenv"], env={"PATH": path},
+    p = subprocess.run([sys.executable, "-m", "glider_cosim.interop.hostenv"], env={"PATH": path},
                        capture_output=True, text=True, timeout=60, check=True)  # fmt: skip
     env = {}
     for line in p.stdout.splitlines():
@@ -181,7 +182,11 @@ def test_host_env_names_libpython_the_packages_and_pythonhome():
     for module in (numpy, scipy):
         assert str(Path(module.__file__).resolve().parent.parent) in paths
     p = subprocess.run(
-        ["sh", "-c", f'eval "$({sys.executable} -m glider_cosim.hostenv)"; echo "$LD_PRELOAD"'],
+        [
+            "sh",
+            "-c",
+            f'eval "$({sys.executable} -m glider_cosim.interop.hostenv)"; echo "$LD_PRELOAD"',
+        ],
         capture_output=True,
         text=True,
         timeout=60,

@@ -1,4 +1,4 @@
-"""The C row formatter of glider_cosim.fastloop writes what Python's '%.17g' writes."""
+"""The C row formatter of glider_cosim.master.fastloop writes what Python's '%.17g' writes."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import struct
 import numpy as np
 import pytest
 
-from glider_cosim.runner import CsvRecorder
+from glider_cosim.runner.recorders import CsvRecorder
 
 pytestmark = pytest.mark.integration
 SPECIAL = [0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan, -math.nan, 5e-324, -5e-324,

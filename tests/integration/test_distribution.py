@@ -69,7 +69,7 @@ def test_the_wheel_holds_every_module_and_data_file(wheel):
     assert not missing, f"tracked files missing from the wheel: {missing[:10]}"
     for must in ("glider_cosim/inputs/check.py", "glider_fmi/fmi2_layer.c",
                  "glider_plant/plant_model.c", "glider_plant/plant_model.h",
-                 "glider_cosim/fastloop.c", "glider_cosim/scenarios/default.toml",
+                 "glider_cosim/master/fastloop.c", "glider_cosim/scenarios/default.toml",
                  "glider_cosim/verification/plant/stall_ref.csv",
                  "glider_controller/reference_output.csv"):  # fmt: skip
         assert must in names
@@ -108,7 +108,7 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
         [sys.executable, "-c", CLI, "run", "--no-plots", "--stop-time", "1",
          "--out", str(tmp_path / "out")],
         [sys.executable, "-c", CLI, "export-ssp", str(tmp_path / "glider.ssp")],
-        [sys.executable, "-c", "from glider_cosim.runner import simulate; "
+        [sys.executable, "-c", "from glider_cosim.runner.run import simulate; "
          "r = simulate(None, None, stop_time=1.0); assert r.status == 'ok', r.status"],
     ]  # fmt: skip
     for cmd in runs:
@@ -126,7 +126,7 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
 def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, flavor):
     env = _outside_env(tmp_path)
     code = (
-        "import sys; from glider_cosim.build import prepare_fmus; "
+        "import sys; from glider_cosim.build.python import prepare_fmus; "
         "print(prepare_fmus(None, sys.argv[1]))"
     )
     procs = [subprocess.Popen([sys.executable, "-c", code, flavor], env=env, text=True,
@@ -141,8 +141,8 @@ def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, fl
     assert sorted(f.name for f in folder.iterdir()) == sorted(
         [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
     )  # each FMU and its OSP-IS file beside it, nothing else
-    from glider_cosim import native
-    from glider_cosim.build import COMPONENTS, is_current
+    from glider_cosim.build import native
+    from glider_cosim.build.python import COMPONENTS, is_current
 
     for fmu in folder.glob("*.fmu"):
         with zipfile.ZipFile(fmu) as z:

@@ -40,10 +40,12 @@ from test_native import (
     write_plan,
 )
 
-from glider_cosim.build import build_all, folder_flavor, folder_fmi
+from glider_cosim.build.folders import build_all, folder_flavor, folder_fmi
 from glider_cosim.master import CoSimulation
-from glider_cosim.runner import ArrayRecorder, simulate, system_for
-from glider_cosim.scenario import load_scenario
+from glider_cosim.runner import simulate
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.scenarios.system import system_for
 
 pytestmark = pytest.mark.integration
 NAMES = ("GliderPlant", "GliderObserver", "GliderController")
@@ -327,7 +329,7 @@ def test_integer_and_boolean_values_through_the_shims(
 ):
     """Int32 and Boolean variables set and recorded through the FMI 3 adapter and its
     shims (C, or the Python stand-ins used without a C compiler), equal to FMI 2."""
-    import glider_cosim.fmi3_slave as fmi3_slave
+    import glider_cosim.master.fmi3 as fmi3_slave
 
     if shims == "python":
         monkeypatch.setattr(fmi3_slave, "shim_library", lambda hold_gil: None)
@@ -346,7 +348,7 @@ def test_integer_and_boolean_values_through_the_shims(
 
 
 def test_python_shims_without_a_compiler_equal_the_c_ones(native_dir, fmi3_dirs, monkeypatch):
-    import glider_cosim.fmi3_slave as fmi3_slave
+    import glider_cosim.master.fmi3 as fmi3_slave
 
     a = simulate("default", None, fmu_dir=native_dir, build=False)
     monkeypatch.setattr(fmi3_slave, "shim_library", lambda hold_gil: None)
@@ -392,7 +394,8 @@ def test_ecos_runs_the_fmi3_ssp_equal_to_our_jacobi_master(fmi3_dirs, tmp_path):
     import json
 
     pytest.importorskip("ecospy")
-    from glider_cosim.ssp import export_ssp, run_ssp
+    from glider_cosim.interop.ssp_export import export_ssp
+    from glider_cosim.runner import run_ssp
 
     ssp = export_ssp(tmp_path / "glider3.ssp", None, fmi3_dirs["native"])
     scratch = tmp_path / "ecos_tmp"  # Ecos leaves its unpacked SSP in $TMPDIR

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from glider_cosim.master import Disturbance
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import Scenario
+from glider_cosim.scenarios.scenario import Scenario
 
 pytestmark = pytest.mark.integration
 

@@ -15,10 +15,11 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
 from glider_controller.laws import passivity_law
-from glider_cosim.build import COMPONENTS
-from glider_cosim.master import CoSimulation, FMUCallError, System, _extracted
-from glider_cosim.reference import ATOL, CASES, read_csv, run_reference
-from glider_cosim.runner import ArrayRecorder
+from glider_cosim.build.python import COMPONENTS
+from glider_cosim.master import CoSimulation, FMUCallError, System
+from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.verify.reference import ATOL, CASES, read_csv, run_reference
 from glider_plant.model import derivatives, equilibrium
 from glider_plant.params import GliderParams
 
@@ -238,8 +239,8 @@ def test_invalid_parameters_are_refused_before_the_first_step(fmu_dir, name, par
 
 
 def test_interface_docs_are_generated_from_the_fmus(fmu_dir):
-    from glider_cosim.docs import interface_markdown
+    from glider_cosim.build.docs import interface_markdown
 
     text = interface_markdown({n: fmu_dir / f"{n}.fmu" for n in NAMES})
     doc = Path(__file__).resolve().parents[2] / "docs" / "interfaces.md"
-    assert doc.read_text() == text, "run: python -m glider_cosim.docs"
+    assert doc.read_text() == text, "run: python -m glider_cosim.build.docs"

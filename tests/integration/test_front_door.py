@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 
 from glider_cosim.cli import main
-from glider_cosim.report import apply_overrides
+from glider_cosim.interop.ssp_export import export_ssp
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import ScenarioError, load_scenario, parse_scenario
-from glider_cosim.ssp import export_ssp
+from glider_cosim.scenarios.overrides import apply_overrides
+from glider_cosim.scenarios.scenario import ScenarioError, load_scenario, parse_scenario
 
 pytestmark = pytest.mark.integration
 PLANT = "GliderPlant"
@@ -358,7 +358,7 @@ def test_bad_ssp_is_refused_in_one_line(
 
 
 def test_zip_bomb_is_not_left_on_disk(ssp, tmp_path, capsys):
-    from glider_cosim.tempdirs import temp_root
+    from glider_cosim.inputs.tempdirs import temp_root
 
     bad = zip_bomb(ssp, tmp_path / "b.ssp", 20 << 20)
     before = set(temp_root().iterdir())

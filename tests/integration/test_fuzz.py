@@ -24,8 +24,8 @@ from typing import Any
 
 import pytest
 
-from glider_cosim.scenario import parse_scenario
-from glider_cosim.ssp import export_ssp
+from glider_cosim.interop.ssp_export import export_ssp
+from glider_cosim.scenarios.scenario import parse_scenario
 
 pytestmark = pytest.mark.integration
 SEED = 13

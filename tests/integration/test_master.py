@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from glider_cosim.master import CoSimulation, System, SystemSpecError
-from glider_cosim.runner import ArrayRecorder
+from glider_cosim.runner.recorders import ArrayRecorder
 
 pytestmark = pytest.mark.integration
 H = 0.1
@@ -147,9 +147,9 @@ def test_algebraic_loop_is_refused(test_fmus):
 
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_c_loop_equals_the_python_loop_bit_for_bit(fmu_dir, coupling, monkeypatch):
-    """The per-step calls made from C (glider_cosim.fastloop) and from Python."""
-    from glider_cosim.runner import system_for
-    from glider_cosim.scenario import load_scenario
+    """The per-step calls made from C (glider_cosim.master.fastloop) and from Python."""
+    from glider_cosim.scenarios.scenario import load_scenario
+    from glider_cosim.scenarios.system import system_for
 
     def run_default() -> tuple[np.ndarray, bool]:
         sim = CoSimulation(system_for(load_scenario("default"), fmu_dir), coupling=coupling)

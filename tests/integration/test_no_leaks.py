@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from glider_cosim.ssp import export_ssp
+from glider_cosim.interop.ssp_export import export_ssp
 
 pytestmark = pytest.mark.integration
 CLI = "from glider_cosim.cli import console_main; console_main()"
@@ -81,7 +81,8 @@ def test_api_call_leaves_no_temporary_folder(fmu_dir, ssp, tmp_path):
     code = (
         "import sys; from glider_cosim.runner import simulate; "
         "r = simulate('default', None, fmu_dir=sys.argv[1], build=False, stop_time=1.0); "
-        "from glider_cosim.ssp import load_ssp; load_ssp(sys.argv[2]); print(r.status)"
+        "from glider_cosim.interop.ssp_import import load_ssp; "
+        "load_ssp(sys.argv[2]); print(r.status)"
     )
     p = run(tmp_path / "t", str(fmu_dir), str(ssp), code=code)
     assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr
@@ -149,12 +150,12 @@ def test_sweep_leaves_no_temporary_folder(fmu_dir, tmp_path):
 
 
 def test_extractions_are_reused_within_a_process(fmu_dir):
-    from glider_cosim.master import _extracted
+    from glider_cosim.master.cosimulation import _extracted
 
     a = _extracted(fmu_dir / "GliderPlant.fmu")
     b = _extracted(fmu_dir / "GliderPlant.fmu")
     assert a == b and Path(a).is_dir()
-    from glider_cosim.tempdirs import temp_root
+    from glider_cosim.inputs.tempdirs import temp_root
 
     assert Path(a).is_relative_to(temp_root())
 

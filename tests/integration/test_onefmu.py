@@ -17,10 +17,10 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from glider_cosim.onefmu import EXPOSED, OneFMUError, export_one_fmu
-from glider_cosim.report import apply_overrides
+from glider_cosim.interop.onefmu import EXPOSED, OneFMUError, export_one_fmu
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import load_scenario, parse_sets
+from glider_cosim.scenarios.overrides import apply_overrides
+from glider_cosim.scenarios.scenario import load_scenario, parse_sets
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 

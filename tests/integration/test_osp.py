@@ -16,8 +16,11 @@ import pytest
 import xmlschema
 from fmpy import read_model_description
 
-from glider_cosim import osp
-from glider_cosim.ssp import NS, export_ssp, load_ssp, simulate_libcosim_isolated
+from glider_cosim.build import osp
+from glider_cosim.interop.libcosim import simulate_libcosim_isolated
+from glider_cosim.interop.ssp_common import NS
+from glider_cosim.interop.ssp_export import export_ssp
+from glider_cosim.interop.ssp_import import load_ssp
 from glider_fmi.slave_base import _UNITS
 
 pytestmark = pytest.mark.integration

@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from glider_cosim.report import apply_overrides
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import load_scenario
+from glider_cosim.scenarios.overrides import apply_overrides
+from glider_cosim.scenarios.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
 

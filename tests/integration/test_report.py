@@ -8,9 +8,10 @@ import re
 
 import pytest
 
-from glider_cosim.analysis import analyze
-from glider_cosim.report import FIGURES, apply_overrides, build_report, kc_map, passivity_gain
-from glider_cosim.scenario import load_scenario
+from glider_cosim.scenarios.overrides import apply_overrides
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.studies.analysis import analyze
+from glider_cosim.studies.report import FIGURES, build_report, kc_map, passivity_gain
 
 pytestmark = pytest.mark.integration
 
@@ -147,8 +148,8 @@ def test_disagreement_comments_carry_the_reason_with_numbers(report):
 def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
-    from glider_cosim.report import _plot_sec53
     from glider_cosim.runner import simulate
+    from glider_cosim.studies.report import _plot_sec53
 
     fig = FIGURES[3]
     results = [(run, simulate(apply_overrides(load_scenario(run.scenario), run.overrides), None,

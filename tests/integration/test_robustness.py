@@ -17,10 +17,12 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
-from glider_cosim.build import COMPONENTS
-from glider_cosim.master import CoSimulation, FMUCallError, System, _extracted
-from glider_cosim.runner import ArrayRecorder, simulate
-from glider_cosim.scenario import load_scenario
+from glider_cosim.build.python import COMPONENTS
+from glider_cosim.master import CoSimulation, FMUCallError, System
+from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.runner import simulate
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
 NAMES = [c.name for c in COMPONENTS]
@@ -163,7 +165,7 @@ def test_illegal_sequence_messages_through_the_master(flavor_dir):
 def test_repeated_use_in_one_process(fmu_dir):
     """Many instantiate/initialise/step/reset/free cycles; several masters at once."""
     sc = load_scenario(None)
-    from glider_cosim.runner import system_for
+    from glider_cosim.scenarios.system import system_for
 
     a = CoSimulation(system_for(sc, fmu_dir))
     b = CoSimulation(system_for(sc, fmu_dir))  # a second host in the same process

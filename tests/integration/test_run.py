@@ -13,7 +13,7 @@ import pytest
 
 from glider_controller.laws import passivity_law
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import load_scenario, parse_scenario
+from glider_cosim.scenarios.scenario import load_scenario, parse_scenario
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
@@ -212,7 +212,7 @@ def test_cli_run_repeatedly_exits_0(fmu_dir, tmp_path):
         )
         assert p.returncode == 0, p.stderr
     script = (
-        "from glider_cosim.runner import simulate; "
+        "from glider_cosim.runner.run import simulate; "
         f"r = simulate(None, None, fmu_dir={str(fmu_dir)!r}, build=False, stop_time=1.0);"
         "assert r.status == 'ok'"
     )

@@ -11,10 +11,10 @@ from importlib import metadata, resources
 import pytest
 
 from glider_cosim.cli import main
-from glider_cosim.plots import read_png_record, write_plots
-from glider_cosim.provenance import OWNED, file_sha256
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import load_scenario, parse_scenario
+from glider_cosim.runner.plots import read_png_record, write_plots
+from glider_cosim.runner.provenance import OWNED, file_sha256
+from glider_cosim.scenarios.scenario import load_scenario, parse_scenario
 
 pytestmark = pytest.mark.integration
 PNGS = ("glide_angle", "pitch", "tail_angle", "speed", "depth")

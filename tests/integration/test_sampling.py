@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from glider_cosim.report import apply_overrides
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import SamplingMismatchWarning, load_scenario
+from glider_cosim.scenarios.overrides import apply_overrides
+from glider_cosim.scenarios.scenario import SamplingMismatchWarning, load_scenario
 
 pytestmark = pytest.mark.integration
 

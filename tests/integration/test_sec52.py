@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import load_scenario
+from glider_cosim.scenarios.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
 

@@ -13,15 +13,12 @@ import numpy as np
 import pytest
 from fmpy.ssp.ssd import read_ssd
 
-from glider_cosim.runner import default_connections, simulate
-from glider_cosim.ssp import (
-    NS,
-    SSPError,
-    export_ssp,
-    load_ssp,
-    run_ssp,
-    simulate_libcosim_isolated,
-)
+from glider_cosim.interop.libcosim import simulate_libcosim_isolated
+from glider_cosim.interop.ssp_common import NS
+from glider_cosim.interop.ssp_export import export_ssp
+from glider_cosim.interop.ssp_import import SSPError, load_ssp
+from glider_cosim.runner import run_ssp, simulate
+from glider_cosim.scenarios.system import default_connections
 
 pytestmark = pytest.mark.integration
 FMUS = ("GliderPlant", "GliderObserver", "GliderController")

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from glider_cosim.master import CoSimulation, Disturbance, System
-from glider_cosim.runner import ArrayRecorder, simulate
-from glider_cosim.scenario import parse_scenario
+from glider_cosim.runner import simulate
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import parse_scenario
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
@@ -28,7 +29,7 @@ DISTURBANCES = ("plant.F_x", "plant.F_z", "plant.M_y")
 def foreign(tmp_path_factory) -> dict[str, Path]:
     """The two foreign FMUs (module names unique: one interpreter per process), packaged
     with our runtime: pythonfmu's own binary would abort the test process at exit."""
-    from glider_cosim.build import build_slave_fmu
+    from glider_cosim.build.python import build_slave_fmu
 
     out = tmp_path_factory.mktemp("swap_fmus")
     return {

@@ -19,7 +19,7 @@ import pytest
 from glider_cosim.cli import main
 from glider_cosim.master import SystemSpecError
 from glider_cosim.runner import simulate
-from glider_cosim.scenario import parse_scenario
+from glider_cosim.scenarios.scenario import parse_scenario
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
@@ -92,7 +92,7 @@ def minimal(tmp_path_factory) -> dict[str, Path]:
     from pythonfmu.builder import FmuBuilder
 
     try:
-        from glider_cosim.build import build_slave_fmu
+        from glider_cosim.build.python import build_slave_fmu
     except ImportError:
         build_slave_fmu = None
     out = tmp_path_factory.mktemp("minimal_fmus")
@@ -115,7 +115,7 @@ def test_the_minimal_plant_swaps_in_with_notes(minimal, fmu_dir, caplog):
     with caplog.at_level(logging.WARNING, logger="glider_cosim"):
         r = simulate(sc, None, fmu_dir=fmu_dir, build=False)
     assert r.status == "ok", r.message
-    notes = [rec.getMessage() for rec in caplog.records if rec.name == "glider_cosim.runner"]
+    notes = [rec.getMessage() for rec in caplog.records if rec.name == "glider_cosim.runner.run"]
     for name in ("F_x", "F_z", "M_y"):
         assert any(f"has no input {name}: skipped" in n for n in notes), notes
     assert {"plant.theta_meas", "plant.V", "plant.theta_g"} <= set(r.columns)

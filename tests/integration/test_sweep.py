@@ -15,9 +15,16 @@ import warnings
 import pytest
 
 from glider_cosim.cli import main as cli_main
-from glider_cosim.scenario import load_scenario
-from glider_cosim.sweep import expand, make_client, parse_param, run_many, run_sweep, write_plots
-from glider_cosim.sweep_cluster import SweepClusterError, check_workers, package_version
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.sweeps.cluster import SweepClusterError, check_workers, package_version
+from glider_cosim.sweeps.sweep import (
+    expand,
+    make_client,
+    parse_param,
+    run_many,
+    run_sweep,
+    write_plots,
+)
 
 pytestmark = pytest.mark.integration
 

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from glider_cosim.scenario import load_scenario
-from glider_cosim.sweep import expand, parse_param, run_sweep
+from glider_cosim.scenarios.scenario import load_scenario
+from glider_cosim.sweeps.sweep import expand, parse_param, run_sweep
 
 pytestmark = pytest.mark.integration
 REPO = Path(__file__).resolve().parents[2]

@@ -18,7 +18,6 @@ from glider_cosim.cli import main
 from glider_cosim.testing import assert_matches_reference
 from glider_cosim.verify import (
     COMPONENTS,
-    DEFAULT_CASE,
     RUNNERS,
     VerifyInputError,
     case_names,
@@ -26,10 +25,10 @@ from glider_cosim.verify import (
     kit_files,
     kit_root,
     load_case,
-    open_fmu,
     verify,
     write_references,
 )
+from glider_cosim.verify.kit import DEFAULT_CASE, open_fmu
 
 pytestmark = pytest.mark.integration
 
@@ -141,7 +140,7 @@ class HalfPlant(Fmi2Slave):
 @pytest.fixture(scope="module")
 def broken(tmp_path_factory) -> dict[str, Path]:
     """FMUs with our interface but a defect, built from small slave scripts on our runtime."""
-    from glider_cosim.build import package_slave
+    from glider_cosim.build.python import package_slave
     from glider_fmi.compile import compile_runtime
 
     out = tmp_path_factory.mktemp("broken_fmus")

@@ -1,0 +1,230 @@
+"""Where the FMUs live (the per-user cache, an export folder) and building the set a run needs."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+from glider_cosim.build import osp
+from glider_cosim.build.python import (
+    COMPONENTS,
+    DEFAULT_DIRS_FMI3,
+    build_component,
+    is_current,
+    source_hash,
+)
+from glider_fmi import compile as runtime
+
+#: the flavors of our FMUs: the Python reference (default) and the native C99 build
+FLAVORS = ("python", "native")
+
+
+#: where ``glider-cosim build`` writes each flavor unless ``--out`` is given (the
+#: project's export folder); runs use the per-user cache instead (:func:`cache_dir`)
+DEFAULT_DIRS = {"python": Path("fmus"), "native": Path("fmus") / "native"}
+
+
+#: environment variable naming the cache folder (default: :func:`cache_root`)
+CACHE_ENV = "GLIDER_COSIM_CACHE"
+
+
+def cache_root() -> Path:
+    """The per-user cache of built FMUs: ``$GLIDER_COSIM_CACHE`` if set, else
+    ``$XDG_CACHE_HOME/glider-cosim`` (an absolute ``XDG_CACHE_HOME``), else the
+    platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
+    ``%LOCALAPPDATA%`` on Windows."""
+    own = os.environ.get(CACHE_ENV)
+    if own:
+        return Path(own)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        base = Path(xdg)
+    elif sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path.home() / ".cache"
+    return base / "glider-cosim"
+
+
+def sources_key(flavor: str = "python") -> str:
+    """A short hash over the sources of the flavor's three FMUs (each FMU's own hash,
+    :func:`source_hash` or :func:`glider_cosim.build.native.native_hash`)."""
+    if flavor == "native":
+        from glider_cosim.build.native import NATIVE_COMPONENTS, native_hash
+
+        hashes = [native_hash(c) for c in NATIVE_COMPONENTS]
+    else:
+        hashes = [source_hash(c) for c in COMPONENTS]
+    return hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:16]
+
+
+def cache_dir(flavor: str = "python", fmi: int = 2) -> Path:
+    """The cache folder of the flavor's FMUs (of FMI ``fmi``) built from the current
+    sources: ``<cache_root>/<version>/<flavor>[-fmi3]-<sources_key>``. Other sources
+    (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale."""
+    from glider_cosim.build.native import _version
+
+    if flavor not in FLAVORS:
+        raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
+    kind = flavor if fmi == 2 else f"{flavor}-fmi{fmi}"
+    return cache_root() / _version() / f"{kind}-{sources_key(flavor)}"
+
+
+def fmu_folder(fmu_dir: str | Path | None, flavor: str | None = None) -> Path:
+    """``fmu_dir`` as a path; None is the cache folder of ``flavor`` (python if None)."""
+    return Path(fmu_dir) if fmu_dir is not None else cache_dir(flavor or "python")
+
+
+#: the FMI versions we build (``--fmi``)
+FMI_VERSIONS = (2, 3)
+
+
+def default_dir(flavor: str | None = None, fmi: int | None = None) -> Path:
+    """The folder a flavor (python if None) of FMI ``fmi`` (2 if None) is built in."""
+    return (DEFAULT_DIRS_FMI3 if fmi == 3 else DEFAULT_DIRS)[flavor or "python"]
+
+
+def fmu_fmi_version(fmu: Path | str) -> int | None:
+    """The FMI version (2 or 3) an FMU's model description declares, None if unreadable."""
+    import re
+
+    try:
+        with zipfile.ZipFile(fmu) as z, z.open("modelDescription.xml") as f:
+            head = f.read(4096).decode("utf-8", "replace")
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return None
+    m = re.search(r'fmiVersion\s*=\s*"([23])\.', head)
+    return int(m.group(1)) if m else None
+
+
+def folder_fmi(folder: Path | str) -> int | None:
+    """The FMI version of the FMUs of ours in ``folder`` (the first found), or None."""
+    for c in COMPONENTS:
+        found = fmu_fmi_version(Path(folder) / f"{c.name}.fmu")
+        if found:
+            return found
+    return None
+
+
+def folder_flavor(folder: Path | str) -> str | None:
+    """The flavor the FMUs in ``folder`` record (the first of ours found), or None."""
+    from glider_cosim.build.native import fmu_flavor
+
+    for c in COMPONENTS:
+        found = fmu_flavor(Path(folder) / f"{c.name}.fmu")
+        if found:
+            return found
+    return None
+
+
+def build_all(
+    out: Path | str = "fmus",
+    only_stale: bool = False,
+    flavor: str | None = None,
+    fmi: int | None = None,
+) -> dict[str, Path]:
+    """Build GliderPlant, GliderObserver and GliderController into ``out``.
+
+    Parameters
+    ----------
+    out : path
+        Output folder (created if missing).
+    only_stale : bool
+        Rebuild only FMUs that are missing or were built from other sources.
+    flavor : {"python", "native"} or None
+        Which build: None keeps the flavor the FMUs already in ``out`` record (so a folder
+        of native FMUs is never rebuilt as Python ones), Python if there are none.
+    fmi : {2, 3} or None
+        FMI version: None keeps the one the FMUs already in ``out`` declare (a folder of
+        FMI 3.0 FMUs stays FMI 3.0), 2 if there are none.
+
+    Returns
+    -------
+    dict
+        Model identifier -> path of the ``.fmu``.
+    """
+    out = Path(out)
+    if flavor is None:
+        flavor = folder_flavor(out) or "python"
+    if flavor not in FLAVORS:
+        raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
+    if fmi is None:
+        fmi = folder_fmi(out) or 2
+    if fmi not in FMI_VERSIONS:
+        raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
+    if fmi == 3:
+        from glider_cosim.build.fmi3 import build_fmi3
+
+        return build_fmi3(out, flavor, only_stale)
+    if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
+        only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
+    if flavor == "native":
+        from glider_cosim.build.native import build_native
+
+        return _with_osp(build_native(out, only_stale))
+    todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
+    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
+    if todo:
+        with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
+            binary = Path(tmp) / "glider_fmi_runtime.so"
+            runtime.compile_runtime(binary)
+            for c in todo:
+                result[c.name] = build_component(c, out, binary)
+    return _with_osp(result)
+
+
+def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
+    """Write each FMU's OSP-IS description beside it (also for FMUs not rebuilt)."""
+    for fmu in fmus.values():
+        osp.write_beside(fmu)
+    return fmus
+
+
+def add_fmu_options(parser: Any, fmi: bool = False) -> None:
+    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
+    with ``fmi``)."""
+    parser.add_argument(
+        "--fmu-dir",
+        default=None,
+        help="FMU folder, built if missing or stale in the flavor it holds (default: the "
+        "per-user cache, e.g. ~/.cache/glider-cosim, built from the installed sources)",
+    )
+    parser.add_argument(
+        "--flavor",
+        choices=FLAVORS,
+        default=None,
+        help="which FMUs: the Python reference or the native C99 build (default: the "
+        "flavor the FMU folder holds, python if it is empty)",
+    )
+    if fmi:
+        parser.add_argument(
+            "--fmi",
+            type=int,
+            choices=FMI_VERSIONS,
+            default=None,
+            help="FMI version of our FMUs (default: the one the FMU folder holds, 2 if it is "
+            "empty; FMI 3 FMUs are built in fmus/fmi3, fmus/fmi3/native)",
+        )
+
+
+def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None, fmi: int | None = None) -> Path:
+    """The FMU folder a command's ``--fmu-dir``/``--flavor``/``--fmi`` name. Without a
+    folder: the per-user cache's (:func:`cache_dir`), built there first if missing or
+    stale. With a folder and ``--flavor`` or ``--fmi``: the FMUs there are built in that
+    flavor and FMI version first if missing, stale or of another flavor or version."""
+    if fmu_dir is None:
+        flavor = flavor or "python"
+        folder = cache_dir(flavor, fmi or 2)
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2)
+        return folder
+    folder = Path(fmu_dir)
+    if flavor is not None or fmi is not None:
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi)
+    return folder

@@ -1,0 +1,198 @@
+"""Build the Python flavor: a pythonfmu slave packaged with our FMI layer's runtime."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import tempfile
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import glider_controller
+import glider_fmi
+import glider_observer
+import glider_plant
+from glider_cosim.build import osp
+from glider_cosim.build.files import replacing
+from glider_fmi import compile as runtime
+
+#: resource file in each FMU holding the hash of the sources it was built from
+HASH_FILE = "resources/glider_cosim_source.sha256"
+
+
+@dataclass(frozen=True)
+class Component:
+    """An FMU: its model identifier and the packages it bundles (slave script first)."""
+
+    name: str
+    packages: tuple[Path, ...]
+
+    @property
+    def slave_module(self) -> str:
+        """Module holding the slave class, e.g. ``glider_plant.slave``."""
+        return f"{PACKAGE_NAMES[self.packages[0]]}.slave"
+
+    @property
+    def sources(self) -> list[Path]:
+        return sorted(f for pkg in self.packages for f in pkg.glob("*.py"))
+
+
+def _pkg(module) -> Path:
+    return Path(module.__file__).resolve().parent
+
+
+COMPONENTS: tuple[Component, ...] = (
+    Component("GliderPlant", (_pkg(glider_plant), _pkg(glider_fmi))),
+    Component("GliderObserver", (_pkg(glider_observer), _pkg(glider_plant), _pkg(glider_fmi))),
+    Component("GliderController", (_pkg(glider_controller), _pkg(glider_plant), _pkg(glider_fmi))),
+)
+
+
+PACKAGE_NAMES = {
+    _pkg(glider_plant): "glider_plant",
+    _pkg(glider_observer): "glider_observer",
+    _pkg(glider_controller): "glider_controller",
+    _pkg(glider_fmi): "glider_fmi",
+}
+
+
+#: the FMU's binary for this platform (the only one it carries)
+BINARY_DIR = "binaries/linux64"
+
+
+def source_hash(c: Component) -> str:
+    """SHA-256 over the component's sources, the script shim, the runtime (source and
+    flags) and the Python configuration it records."""
+    h = hashlib.sha256(shim_text(c).encode())
+    h.update(runtime.runtime_fingerprint().encode())
+    h.update(runtime.python_config().encode())
+    h.update(osp.fingerprint().encode())
+    for f in c.sources:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def shim_text(c: Component) -> str:
+    """The FMU's script: it only imports the slave class (see build_component)."""
+    return (
+        f'"""pythonfmu entry point of {c.name}: the slave is {c.slave_module}."""\n\n'
+        f'from {c.slave_module} import {c.name}\n\n__all__ = ["{c.name}"]\n'
+    )
+
+
+def is_current(fmu: Path, c: Component) -> bool:
+    """True if ``fmu`` exists and was built from the current sources."""
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            return z.read(HASH_FILE).decode().strip() == source_hash(c)
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return False
+
+
+def _replace_binaries(fmu: Path, model_identifier: str, binary: Path) -> None:
+    """Swap pythonfmu's binaries in ``fmu`` for our runtime (linux64 only)."""
+    tmp = fmu.with_name(fmu.name + ".part")
+    try:
+        with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
+            for item in src.infolist():
+                if not item.filename.startswith("binaries/"):
+                    dst.writestr(item, src.read(item))
+            dst.write(binary, f"{BINARY_DIR}/{model_identifier}.so")
+        tmp.replace(fmu)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def package_slave(
+    script: Path,
+    out: Path,
+    binary: Path,
+    project_files: Sequence[Path] = (),
+    **options: Any,
+) -> Path:
+    """Package a pythonfmu slave script as an FMU that runs on our FMI runtime.
+
+    Parameters
+    ----------
+    script : Path
+        The pythonfmu script; its slave class must be named like the script (the model
+        identifier).
+    out : Path
+        Folder the ``.fmu`` is written to.
+    binary : Path
+        The compiled runtime (:func:`glider_fmi.compile.compile_runtime`).
+    project_files : sequence of Path
+        Further files and package folders for ``resources/``.
+    **options
+        pythonfmu's capability flags, e.g. ``canGetAndSetFMUstate=True``.
+
+    Returns
+    -------
+    Path
+        The ``.fmu``.
+    """
+    from pythonfmu.builder import FmuBuilder
+
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="glider_fmi_cfg_") as tmp:
+        config = Path(tmp) / runtime.PYTHON_CONFIG_FILE
+        config.write_text(runtime.python_config())
+        staged = Path(
+            FmuBuilder.build_FMU(
+                script, dest=Path(tmp), project_files=[*project_files, config], **options
+            )
+        )
+        _replace_binaries(staged, staged.stem, binary)
+        osp.add_to_fmu(staged)
+        fmu = out / staged.name
+        with replacing(fmu) as part:  # a process reading the FMU meanwhile sees old or new
+            shutil.copyfile(staged, part)
+    osp.write_beside(fmu)  # where OSP's tools look for it
+    return fmu
+
+
+def build_slave_fmu(
+    script: Path | str, out: Path | str, project_files: Sequence[Path] = ()
+) -> Path:
+    """Compile the runtime and package one pythonfmu script with it (tests, users' slaves).
+
+    Returns
+    -------
+    Path
+        The ``.fmu`` in ``out``.
+    """
+    with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
+        binary = Path(tmp) / "glider_fmi_runtime.so"
+        runtime.compile_runtime(binary)
+        return package_slave(Path(script), Path(out), binary, project_files)
+
+
+def build_component(c: Component, out: Path, binary: Path) -> Path:
+    """Build one FMU into ``out`` with the compiled runtime ``binary``; return its path."""
+    with tempfile.TemporaryDirectory(prefix=f"{c.name}_") as tmp:
+        stage = Path(tmp)
+        # The FMU's script is a shim that imports the slave class; its name is the model
+        # identifier, unique per FMU. The runtime imports it once per process.
+        script = stage / f"{c.name}.py"
+        script.write_text(shim_text(c))
+        project = []
+        for pkg in c.packages:
+            dst = stage / PACKAGE_NAMES[pkg]
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.h", "*.so")
+            shutil.copytree(pkg, dst, ignore=ignore)
+            project.append(dst)
+        (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")
+        project.append(stage / "glider_cosim_source.sha256")
+        (stage / "glider_cosim_flavor.txt").write_text("python\n")
+        project.append(stage / "glider_cosim_flavor.txt")
+        return package_slave(
+            script, out, binary, project, canGetAndSetFMUstate=True, canSerializeFMUstate=True
+        )
+
+
+#: where each flavor's FMI 3.0 FMUs are built unless a folder is given
+DEFAULT_DIRS_FMI3 = {"python": Path("fmus") / "fmi3", "native": Path("fmus") / "fmi3" / "native"}

@@ -1,0 +1,55 @@
+"""What the SSP export and import share: namespaces, annotation types, value formats."""
+
+from __future__ import annotations
+
+from typing import Any
+
+NS = {
+    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+}
+
+
+OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
+
+
+#: our annotation on a component naming its OSP-IS model description in ``resources/``
+OSP_MD_ANNOTATION_TYPE = "org.glider-cosim.osp-model-description"
+
+
+OSP_MD_NS = "urn:glider-cosim:osp-model-description"
+
+
+FMU_MIME = "application/x-fmu-sharedlibrary"
+
+
+_VALUE_TYPES = ("Real", "Integer", "Boolean")
+
+
+def _q(prefix: str, tag: str) -> str:
+    return f"{{{NS[prefix]}}}{tag}"
+
+
+def _local(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1]
+
+
+def _format_value(value: Any, type_: str) -> str:
+    if type_ == "Real":
+        return repr(float(value))
+    if type_ == "Boolean":
+        return "true" if bool(value) else "false"
+    return str(int(value))
+
+
+def _as_fmi2_types(md: Any) -> Any:
+    """An FMI 3.0 model description's Float64/Int32 variables as SSP 1.0's Real/Integer
+    (the types an FMI 2.0 one declares); an FMI 2.0 one as it is."""
+    from glider_cosim.master.fmi3 import TYPE_AS_FMI2
+
+    if str(md.fmiVersion).startswith("3"):
+        for v in md.modelVariables:
+            v.type = TYPE_AS_FMI2.get(v.type, v.type)
+    return md

@@ -1,0 +1,177 @@
+"""The system as an SSP 1.0 archive (``glider-cosim export-ssp``)."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+from xml.etree import ElementTree as ET
+
+from glider_cosim.build import osp
+from glider_cosim.inputs.ssp_files import SSD_NAME, SSPError
+
+if TYPE_CHECKING:
+    from glider_cosim.scenarios.scenario import Scenario
+from glider_cosim.interop.ssp_common import (
+    _VALUE_TYPES,
+    FMU_MIME,
+    OSP_ANNOTATION_TYPE,
+    OSP_MD_ANNOTATION_TYPE,
+    OSP_MD_NS,
+    _as_fmi2_types,
+    _format_value,
+    _q,
+)
+
+
+def export_ssp(
+    out_path: str | Path,
+    scenario: Scenario | str | Path | None = None,
+    fmu_dir: str | Path | None = None,
+) -> Path:
+    """Write a scenario's system as an SSP 1.0 archive.
+
+    Parameters
+    ----------
+    out_path : path
+        The ``.ssp`` file to write (its folder is created).
+    scenario : Scenario, path, shipped name or None
+        The scenario (``None``: the default). Its FMUs (swapped ones included),
+        connections (``feedback``, ``with_observer``), per-instance parameters, constant
+        inputs, step and stop time are exported; events and disturbances have no SSP 1.0
+        equivalent and are refused.
+    fmu_dir : path, optional
+        Where our FMUs are (built there first if missing or stale; default: the per-user
+        cache).
+
+    Returns
+    -------
+    Path
+        ``out_path``.
+
+    Raises
+    ------
+    SSPError
+        The scenario cannot be expressed in SSP 1.0, or names a variable the FMUs lack.
+    """
+    from fmpy import read_model_description
+
+    from glider_cosim.build.folders import build_all, fmu_folder
+    from glider_cosim.scenarios.scenario import (
+        Scenario,
+        has_our_observer,
+        load_scenario,
+        with_sampling,
+    )
+    from glider_cosim.scenarios.system import FMU_NAMES, default_connections
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if sc.events or sc.disturbances:
+        key = "event" if sc.events else "disturbance"
+        raise SSPError(
+            f"{sc.source}: key '{key}': events and disturbances have no SSP 1.0 equivalent; "
+            "export a scenario without them"
+        )
+    insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
+    built = build_all(fmu_folder(fmu_dir), only_stale=True) if set(insts) - set(sc.fmus) else {}
+    fmus: dict[str, Path] = {}
+    for inst in insts:
+        fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]
+    resources = {inst: f"resources/{fmu.name}" for inst, fmu in fmus.items()}
+    if len(set(resources.values())) != len(resources):
+        raise SSPError(f"{sc.source}: key 'fmus': two instances use FMU files of the same name")
+    conns = default_connections(sc.feedback, sc.observer)
+    ospmd = {}  # inst -> (path in the archive, content): beside its FMU, as OSP looks
+    for inst, fmu in fmus.items():
+        found = osp.read_from_fmu(fmu)
+        if found is not None:
+            ospmd[inst] = (f"resources/{Path(resources[inst]).stem}{osp.SUFFIX}", found[1])
+
+    root = ET.Element(
+        _q("ssd", "SystemStructureDescription"),
+        {"version": "1.0", "name": f"glider-cosim-{sc.name}"},
+    )
+    system = ET.SubElement(root, _q("ssd", "System"), {"name": "glider"})
+    elements = ET.SubElement(system, _q("ssd", "Elements"))
+    comps = {}
+    for inst in insts:
+        md = _as_fmi2_types(read_model_description(str(fmus[inst])))
+        variables = {v.name: v for v in md.modelVariables}
+        comp = comps[inst] = ET.SubElement(
+            elements,
+            _q("ssd", "Component"),
+            {"name": inst, "source": resources[inst], "type": FMU_MIME},
+        )
+        connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
+        for v in md.modelVariables:
+            if v.causality in ("input", "output") and v.type in _VALUE_TYPES:
+                c = ET.SubElement(
+                    connectors, _q("ssd", "Connector"), {"name": v.name, "kind": v.causality}
+                )
+                ET.SubElement(c, _q("ssc", v.type))
+        values = dict(
+            with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc)).get(inst, {})
+        )
+        for ref, value in sc.inputs.items():  # constant inputs: their start values
+            if ref.startswith(f"{inst}."):
+                values[ref.split(".", 1)[1]] = value
+        if not values:
+            continue
+        bindings = ET.SubElement(comp, _q("ssd", "ParameterBindings"))
+        binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
+        pvalues = ET.SubElement(binding, _q("ssd", "ParameterValues"))
+        pset = ET.SubElement(
+            pvalues, _q("ssv", "ParameterSet"), {"version": "1.0", "name": f"{inst}-parameters"}
+        )
+        params = ET.SubElement(pset, _q("ssv", "Parameters"))
+        for name, value in values.items():
+            v = variables.get(name)
+            if v is None or v.causality not in ("parameter", "input"):
+                raise SSPError(
+                    f"{sc.source}: key '{inst}.{name}': {fmus[inst].name} has no parameter or "
+                    f"input '{name}'"
+                )
+            if v.type not in _VALUE_TYPES:
+                raise SSPError(f"{sc.source}: key '{inst}.{name}': type {v.type} is not supported")
+            p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": name})
+            ET.SubElement(p, _q("ssv", v.type), {"value": _format_value(value, v.type)})
+    for inst, (path, _) in ospmd.items():  # Annotations come last in an ssd:Component
+        annotation = ET.SubElement(
+            ET.SubElement(comps[inst], _q("ssd", "Annotations")),
+            _q("ssc", "Annotation"),
+            {"type": OSP_MD_ANNOTATION_TYPE},
+        )
+        ET.SubElement(annotation, f"{{{OSP_MD_NS}}}OspModelDescription", {"source": path})
+    connections = ET.SubElement(system, _q("ssd", "Connections"))
+    for src, dst in conns:
+        (se, sc_), (de, dc) = src.split(".", 1), dst.split(".", 1)
+        ET.SubElement(
+            connections,
+            _q("ssd", "Connection"),
+            {"startElement": se, "startConnector": sc_, "endElement": de, "endConnector": dc},
+        )
+    experiment = ET.SubElement(
+        root,
+        _q("ssd", "DefaultExperiment"),
+        {"startTime": "0.0", "stopTime": repr(float(sc.stop_time))},
+    )
+    annotation = ET.SubElement(
+        ET.SubElement(experiment, _q("ssd", "Annotations")),
+        _q("ssc", "Annotation"),
+        {"type": OSP_ANNOTATION_TYPE},
+    )
+    ET.SubElement(
+        ET.SubElement(annotation, _q("osp", "Algorithm")),
+        _q("osp", "FixedStepAlgorithm"),
+        {"baseStepSize": repr(float(sc.step))},
+    )
+    ET.indent(root)
+    out = Path(out_path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr(SSD_NAME, ET.tostring(root, xml_declaration=True, encoding="UTF-8"))
+        for inst in insts:
+            z.write(fmus[inst], resources[inst])
+        for path, content in dict(ospmd.values()).items():
+            z.writestr(path, content)
+    return out

@@ -1,0 +1,39 @@
+"""The co-simulation master: runs FMI 2.0 and 3.0 co-simulation FMUs at a fixed step.
+
+The public API: :class:`CoSimulation` runs a :class:`System` (FMUs, parameters,
+connections, driven inputs, disturbances, events), and the typed errors it raises.
+"""
+
+from glider_cosim.master.cosimulation import (
+    COUPLINGS,
+    DEFAULT_MAX_STEPS,
+    CoSimulation,
+    Disturbance,
+    Event,
+    FMUCallError,
+    FMUStopped,
+    Interrupted,
+    MasterError,
+    Recorder,
+    System,
+    SystemSpecError,
+    VarRef,
+    count_steps,
+)
+
+__all__ = [
+    "COUPLINGS",
+    "DEFAULT_MAX_STEPS",
+    "CoSimulation",
+    "Disturbance",
+    "Event",
+    "FMUCallError",
+    "FMUStopped",
+    "Interrupted",
+    "MasterError",
+    "Recorder",
+    "System",
+    "SystemSpecError",
+    "VarRef",
+    "count_steps",
+]

@@ -1,0 +1,221 @@
+"""An FMI 3.0 co-simulation instance behind the FMI 2.0 calls the master makes.
+
+The master (:mod:`glider_cosim.master.cosimulation`) drives its instances with fmpy's ``FMU2Slave``
+methods (instantiate, setupExperiment, enter/exit initialisation, terminate, reset, free,
+set/get Real/Integer/Boolean) and, at every step, raw ctypes calls with FMI 2.0
+signatures (``fmi2GetReal(c, vr, n, values)``, ``fmi2DoStep(c, t, h, noSetPrior)``) made
+from Python or from its C fast loop. :class:`FMU3Adapter` wraps fmpy's ``FMU3Slave`` in
+the same methods: setupExperiment stores the start time, which fmi3EnterInitializationMode
+receives; Float64, Int32 and Boolean stand for Real, Integer and Boolean. Its
+:attr:`~FMU3Adapter.component` is the address of a small C structure (the fmi3 instance
+and its FMU's fmi3 functions) that the shims of ``fastloop.c`` take in place of an FMI 2.0
+component: ``glider_shim_get_float64`` calls fmi3GetFloat64 with ``nValues = n``,
+``glider_shim_do_step`` calls fmi3DoStep and returns fmi3Discard when the FMU sets
+``terminateSimulation`` (a stall), which the master treats as the clean stop an FMI 2.0
+fmi2Discard is. The C fast loop and the block runs therefore serve FMI 3.0 instances
+unchanged, with one more C call per FMI call. Without a C compiler, Python functions of
+the same signatures stand in for the shims.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Any
+
+from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
+
+from glider_cosim.master.fastloop import SHIMS, shim_library
+
+#: FMI 3 types the master treats as the FMI 2 ones
+TYPE_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String"}
+#: FMI 2 call names (as the master writes them) -> the FMI 3 call made
+CALL_NAMES = {
+    "fmi2Instantiate": "fmi3InstantiateCoSimulation",
+    "fmi2SetupExperiment": "fmi3EnterInitializationMode",
+    "fmi2GetReal": "fmi3GetFloat64",
+    "fmi2SetReal": "fmi3SetFloat64",
+    "fmi2GetInteger": "fmi3GetInt32",
+    "fmi2SetInteger": "fmi3SetInt32",
+    "fmi2GetBoolean": "fmi3GetBoolean",
+    "fmi2SetBoolean": "fmi3SetBoolean",
+}
+
+
+def fmi3_call_name(call: str) -> str:
+    """``"fmi2SetReal(K_c)"`` -> ``"fmi3SetFloat64(K_c)"``; ``fmi2X`` -> ``fmi3X``."""
+    base, paren, rest = call.partition("(")
+    base = CALL_NAMES.get(base, base.replace("fmi2", "fmi3", 1))
+    return base + paren + rest
+
+
+class _Adapter(ctypes.Structure):
+    """``Fmi3Adapter`` of ``fastloop.c``."""
+
+    _fields_ = [
+        ("instance", ctypes.c_void_p),
+        ("get_float64", ctypes.c_void_p),
+        ("set_float64", ctypes.c_void_p),
+        ("get_int32", ctypes.c_void_p),
+        ("set_int32", ctypes.c_void_p),
+        ("get_boolean", ctypes.c_void_p),
+        ("set_boolean", ctypes.c_void_p),
+        ("do_step", ctypes.c_void_p),
+    ]
+
+
+_FIELDS = {
+    "get_float64": "fmi3GetFloat64",
+    "set_float64": "fmi3SetFloat64",
+    "get_int32": "fmi3GetInt32",
+    "set_int32": "fmi3SetInt32",
+    "get_boolean": "fmi3GetBoolean",
+    "set_boolean": "fmi3SetBoolean",
+    "do_step": "fmi3DoStep",
+}
+
+
+class ShimCalls:
+    """The per-step calls of an FMI 3 instance under their FMI 2 names (what
+    :meth:`glider_cosim.master.cosimulation.Instance.call_dll` returns for it)."""
+
+    def __init__(self, functions: dict[str, Any], holds_gil: bool):
+        for name, fn in functions.items():
+            setattr(self, name, fn)
+        #: the functions are called with the GIL held (like a ``ctypes.PyDLL``)
+        self.holds_gil = holds_gil
+
+
+def _python_shims(raw: ctypes.CDLL, adapter: _Adapter) -> dict[str, Any]:
+    """Python functions with the shims' signatures (no C compiler: no fast loop either)."""
+    inst = ctypes.c_void_p(0)
+
+    def instance() -> ctypes.c_void_p:
+        inst.value = adapter.instance
+        return inst
+
+    def values(fn_name: str):
+        fn = getattr(raw, fn_name)
+        fn.restype = ctypes.c_int
+        return lambda comp, vr, n, value: fn(instance(), vr, n, value, n)
+
+    def booleans(fn_name: str, read: bool):
+        fn = getattr(raw, fn_name)
+        fn.restype = ctypes.c_int
+
+        def call(comp, vr, n, value):
+            m = len(value)
+            b = (ctypes.c_bool * m)(*([] if read else [bool(x) for x in value]))
+            st = fn(instance(), vr, n, b, n)
+            if read and st <= 1:
+                value[:] = [int(x) for x in b]
+            return st
+
+        return call
+
+    step = raw.fmi3DoStep
+    step.restype = ctypes.c_int
+
+    def do_step(comp, t, h, no_set):
+        flags = [ctypes.c_bool(False) for _ in range(3)]
+        last = ctypes.c_double(0.0)
+        st = step(instance(), t, h, ctypes.c_bool(bool(getattr(no_set, "value", no_set))),
+                  *(ctypes.byref(f) for f in flags), ctypes.byref(last))  # fmt: skip
+        return 2 if st <= 1 and flags[1].value else st
+
+    return {
+        "fmi2GetReal": values("fmi3GetFloat64"),
+        "fmi2SetReal": values("fmi3SetFloat64"),
+        "fmi2GetInteger": values("fmi3GetInt32"),
+        "fmi2SetInteger": values("fmi3SetInt32"),
+        "fmi2GetBoolean": booleans("fmi3GetBoolean", True),
+        "fmi2SetBoolean": booleans("fmi3SetBoolean", False),
+        "fmi2DoStep": do_step,
+    }
+
+
+class FMU3Adapter:
+    """fmpy's ``FMU3Slave`` with the ``FMU2Slave`` methods the master calls.
+
+    Parameters are those of ``FMU3Slave`` (``guid`` is the instantiation token).
+    """
+
+    def __init__(self, **kwargs: Any):
+        self.slave = FMU3Slave(**kwargs)
+        self.dll = self.slave.dll
+        self._adapter = _Adapter()
+        raw = ctypes.CDLL(self.dll._name)  # plain function pointers, no argtypes
+        for field, fn_name in _FIELDS.items():
+            setattr(self._adapter, field, ctypes.cast(getattr(raw, fn_name), ctypes.c_void_p))
+        self._raw = raw
+        self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
+        self._log: Any = None
+
+    @property
+    def component(self) -> int:
+        """What the per-step calls take as their component: the adapter's address."""
+        return ctypes.addressof(self._adapter)
+
+    def calls(self, holds_gil: bool) -> ShimCalls:
+        """The per-step calls (the C shims, or Python ones without a compiler)."""
+        lib = shim_library(holds_gil)
+        if lib is None:
+            return ShimCalls(_python_shims(self._raw, self._adapter), holds_gil)
+        return ShimCalls({k: getattr(lib, v) for k, v in SHIMS.items()}, holds_gil)
+
+    # ---------------------------------------------------------- FMU2Slave's methods
+    def instantiate(self, log_message: Any = None, loggingOn: bool = False) -> None:
+        """fmi3InstantiateCoSimulation with ``log_message(env, status, category,
+        message)`` as the log callback; no event mode, no early return."""
+        self.slave.instantiate(loggingOn=loggingOn, logMessage=log_message)
+        self._log = self.slave.logMessage
+        self._adapter.instance = self.slave.component
+
+    def setupExperiment(self, tolerance=None, startTime=0.0, stopTime=None) -> None:
+        """Stored: FMI 3 takes the experiment in fmi3EnterInitializationMode."""
+        self._experiment = (tolerance, startTime, stopTime)
+
+    def enterInitializationMode(self) -> None:
+        tolerance, start, stop = self._experiment
+        self.slave.enterInitializationMode(tolerance=tolerance, startTime=start, stopTime=stop)
+
+    def exitInitializationMode(self) -> None:
+        self.slave.exitInitializationMode()
+
+    def terminate(self) -> int:
+        return self.slave.terminate()
+
+    def reset(self) -> int:
+        return self.slave.reset()
+
+    def fmi2FreeInstance(self, component: Any = None) -> None:
+        """fmi3FreeInstance (the component argument is ignored: it is the adapter)."""
+        self.slave.fmi3FreeInstance(self.slave.component)
+        self._adapter.instance = None
+
+    def setReal(self, vr, values) -> None:
+        self.slave.setFloat64(vr, values)
+
+    def setInteger(self, vr, values) -> None:
+        self.slave.setInt32(vr, values)
+
+    def setBoolean(self, vr, values) -> None:
+        self.slave.setBoolean(vr, values)
+
+    def getReal(self, vr) -> list[float]:
+        return self.slave.getFloat64(vr)
+
+    def getInteger(self, vr) -> list[int]:
+        return self.slave.getInt32(vr)
+
+    def getBoolean(self, vr) -> list[bool]:
+        return self.slave.getBoolean(vr)
+
+    # FMI 3 only, for hosts of ours that need it
+    def getFMUState(self) -> Any:
+        return self.slave.getFMUState()
+
+    def setFMUState(self, state: Any) -> None:
+        self.slave.setFMUState(state)
+
+
+__all__ = ["FMU3Adapter", "ShimCalls", "TYPE_AS_FMI2", "fmi3_call_name", "fmi3LogMessageCallback"]

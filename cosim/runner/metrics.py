@@ -1,0 +1,216 @@
+"""Performance metrics of a glide-stabilisation run (definitions in README, "Metrics").
+
+All are computed on the true glide angle ``plant.theta_g`` against the glide angle the
+loop should reach (:func:`reference_glide_angle`: the equilibrium ``theta_ge``, or for an
+open-loop law with a held tail the steady glide with that tail; ``theta_ge_rad`` in the
+metrics), from the time the controller takes over ``t_on`` (its ``t_enable``, or the time
+an event last changed the controller):
+
+- ``rise_time_s``: first time after ``t_on`` the error has shrunk to 10 % of its value
+  at ``t_on`` (i.e. 90 % of the way to the equilibrium).
+- ``overshoot_rad`` / ``overshoot_pct``: largest excursion past the equilibrium
+  (opposite sign to the initial error), in rad and in % of the initial error.
+- ``settling_time_s``: time after ``t_on`` from which the error stays within the band
+  ``max(2 % of the initial error, 0.1 deg)`` to the end of the run, with enough run
+  left to tell (at least ``settling_hold_s`` = max(10 s, 3 periods of the slowest
+  oscillation seen in the error)); None otherwise.
+- ``outcome``: ``settled``, ``not settled`` (still converging, or an offset),
+  ``limit cycle``, ``diverging``, ``tumbling`` (more than a full turn of the glide angle
+  at the end; the error is otherwise taken modulo 360 deg) or ``stopped`` (the run
+  ended early), detected from the
+  trajectory by :func:`glider_cosim.runner.outcome.classify`, with ``outcome_period_s``,
+  ``outcome_amplitude_rad`` (mean peak error), ``outcome_rate_per_s`` (envelope growth
+  rate, > 0 grows) and ``outcome_window_s`` (the examined end of the run, s).
+- ``control_effort``: integral of ``|delta_cmd|`` dt over the run, rad s (held values).
+- ``max_abs_delta_cmd_rad``: largest ``|delta_cmd|``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.runner.heldtail import held_glide
+from glider_cosim.runner.outcome import STOPPED, classify
+from glider_plant.model import equilibrium
+from glider_plant.params import GliderParams
+
+BAND_FRACTION = 0.02
+BAND_FLOOR = math.radians(0.1)
+
+
+def takeover_time(params: dict[str, Any], events: Sequence[Any]) -> float | None:
+    """When the controller takes over: its t_enable or the last event acting on it.
+
+    None if an event that acts on the controller never fired (it never took over).
+    """
+    t_on = float(params.get("t_enable", 0.0))
+    for ev in events:
+        if any(a.startswith("controller.") for a in ev.actions):
+            if ev.fired_at is None:
+                return None
+            t_on = max(t_on, ev.fired_at + ev.delay)
+    return t_on
+
+
+_OUTCOME_NONE = {
+    "outcome": None, "outcome_period_s": None, "outcome_amplitude_rad": None,
+    "outcome_rate_per_s": None, "outcome_window_s": None, "settling_hold_s": None,
+    "in_band_s": None,
+}  # fmt: skip
+
+
+def glide_metrics(
+    t: np.ndarray,
+    theta_g: np.ndarray,
+    delta_cmd: np.ndarray,
+    theta_ge: float,
+    t_on: float | None,
+    completed: bool = True,
+) -> dict[str, Any]:
+    """Metrics of one trajectory (see the module docstring); arrays in s and rad.
+
+    ``completed=False`` (the run stopped early): the outcome is ``stopped`` and there is
+    no settling time.
+    """
+    out: dict[str, Any] = {"theta_ge_rad": theta_ge, "t_on_s": t_on, **_OUTCOME_NONE}
+    h = float(t[1] - t[0]) if len(t) > 1 else 0.0
+    out["control_effort"] = float(np.sum(np.abs(delta_cmd[:-1])) * h) if len(t) > 1 else 0.0
+    out["max_abs_delta_cmd_rad"] = float(np.max(np.abs(delta_cmd))) if len(t) else 0.0
+    i0 = len(t) if t_on is None else int(np.searchsorted(t, t_on - 1e-9))
+    if i0 >= len(t):
+        out.update(rise_time_s=None, overshoot_rad=None, overshoot_pct=None, settling_time_s=None)
+        out["outcome"] = None if completed else STOPPED  # the controller never took over
+        return out
+    e_turns = theta_g[i0:] - theta_ge  # unwrapped: a tumbling glider adds turns
+    e = np.mod(e_turns + math.pi, 2.0 * math.pi) - math.pi  # the same glide, modulo 360 deg
+    tt = t[i0:] - t[i0]
+    e0 = float(e[0])
+    band = max(BAND_FRACTION * abs(e0), BAND_FLOOR)
+    out["settling_band_rad"] = band
+    out["final_error_rad"] = float(e[-1])
+    if abs(e0) < 1e-12:
+        out.update(rise_time_s=0.0, overshoot_rad=0.0, overshoot_pct=0.0)
+    else:
+        inside = np.abs(e) <= 0.1 * abs(e0)
+        out["rise_time_s"] = float(tt[np.argmax(inside)]) if inside.any() else None
+        past = -np.sign(e0) * e
+        over = max(0.0, float(np.max(past)))
+        out["overshoot_rad"] = over
+        out["overshoot_pct"] = 100.0 * over / abs(e0) if abs(e0) >= BAND_FLOOR else None
+    out["settling_time_s"] = None
+    if not completed:
+        out["outcome"] = STOPPED
+        return out
+    if len(e) < 2:
+        return out
+    o = classify(tt, e_turns, band, period=2.0 * math.pi)
+    out.update(
+        settling_time_s=o.settling_time_s,
+        outcome=o.status,
+        outcome_period_s=o.period_s,
+        outcome_amplitude_rad=o.amplitude,
+        outcome_rate_per_s=o.rate_per_s,
+        outcome_window_s=None if o.window_s is None else [w + float(t[i0]) for w in o.window_s],
+        settling_hold_s=o.hold_required_s,
+        in_band_s=o.in_band_s,
+    )
+    return out
+
+
+def reference_glide_angle(
+    p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
+) -> float:
+    """The glide angle [rad] the loop should reach: the equilibrium ``theta_ge`` for the
+    passivity, P and PI laws (they drive the tail to 0 there); for the open-loop law
+    (after the events) the steady glide with its tail ``delta_open`` held
+    (:func:`glider_cosim.runner.heldtail.held_glide`)."""
+    law, delta_open = controller.get("law", 1), controller.get("delta_open", 0.0)
+    for ev in events:
+        law = ev.actions.get("controller.law", law)
+        delta_open = ev.actions.get("controller.delta_open", delta_open)
+    if int(law) != 0 or delta_open == 0.0:
+        return equilibrium(p).theta_g
+    return held_glide(p, p.K_udelta * float(delta_open)).theta_g
+
+
+def compute_metrics(
+    columns: Sequence[str], data: np.ndarray, scenario: Any, sim: Any, status: str = "ok"
+) -> dict:
+    """Metrics of a run's table (needs ``plant.theta_g`` and ``controller.delta_cmd``);
+    ``status`` other than ``"ok"`` (the run ended early) makes the outcome ``stopped``."""
+    metrics: dict[str, Any] = {
+        "scenario": scenario.name,
+        "scenario_source": scenario.source,
+        "coupling": sim.coupling,
+        "step_s": sim.step_size,
+        "rows": int(len(data)),
+        "end_time_s": float(data[-1, 0]) if len(data) else None,
+    }
+    if len(data) == 0 or "plant.theta_g" not in columns or "controller.delta_cmd" not in columns:
+        return metrics
+    p = GliderParams.from_mapping(sim.system.parameters.get("plant", {}))
+    ctrl = sim.system.parameters.get("controller", {})
+    t_on = takeover_time(ctrl, sim.system.events)
+    metrics.update(
+        glide_metrics(
+            data[:, 0],
+            data[:, list(columns).index("plant.theta_g")],
+            data[:, list(columns).index("controller.delta_cmd")],
+            reference_glide_angle(p, ctrl, sim.system.events),
+            t_on,
+            completed=status == "ok",
+        )
+    )
+    return metrics
+
+
+def describe_outcome(m: dict[str, Any], brief: bool = False) -> str:
+    """The outcome of a run's metrics in words, with units (angles in deg).
+
+    E.g. ``"settled in 10.48 s"``, ``"limit cycle: amplitude 1.94 deg, period 1.75 s"``,
+    ``"diverging: envelope grows at 0.225 1/s"``; ``brief``: a table cell
+    (``"limit cycle 1.94 deg, 1.75 s"``).
+    """
+    o = m.get("outcome")
+    if o is None:
+        return "n/a" if brief else "no outcome (the controller never took over)"
+    if o == "settled":
+        return o if brief else f"settled in {m['settling_time_s']:.2f} s"
+    if o == STOPPED:
+        end = m.get("end_time_s")
+        at = "" if end is None else f" at {end:.2f} s"
+        return f"stopped{at}" if brief else f"stopped{at} (the run ended early)"
+    keys = ("outcome_amplitude_rad", "outcome_period_s", "outcome_rate_per_s")
+    amp, per, rate = (m.get(k) for k in keys)
+    if o == "limit cycle":
+        if brief:
+            return f"limit cycle {math.degrees(amp):.2f} deg, {per:.2f} s"
+        return f"limit cycle: amplitude {math.degrees(amp):.2f} deg, period {per:.2f} s"
+    if o == "tumbling":
+        w0, w1 = m["outcome_window_s"]
+        turns = abs(rate) * (w1 - w0)
+        if brief:
+            return f"tumbling {abs(rate):.3g} turns/s"
+        return f"tumbling: {turns:.1f} turns over {w0:.1f}-{w1:.1f} s ({per:.1f} s per turn)"
+    if o == "diverging":
+        return (
+            f"diverging {rate:+.3g} 1/s"
+            if brief
+            else f"diverging: envelope grows at {rate:.3g} 1/s"
+        )
+    if brief:
+        return f"not settled ({rate:+.3g} 1/s)"
+    w0, w1 = m["outcome_window_s"]
+    text = f"not settled: |error| about {math.degrees(amp):.2f} deg over {w0:.1f}-{w1:.1f} s"
+    if rate < 0:
+        text += f", still decaying at {-rate:.3g} 1/s"
+    if m.get("in_band_s") is not None:
+        text += (
+            f"; in the band for the last {m['in_band_s']:.1f} s of the "
+            f"{m['settling_hold_s']:.1f} s required"
+        )
+    return text

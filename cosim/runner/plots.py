@@ -1,0 +1,218 @@
+"""PNG plots of a run (angles in degrees, time in seconds)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from glider_cosim.runner.provenance import settings_text
+
+_DEG = 180.0 / np.pi
+#: how each marked event is drawn (colour, line style)
+EVENT_STYLE = {
+    "enable": ("tab:green", "--"),
+    "takeover": ("tab:green", "-."),
+    "stall": ("tab:red", "-"),
+    "discard": ("tab:red", "--"),
+    "error": ("darkred", ":"),
+}
+#: the PNG text chunks that carry what a plot marks and which run it shows
+META_EVENTS, META_SETTINGS = "glider-cosim:events", "glider-cosim:settings"
+_KEEP: list | None = None  # set by write_plots(keep=...): figures kept open for a test
+
+
+def _title(result: Any, what: str) -> str:
+    return f"{what} ({result.scenario.name})"
+
+
+def _events(result: Any) -> list[dict[str, Any]]:
+    return list(result.metrics.get("events") or ())
+
+
+def mark_events(axes: Any, events: list[dict[str, Any]], label: bool = True) -> None:
+    """A vertical line per event (enable, takeover, stall, Discard) on each time axis;
+    its ``gid`` is ``event:<kind>``; the first axis carries the legend labels."""
+    for k, ax in enumerate(axes):
+        for ev in events:
+            color, ls = EVENT_STYLE.get(ev["kind"], ("k", ":"))
+            ax.axvline(ev["time_s"], color=color, ls=ls, lw=1.1, alpha=0.9, zorder=4,
+                       gid=f"event:{ev['kind']}",
+                       label=f"{ev['label']}, t = {ev['time_s']:.2f} s"
+                       if label and k == 0 else None)  # fmt: skip
+
+
+def _save(fig: Any, path: Path, result: Any) -> Path:
+    settings = settings_text(result.metrics)
+    fig.suptitle(settings, fontsize=7.5, color="0.3")
+    fig.savefig(path, dpi=110, metadata={META_EVENTS: json.dumps(_events(result)),
+                                         META_SETTINGS: settings})  # fmt: skip
+    if _KEEP is not None:
+        _KEEP.append(fig)
+    else:
+        plt.close(fig)
+    return path
+
+
+def read_png_record(path: Path) -> dict[str, Any]:
+    """What a plot written here says about itself: ``{"events": [...], "settings": text}``
+    (read back from the PNG's text chunks)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        text = dict(getattr(im, "text", {}) or im.info)
+    return {"events": json.loads(text.get(META_EVENTS, "[]")),
+            "settings": text.get(META_SETTINGS, "")}  # fmt: skip
+
+
+def _glide_angle(result: Any, out: Path) -> Path:
+    t = result.data[:, 0]
+    fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
+    ax.plot(t, result.column("plant.theta_g") * _DEG, lw=1.4, label="true")
+    if "observer.theta_g_hat" in result.columns:
+        ax.plot(t, result.column("observer.theta_g_hat") * _DEG, lw=1.0, ls="--",
+                label="estimate")  # fmt: skip
+    if result.metrics.get("theta_ge_rad") is not None:
+        ax.axhline(result.metrics["theta_ge_rad"] * _DEG, color="k", ls=":", lw=0.8,
+                   label="equilibrium")  # fmt: skip
+    ax.set(title=_title(result, "Glide angle"), xlabel="time [s]", ylabel="theta_g [deg]")
+    mark_events([ax], _events(result))
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=7)
+    return _save(fig, out / "glide_angle.png", result)
+
+
+def _pitch(result: Any, out: Path) -> Path:
+    """Values on top; below, measured and estimated pitch minus the true one, so the
+    measurement is visible even when its noise is far smaller than the transient."""
+    t = result.data[:, 0]
+    cols = result.columns
+    # a swapped-in plant may lack one of them: draw what was recorded
+    true = result.column("plant.theta") * _DEG if "plant.theta" in cols else None
+    meas = result.column("plant.theta_meas") * _DEG if "plant.theta_meas" in cols else None
+    est = (
+        result.column("observer.theta_hat") * _DEG
+        if "observer.theta_hat" in result.columns
+        else None
+    )
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 5.2), sharex=True, layout="constrained",
+                                  height_ratios=(2, 1))  # fmt: skip
+    std = float(result.scenario.parameters.get("plant", {}).get("noise_std", 0.0)) * _DEG
+    if meas is not None:
+        ax.plot(t, meas, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray", zorder=1,
+                label=f"measured (samples, noise std {std:.2g} deg)")  # fmt: skip
+    if true is not None:  # drawn over the measured samples
+        ax.plot(t, true, lw=1.6, color="tab:blue", zorder=3, label="true")
+    if est is not None:
+        ax.plot(t, est, lw=1.0, ls="--", color="tab:orange", zorder=3.5, label="estimate")
+    # below: differences to the true pitch, or to the measured one without it
+    ref, ref_name = (true, "true") if true is not None else (meas, "measured")
+    if meas is not None and true is not None:
+        ax2.plot(t, meas - true, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray",
+                 zorder=1, label="measured - true")  # fmt: skip
+    if est is not None:
+        ax2.plot(t, est - ref, lw=1.0, color="tab:orange", zorder=3,
+                 label=f"estimate - {ref_name}")  # fmt: skip
+    return _finish_pair(fig, (ax, ax2), _title(result, "Pitch"), "theta", out / "pitch.png",
+                        result)  # fmt: skip
+
+
+def _finish_pair(
+    fig: Any, axes: tuple[Any, Any], title: str, name: str, path: Path, result: Any
+) -> Path:
+    """Values above (``name`` in deg), differences below; events marked on both; grids,
+    legends where labelled."""
+    ax, ax2 = axes
+    ax.set(title=title, ylabel=f"{name} [deg]")
+    ax2.set(xlabel="time [s]", ylabel="difference [deg]")
+    mark_events(axes, _events(result))
+    for a in axes:
+        a.grid(alpha=0.3)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(loc="best", fontsize=7, markerscale=4)
+    return _save(fig, path, result)
+
+
+def _tail(result: Any, out: Path) -> Path:
+    """The command as the held (zero-order-hold) steps it is, the servo as a line; below,
+    command minus servo angle (the servo's lag)."""
+    t = result.data[:, 0]
+    cmd = result.column("controller.delta_cmd") * _DEG
+    servo = result.column("plant.delta") * _DEG if "plant.delta" in result.columns else None
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 5.2), sharex=True, layout="constrained",
+                                  height_ratios=(2, 1))  # fmt: skip
+    if servo is not None:  # a swapped-in plant may have no servo output
+        ax.plot(t, servo, lw=2.4, alpha=0.45, color="k", zorder=2,
+                label="servo angle (sampled)")  # fmt: skip
+        ax2.plot(t, cmd - servo, lw=1.0, color="tab:purple", label="command - servo")
+    # the command on top, thin and dashed: the servo's wide line stays visible under it
+    ax.step(t, cmd, where="post", lw=1.1, ls="--", color="tab:red", zorder=3,
+            label="command (held)")  # fmt: skip
+    return _finish_pair(fig, (ax, ax2), _title(result, "Tail angle"), "delta",
+                        out / "tail_angle.png", result)  # fmt: skip
+
+
+def _speed(result: Any, out: Path) -> Path:
+    t = result.data[:, 0]
+    fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
+    ax.plot(t, result.column("plant.V"), lw=1.4, label="true")
+    if "observer.V_hat" in result.columns:
+        ax.plot(t, result.column("observer.V_hat"), lw=1.0, ls="--", label="estimate")
+    ax.set(title=_title(result, "Speed"), xlabel="time [s]", ylabel="V [m/s]")
+    mark_events([ax], _events(result))
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=7)
+    return _save(fig, out / "speed.png", result)
+
+
+def _depth(result: Any, out: Path) -> Path:
+    fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
+    x, z, t = result.column("plant.x"), result.column("plant.z"), result.data[:, 0]
+    ax.plot(x, z, lw=1.2)
+    for ev in _events(result):  # not a time axis: the events as points on the path
+        color, _ = EVENT_STYLE.get(ev["kind"], ("k", ":"))
+        k = min(int(np.searchsorted(t, ev["time_s"] - 1e-9)), len(t) - 1)
+        marker = {"enable": "o", "takeover": "D"}.get(ev["kind"], "X")
+        ax.plot([x[k]], [z[k]], marker=marker, ms=7, color=color, ls="none", zorder=4,
+                gid=f"event:{ev['kind']}",
+                label=f"{ev['label']}, t = {ev['time_s']:.2f} s")  # fmt: skip
+    ax.invert_yaxis()
+    ax.set(title=_title(result, "Depth profile"), xlabel="x [m]", ylabel="depth z [m]")
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="best", fontsize=7)
+    return _save(fig, out / "depth.png", result)
+
+
+def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, Path]:
+    """Write the glide-angle, pitch, tail-angle, speed and depth-profile PNGs to ``out``
+    (those whose columns were recorded). Each marks the run's events and names its
+    scenario and overrides; both are also in the PNG's text chunks
+    (:func:`read_png_record`). ``keep``: a list that gets the figures, left open."""
+    global _KEEP
+    _KEEP = keep
+    try:
+        return _write_plots(result, out)
+    finally:
+        _KEEP = None
+
+
+def _write_plots(result: Any, out: Path) -> dict[str, Path]:
+    cols = set(result.columns)
+    files = {}
+    for stem, needs, fn in (
+        ("glide_angle", ("plant.theta_g",), _glide_angle),
+        ("pitch", ("plant.theta_meas",), _pitch),
+        ("tail_angle", ("controller.delta_cmd",), _tail),
+        ("speed", ("plant.V",), _speed),
+        ("depth", ("plant.x", "plant.z"), _depth),
+    ):
+        if all(c in cols for c in needs):
+            files[stem] = fn(result, out)
+    return files

@@ -1,0 +1,132 @@
+"""Where a run's rows go: in memory (the API) or streamed to ``results.csv``."""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class ArrayRecorder:
+    """Keeps rows in a preallocated-in-chunks list (for the API)."""
+
+    def __init__(self) -> None:
+        self.columns: list[str] = []
+        self.rows: list[Sequence[float]] = []  # rows handed one by one
+        self._blocks: list[np.ndarray] = []  # earlier rows, as arrays
+
+    def start(self, columns: Sequence[str]) -> None:
+        self.columns = list(columns)
+
+    def row(self, values: Sequence[float]) -> None:
+        self.rows.append(values)
+
+    def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
+        """``nrows`` rows of ``ncol`` doubles from a buffer (copied)."""
+        self._gather(ncol)
+        block = np.frombuffer(values, dtype=float, count=nrows * ncol).reshape(nrows, ncol)
+        self._blocks.append(block.copy())
+
+    def _gather(self, ncol: int) -> None:
+        if self.rows:
+            self._blocks.append(np.array(self.rows, dtype=float).reshape(-1, ncol))
+            self.rows = []
+
+    def __len__(self) -> int:
+        return len(self.rows) + sum(len(b) for b in self._blocks)
+
+    def close(self) -> None:
+        pass
+
+    def array(self, n_columns: int | None = None) -> np.ndarray:
+        n = len(self.columns) if self.columns else (n_columns or 0)
+        self._gather(n)
+        if not self._blocks:
+            return np.empty((0, n))
+        if len(self._blocks) > 1:
+            self._blocks = [np.concatenate(self._blocks)]
+        return self._blocks[0].copy()
+
+
+class CsvRecorder:
+    """Streams rows to a CSV file (constant memory); ``close`` flushes.
+
+    Values are written with 17 significant digits (``%.17g``: every float64 reads back
+    bit for bit). Where the C helper of :mod:`glider_cosim.master.fastloop` is available, rows
+    are collected in blocks of :attr:`BLOCK` and formatted there (the same text as
+    Python's ``%`` formatting, about half the time); otherwise in Python.
+    """
+
+    BLOCK = 128  # rows formatted at once by the C helper
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._f = None
+        self.n_rows = 0
+        self._lib = None
+        self._pending = 0
+
+    def start(self, columns: Sequence[str]) -> None:
+        from glider_cosim.master.fastloop import library
+
+        self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
+        self._f.write((",".join(columns) + "\n").encode())
+        self._ncol = len(columns)
+        self._fmt = ",".join(["%.17g"] * len(columns)) + "\n"
+        self._lib = library() if columns else None
+        if self._lib is not None:
+            self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
+            self._buf = ctypes.create_string_buffer(self.BLOCK * self._ncol * 26 + 16)
+
+    def row(self, values: Sequence[float]) -> None:
+        if self._lib is None:
+            self._f.write((self._fmt % tuple(values)).encode())
+        else:
+            i = self._pending * self._ncol
+            self._block[i : i + self._ncol] = values
+            self._pending += 1
+            if self._pending == self.BLOCK:
+                self._flush()
+        self.n_rows += 1
+
+    def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
+        """``nrows`` rows of ``ncol`` doubles from a ctypes buffer (the fast loop's)."""
+        if self._lib is None:
+            for j in range(nrows):
+                self.row(values[j * ncol : (j + 1) * ncol])
+            return
+        size = ctypes.sizeof(ctypes.c_double)
+        j = 0
+        while j < nrows:
+            take = min(self.BLOCK - self._pending, nrows - j)
+            dst = ctypes.addressof(self._block) + self._pending * ncol * size
+            ctypes.memmove(dst, ctypes.addressof(values) + j * ncol * size, take * ncol * size)
+            self._pending += take
+            self.n_rows += take
+            j += take
+            if self._pending == self.BLOCK:
+                self._flush()
+
+    def _flush(self) -> None:
+        if not self._pending:
+            return
+        n = self._lib.glider_format_rows(self._block, self._pending, self._ncol, self._buf,
+                                         len(self._buf))  # fmt: skip
+        if n < 0:  # cannot happen (26 bytes a value suffice), but never lose rows
+            rows = self._block[: self._pending * self._ncol]
+            text = "".join(self._fmt % tuple(rows[k : k + self._ncol])
+                           for k in range(0, len(rows), self._ncol))  # fmt: skip
+            self._f.write(text.encode())
+        else:
+            self._f.write(ctypes.string_at(self._buf, n))
+        self._pending = 0
+
+    def close(self) -> None:
+        if self._f is not None:
+            if self._lib is not None:
+                self._flush()
+            self._f.close()
+            self._f = None

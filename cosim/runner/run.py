@@ -1,0 +1,328 @@
+"""Run a scenario on the three glider FMUs: the Python API behind ``glider-cosim run``."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.build.folders import build_all, fmu_folder
+from glider_cosim.inputs.check import check_system_values
+from glider_cosim.inputs.text import quote
+from glider_cosim.master.cosimulation import (
+    DEFAULT_MAX_STEPS,
+    CoSimulation,
+    FMUCallError,
+    FMUStopped,
+    Interrupted,
+    MasterError,
+    SystemSpecError,
+    count_steps,
+)
+from glider_cosim.runner.metrics import compute_metrics
+from glider_cosim.runner.provenance import clear_owned, marked_events, run_record
+from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
+from glider_cosim.scenarios.scenario import Scenario, load_scenario, with_sampling
+from glider_cosim.scenarios.system import DISTURBANCE_INPUTS, system_for
+
+log = logging.getLogger(__name__)
+
+
+#: ``simulate``'s FMU folder unless one is given: None, the per-user cache
+#: (:func:`glider_cosim.build.folders.cache_dir`), never the current folder
+DEFAULT_FMU_DIR: Path | None = None
+
+
+@dataclass
+class RunResult:
+    """Outcome of a run: the trajectory, its metrics, and how it ended.
+
+    ``status`` is ``"ok"``, ``"stopped"`` (an FMU discarded the step, e.g. a stall) or
+    ``"error"`` (an FMU error/fatal); ``message`` says which instance, call and time.
+    """
+
+    scenario: Scenario
+    columns: list[str]
+    data: np.ndarray
+    metrics: dict[str, Any]
+    status: str = "ok"
+    message: str = ""
+    files: dict[str, Path] = field(default_factory=dict)
+
+    def column(self, name: str) -> np.ndarray:
+        """One column by name (e.g. ``"plant.theta_g"``)."""
+        try:
+            return self.data[:, self.columns.index(name)]
+        except ValueError:
+            raise KeyError(f"no column '{name}' (columns: {', '.join(self.columns)})") from None
+
+
+def origin_of(scenario: Scenario, ssp: bool = False) -> Callable[[str], str]:
+    """``instance.variable`` (or ``event[i]``) -> where its value came from."""
+
+    def origin(ref: str) -> str:
+        if ref in scenario.origins:
+            return scenario.origins[ref]
+        if ssp:
+            inst, _, name = ref.partition(".")
+            return f"{scenario.source}: component '{inst}'" + (
+                f": parameter '{name}'" if name else ""
+            )
+        if ref.startswith("event["):
+            return f"{scenario.source}: key {ref}"
+        if ref in scenario.inputs:
+            return f"{scenario.source}: key 'inputs.{ref}'"
+        return f"{scenario.source}: key '{ref}'"
+
+    return origin
+
+
+def skip_optional(sim: CoSimulation, scenario: Scenario) -> list[str]:
+    """Drop what a swapped-in FMU lacks and the scenario does not need; return the notes.
+
+    Optional: the disturbance inputs (``plant.F_x``, ``F_z``, ``M_y``) when the scenario
+    drives none of them (no ``inputs``, disturbance or event on them), and recorded
+    variables of a swapped instance (``[fmus]``) that its FMU lacks. :func:`simulate`
+    logs each note (logger ``glider_cosim.runner.run``, level WARNING) once the system is
+    loaded. Everything else stays required:
+    :meth:`~glider_cosim.master.CoSimulation.load` names a missing connection.
+    """
+    notes = []
+    used = set(scenario.inputs) | {d.target for d in scenario.disturbances}
+    used |= {t for e in scenario.events for t in e.actions}
+    for ref in DISTURBANCE_INPUTS:
+        inst, _, name = ref.partition(".")
+        i = sim.instances.get(inst)
+        if i is not None and name not in i.vars and ref not in used and ref in sim.system.driven:
+            del sim.system.driven[ref]
+            notes.append(
+                f"{inst} ({quote(i.md.modelName)}) has no input {name}: skipped (the scenario "
+                "applies no disturbance to it)"
+            )
+    if sim.system.record is not None:
+        kept = []
+        for ref in sim.system.record:
+            inst, _, name = ref.partition(".")
+            i = sim.instances.get(inst)
+            if inst in scenario.fmus and i is not None and name and name not in i.vars:
+                notes.append(
+                    f"{inst} ({quote(i.md.modelName)}) has no variable {quote(name)}: not recorded"
+                )
+                continue
+            kept.append(ref)
+        sim.system.record = kept
+    return notes
+
+
+def simulate(
+    scenario: Scenario | str | Path | None = None,
+    out: str | Path | None = None,
+    *,
+    fmu_dir: str | Path | None = DEFAULT_FMU_DIR,
+    build: bool = True,
+    coupling: str | None = None,
+    step: float | None = None,
+    stop_time: float | None = None,
+    plots: bool = True,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    options: dict[str, Any] | None = None,
+    results_format: str = "csv",
+) -> RunResult:
+    """Run a scenario and return its results.
+
+    Parameters
+    ----------
+    scenario : Scenario, path, shipped name or None
+        ``None`` runs the default (paper Sec. 3.3) scenario; a ``.ssp``/``.ssd`` path
+        runs an SSP.
+    out : path, optional
+        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
+        it, nothing is written and the rows are kept in memory.
+    fmu_dir : path, optional
+        Where the FMUs are (built there first if missing or stale, when ``build``).
+        Default: the per-user cache (:func:`glider_cosim.build.folders.cache_dir`), so nothing is
+        written outside ``out``.
+    coupling, step, stop_time : optional
+        Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
+    plots : bool
+        Write the PNG plots (with ``out``).
+    max_steps : int
+        Most communication steps; a longer run is refused before it starts.
+    results_format : {"csv", "parquet"}
+        ``results.csv`` (text, 17 significant digits) or ``results.parquet`` (float64 as
+        they are; pandas and polars read it; needs pyarrow; about 4 us a row faster here).
+    options : dict, optional
+        The options to record in ``metrics.json`` (``run.options``; the CLI passes the
+        ones given on its command line). Default: the ``coupling``, ``step`` and
+        ``stop_time`` given here.
+
+    Returns
+    -------
+    RunResult
+        ``data`` has one row per communication point (the initial one included). A run
+        that fails in an FMU (its initialisation included, e.g. an out-of-range
+        parameter) returns with status ``"error"`` (``"stopped"`` for fmi2Discard) and
+        the FMU's message.
+
+    Raises
+    ------
+    ScenarioError, SSPError, SystemSpecError, ValueError
+        Bad arguments (scenario, SSP or FMU files, names, value types and units, step
+        and stop time): raised before any FMU is instantiated.
+    OSError
+        ``out`` cannot be created or written.
+    glider_cosim.master.Interrupted
+        A KeyboardInterrupt (SIGINT or SIGTERM during the run), raised after the results
+        so far are written (status ``"interrupted"``).
+    """
+    if scenario is not None and not isinstance(scenario, Scenario | str | Path):
+        raise TypeError(
+            f"scenario {quote(scenario)} is invalid: expected a Scenario, a path, a shipped "
+            "name or None"
+        )
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ValueError(f"max_steps {quote(max_steps)} is invalid: expected an integer >= 1")
+    if results_format not in ("csv", "parquet"):
+        raise ValueError(
+            f"results_format {quote(results_format)} is invalid: expected 'csv' or 'parquet'"
+        )
+    if results_format == "parquet" and out is not None:
+        from glider_cosim.runner.parquet import _pyarrow
+
+        _pyarrow()  # one line now, not after the run
+    for key, value in (("step", step), ("stop_time", stop_time)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
+    ssp_system = None
+    if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
+        from glider_cosim.inputs.ssp_files import ssp_name
+        from glider_cosim.interop.ssp_import import load_ssp
+
+        ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
+        scenario = Scenario(name=ssp_name(scenario), source=str(scenario), step=ssp_step,
+                            stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    h = step if step is not None else scenario.step
+    stop = stop_time if stop_time is not None else scenario.stop_time
+    try:
+        count_steps(stop, h, max_steps)
+    except SystemSpecError as err:
+        given = [f"{k} = {quote(v)}" for k, v in (("step", step), ("stop_time", stop_time))
+                 if v is not None]  # fmt: skip
+        raise SystemSpecError(f"{', '.join(given) or scenario.source}: {err}") from None
+    fmu_dir = fmu_folder(fmu_dir)
+    if ssp_system is not None:
+        system = ssp_system
+        if "observer" in system.parameters:  # the SSP sets every value: only check it
+            with_sampling(system.parameters, h, scenario.source)
+    else:
+        if build:
+            build_all(fmu_dir, only_stale=True)
+        system = system_for(scenario, fmu_dir, h)
+    sim = CoSimulation(system, step=h, coupling=coupling or scenario.coupling, max_steps=max_steps)
+    origin = origin_of(scenario, ssp_system is not None)
+
+    notes: list[str] = []
+
+    def before_checks(s: CoSimulation) -> None:
+        if ssp_system is None:
+            notes.extend(skip_optional(s, scenario))
+        check_system_values(s, origin)
+
+    try:
+        sim.load(before_checks)
+    except SystemSpecError as err:
+        raise SystemSpecError(f"{scenario.source}: {err}") from None
+    for note in notes:  # only for a system that loaded: a refused one gets one line
+        log.warning(note)
+    files: dict[str, Path] = {}
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
+        if results_format == "parquet":
+            from glider_cosim.runner.parquet import ParquetRecorder
+
+            files["results"] = out / "results.parquet"
+            recorder: Any = ParquetRecorder(files["results"])
+        else:
+            files["results"] = out / "results.csv"
+            recorder = CsvRecorder(files["results"])
+    else:
+        recorder = ArrayRecorder()
+    from glider_cosim.runner.progress import RunProgress, wanted
+
+    if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
+        recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
+    status, message = "ok", ""
+    interrupt: Interrupted | None = None
+    failure: Exception | None = None
+    try:
+        sim.run(stop, recorder)
+    except FMUStopped as err:
+        status, message, failure = "stopped", str(err), err
+    except FMUCallError as err:
+        status, message, failure = "error", str(err), err
+    except SystemSpecError:
+        raise
+    except MasterError as err:
+        status, message, failure = "error", str(err), err
+    except KeyboardInterrupt as err:
+        interrupt = err if isinstance(err, Interrupted) else Interrupted()
+        status, message = "interrupted", interrupt.describe()
+    finally:
+        recorder.close()
+        sim.close()
+    if "results" in files and not files["results"].exists():
+        del files["results"]  # the run failed before its first row
+    if isinstance(recorder, RunProgress):
+        recorder = recorder.inner
+    if hasattr(recorder, "read"):  # Parquet
+        data = recorder.read() if recorder.n_rows else np.empty((0, len(sim.columns)))
+        columns = sim.columns
+    elif isinstance(recorder, CsvRecorder):
+        data = (
+            np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
+            if recorder.n_rows
+            else np.empty((0, len(sim.columns)))
+        )
+        columns = sim.columns
+    else:
+        columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
+    metrics = compute_metrics(columns, data, scenario, sim, status)
+    metrics.update(status=status, message=message)
+    if options is None:
+        options = {k: v for k, v in (("coupling", coupling), ("step", step),
+                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    metrics["run"] = run_record(scenario, sim, options)
+    metrics["events"] = marked_events(sim, status, failure)
+    result = RunResult(scenario, columns, data, metrics, status, message, files)
+    if out is not None:
+        files["metrics"] = out / "metrics.json"
+        files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
+        if plots and len(data) > 1:
+            from glider_cosim.runner.plots import write_plots
+
+            files.update(write_plots(result, out))
+    if interrupt is not None:
+        raise interrupt
+    return result
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.floating | np.integer):
+        return _jsonable(obj.item())
+    return obj

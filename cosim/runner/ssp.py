@@ -1,0 +1,56 @@
+"""Run an SSP with our master (``glider-cosim run FILE.ssp``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from glider_cosim.inputs.ssp_files import SSD_NAME
+
+if TYPE_CHECKING:
+    from glider_cosim.runner.run import RunResult
+from glider_cosim.interop.ssp_import import load_ssp
+
+
+def run_ssp(
+    path: str | Path,
+    out: str | Path | None = None,
+    coupling: str = "gauss-seidel",
+    *,
+    stop_time: float | None = None,
+    plots: bool = True,
+) -> RunResult:
+    """Run an SSP with our master (``glider-cosim run FILE.ssp``).
+
+    Parameters
+    ----------
+    path : path
+        ``.ssp`` archive, ``.ssd`` file or folder holding ``SystemStructure.ssd``.
+    out : path, optional
+        Results folder (``results.csv``, ``metrics.json``, plots); None keeps the rows in
+        memory.
+    coupling : str
+        ``"gauss-seidel"`` or ``"jacobi"`` (SSP 1.0 has no coupling scheme; libcosim's
+        fixed-step algorithm is ``"jacobi"``).
+    stop_time : float, optional
+        Overrides ``ssd:DefaultExperiment stopTime`` (s).
+    plots : bool
+        Write PNG plots (with ``out``).
+
+    Returns
+    -------
+    glider_cosim.runner.RunResult
+        As :func:`glider_cosim.runner.simulate`, with the step and stop time of the SSP.
+
+    Raises
+    ------
+    SSPError
+        The SSP is malformed (checked before any FMU is instantiated).
+    """
+    from glider_cosim.runner.run import simulate
+
+    p = Path(path)
+    if p.is_dir():
+        p = p / SSD_NAME
+    load_ssp(p)  # every check before any FMU runs
+    return simulate(p, out, coupling=coupling, stop_time=stop_time, plots=plots, build=False)

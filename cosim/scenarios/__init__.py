@@ -1,0 +1,1 @@
+"""Scenarios: the shipped TOML files, their parser, overrides and the system they describe."""

@@ -1,0 +1,503 @@
+"""TOML scenarios: the system around the three glider FMUs, its parameters and events.
+
+A scenario is data: it is parsed with :mod:`tomllib` and checked key by key; nothing
+in it is executed. Angles may be given in radians (numbers) or as ``"-35 deg"``.
+
+Keys (all optional; defaults give the paper's Sec. 3.3 case)::
+
+    name, description, notes  strings
+    stop_time = 60.0          s, > 0
+    step = 0.02               communication step, s, > 0
+    coupling = "gauss-seidel" or "jacobi"
+    feedback = "observer"     controller fed by the observer, or "state" (true state)
+    with_observer = true      false: no observer instance (only with feedback = "state")
+    record = [...]            instance.variable list (default: every output)
+    [plant] [observer] [controller]   parameters of each instance
+                              (controller.law may be "open-loop", "passivity", "p", "pi")
+    [fmus]                    instance = "path/to/other.fmu" (swap a component)
+    [inputs]                  "plant.F_x" = 0.0: constant values of driven inputs
+    [[disturbance]]           target, kind ("step"|"pulse"), time, value, duration
+    [[event]]                 when = "plant.z >= 1.0" | "time >= 5", delay, set = {...}
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from glider_cosim.inputs.archives import InputFileError, regular_file
+from glider_cosim.inputs.text import quote, shown_path
+from glider_cosim.inputs.values import Degrees
+from glider_cosim.master.cosimulation import Disturbance, Event
+from glider_observer.filter import DEFAULT_F_CUTOFF
+
+INSTANCES = ("plant", "observer", "controller")
+LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
+COUPLINGS = ("gauss-seidel", "jacobi")
+FEEDBACKS = ("observer", "state")
+_TOP = {
+    "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
+    "record",
+    "fmus", "inputs", "disturbance", "event", *INSTANCES,
+}  # fmt: skip
+_DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
+_COND = re.compile(r"^\s*([A-Za-z_][\w.]*)\s*(>=|<=)\s*(.+?)\s*$")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
+#: largest scenario file read (bytes)
+MAX_SCENARIO_BYTES = 4 * 2**20
+
+
+class ScenarioError(ValueError):
+    """A scenario file is malformed; the message names the file and the key."""
+
+
+class SamplingMismatchWarning(UserWarning):
+    """The observer's ``f_sample`` is set explicitly and differs from 1 / step."""
+
+
+@dataclass
+class Scenario:
+    """A parsed scenario (see the module docstring for the keys)."""
+
+    name: str = "default"
+    description: str = ""
+    notes: str = ""
+    source: str = "<defaults>"
+    stop_time: float = 60.0
+    step: float = 0.02
+    coupling: str = "gauss-seidel"
+    feedback: str = "observer"
+    observer: bool = True
+    record: list[str] | None = None
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+    fmus: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, float] = field(default_factory=dict)
+    disturbances: list[Disturbance] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+    #: ``instance.variable`` -> where an overridden value came from (e.g. ``--set ...``)
+    origins: dict[str, str] = field(default_factory=dict)
+    #: SHA-256 of the scenario file's text ("" for a scenario built in code)
+    sha256: str = ""
+    #: ``instance.variable`` (or ``event.instance.variable``) -> value set over the file's
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+
+def _number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
+    """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
+
+    Types are kept (an int stays an int, a boolean a boolean): the variable's type and
+    unit are checked against its FMU before the run. ``ref`` (``instance.variable``)
+    selects the unit hint of the message.
+    """
+    expect = _expect_number(ref)
+    if isinstance(value, bool | int | float):
+        return value
+    if isinstance(value, str):
+        m = _DEG.match(value)
+        if m:
+            rad = math.radians(float(m.group(1)))
+            if math.isfinite(rad):
+                return Degrees(rad, value.strip())
+    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected {expect}")
+
+
+def _expect_number(ref: str | None) -> str:
+    """What a number for ``instance.variable`` ``ref`` looks like: its unit from our FMUs'
+    variable tables, and ``'X deg'`` only for an angle (rad). A variable we do not know
+    (a swapped FMU's, a time) gets no unit hint."""
+    unit = _our_unit(ref) if ref else None
+    if unit == "rad":
+        return "a number (rad) or 'X deg'"
+    if unit and unit != "1":
+        return f"a number ({unit})"
+    return "a number"
+
+
+def _our_unit(ref: str) -> str | None:
+    inst, _, name = ref.partition(".")
+    try:
+        from glider_cosim.inputs.check import our_table
+
+        spec = our_table(inst).get(name)
+    except (KeyError, ImportError):
+        return None
+    return None if spec is None else spec.unit
+
+
+def _float(
+    value: Any,
+    where: str,
+    positive: bool = False,
+    non_negative: bool = False,
+    angle: bool = False,
+) -> float:
+    """A finite float (``angle``: ``"X deg"`` accepted, checked against the unit later)."""
+    v = _number(value, where)
+    if isinstance(v, Degrees) and not angle:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number without a unit")
+    try:
+        finite = not isinstance(v, bool) and math.isfinite(float(v))
+    except OverflowError:
+        finite = False
+    if not finite:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a finite number")
+    if positive and not v > 0:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number > 0")
+    if non_negative and v < 0:
+        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number >= 0")
+    return v if isinstance(v, Degrees) else float(v)
+
+
+def _choices(names: Any) -> str:
+    names = [f"'{n}'" for n in names]
+    return " or ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + " or " + names[-1]
+
+
+#: what ``controller.law`` accepts, for messages
+LAW_CHOICES = f"one of {', '.join(repr(n) for n in LAWS)} (any case) or an integer 0..3"
+
+
+def _law(value: Any, where: str) -> Any:
+    """``controller.law``: a name (any case) or an exact integer 0..3."""
+    if isinstance(value, str):
+        key = value.strip().lower()
+        if key in LAWS:
+            return LAWS[key]
+        if re.fullmatch(r"[-+]?\d{1,3}", key) and int(key) in LAWS.values():
+            return int(key)
+    elif not isinstance(value, bool) and isinstance(value, int) and value in LAWS.values():
+        return value
+    raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
+
+
+def _choice(value: Any, choices: tuple[str, ...], where: str) -> str:
+    """An enumerated string option (``coupling``, ``feedback``), any case."""
+    if isinstance(value, str) and value.strip().lower() in choices:
+        return value.strip().lower()
+    raise ScenarioError(
+        f"{where}: {quote(value)} is invalid: expected {_choices(choices)} (any case)"
+    )
+
+
+def _table(value: Any, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where}: expected a table, got {type(value).__name__}")
+    return value
+
+
+def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
+    """Check and convert the TOML document ``data`` (from ``source``) to a :class:`Scenario`."""
+    for key in data:
+        if key not in _TOP:
+            raise ScenarioError(
+                f"{source}: unknown key {quote(key)}: expected one of {', '.join(sorted(_TOP))}"
+            )
+    sc = Scenario(source=source)
+    for key in ("name", "description", "notes"):
+        if key in data:
+            if not isinstance(data[key], str):
+                raise ScenarioError(f"{source}: key '{key}': expected a string")
+            setattr(sc, key, data[key])
+    if "name" in data:
+        check_name(sc.name, f"{source}: key 'name'")
+    if "stop_time" in data:
+        sc.stop_time = _float(data["stop_time"], f"{source}: key 'stop_time'", positive=True)
+    if "step" in data:
+        sc.step = _float(data["step"], f"{source}: key 'step'", positive=True)
+    if "coupling" in data:
+        sc.coupling = _choice(data["coupling"], COUPLINGS, f"{source}: key 'coupling'")
+    if "feedback" in data:
+        sc.feedback = _choice(data["feedback"], FEEDBACKS, f"{source}: key 'feedback'")
+    if "with_observer" in data:
+        if not isinstance(data["with_observer"], bool):
+            raise ScenarioError(f"{source}: key 'with_observer': expected true or false")
+        sc.observer = data["with_observer"]
+        if not sc.observer and sc.feedback != "state":
+            raise ScenarioError(
+                f"{source}: key 'with_observer': false needs feedback = 'state' (the "
+                "controller would have no input)"
+            )
+        for key in ("observer", "fmus"):
+            if not sc.observer and "observer" in (data if key == "observer" else
+                                                  data.get("fmus", {})):  # fmt: skip
+                raise ScenarioError(f"{source}: key '{key}': the scenario has no observer")
+    if "record" in data:
+        rec = data["record"]
+        if not (isinstance(rec, list) and all(isinstance(r, str) for r in rec)):
+            raise ScenarioError(f"{source}: key 'record': expected a list of 'instance.variable'")
+        sc.record = list(rec)
+    for inst in INSTANCES:
+        if inst in data:
+            params = {}
+            for k, v in _table(data[inst], f"{source}: key '{inst}'").items():
+                where = f"{source}: key {quote(f'{inst}.{k}')}"
+                if inst == "controller" and k == "law":
+                    v = _law(v, where)
+                params[k] = _number(v, where, f"{inst}.{k}")
+            sc.parameters[inst] = params
+    for k, v in _table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
+        if k not in INSTANCES:
+            raise ScenarioError(
+                f"{source}: key {quote(f'fmus.{k}')}: unknown instance: expected one of "
+                f"{', '.join(INSTANCES)}"
+            )
+        if not isinstance(v, str) or not v or "\0" in v:
+            raise ScenarioError(f"{source}: key 'fmus.{k}': expected a path string")
+        path = Path(v)
+        if not path.is_absolute() and not source.startswith("<"):
+            path = Path(source).parent / path
+        try:
+            regular_file(path, f"{source}: key 'fmus.{k}'", "FMU")
+        except InputFileError as err:
+            raise ScenarioError(str(err)) from None
+        sc.fmus[k] = str(path)
+    for k, v in _table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
+        sc.inputs[k] = _float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
+    dist = data.get("disturbance", [])
+    if not isinstance(dist, list):
+        raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
+    for i, d in enumerate(dist):
+        where = f"{source}: key disturbance[{i}]"
+        d = _table(d, where)
+        extra = set(d) - {"target", "kind", "time", "value", "duration"}
+        if extra:
+            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
+        kind = d.get("kind", "step")
+        if kind not in ("step", "pulse"):
+            raise ScenarioError(
+                f"{where}.kind: {quote(kind)} is invalid: expected 'step' or 'pulse'"
+            )
+        if not isinstance(d.get("target"), str):
+            raise ScenarioError(f"{where}.target: expected 'instance.variable' (e.g. plant.F_z)")
+        sc.disturbances.append(
+            Disturbance(
+                target=d["target"],
+                kind=kind,
+                time=_float(d.get("time", 0.0), f"{where}.time", non_negative=True),
+                value=_float(d.get("value", 0.0), f"{where}.value"),
+                duration=_float(
+                    d.get("duration", 0.0), f"{where}.duration", positive=kind == "pulse"
+                ),
+            )
+        )
+    events = data.get("event", [])
+    if not isinstance(events, list):
+        raise ScenarioError(f"{source}: key 'event': expected an array of tables")
+    for i, e in enumerate(events):
+        where = f"{source}: key event[{i}]"
+        e = _table(e, where)
+        extra = set(e) - {"when", "delay", "set"}
+        if extra:
+            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
+        when = e.get("when", "")
+        m = _COND.match(when) if isinstance(when, str) and len(when) < 1000 else None
+        if not m:
+            raise ScenarioError(
+                f"{where}.when: {quote(when)} is invalid: expected 'time >= T' or "
+                "'instance.variable >= X' (or <=)"
+            )
+        actions = {}
+        for target, v in _table(e.get("set", {}), f"{where}.set").items():
+            if target == "controller.law":
+                v = _law(v, f"{where}.set.{target}")
+            actions[target] = _number(v, f"{where}.set.{quote(target)}", target)
+        if not actions:
+            raise ScenarioError(f"{where}.set: expected at least one 'instance.variable' = value")
+        try:
+            threshold = float(m.group(3))
+        except ValueError:
+            threshold = _float(m.group(3), f"{where}.when", angle=True)
+        if not math.isfinite(threshold):
+            raise ScenarioError(
+                f"{where}.when: threshold {quote(m.group(3))} is invalid: expected a finite number"
+            )
+        if isinstance(threshold, Degrees) and m.group(1) == "time":
+            raise ScenarioError(
+                f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not deg"
+            )
+        sc.events.append(
+            Event(
+                variable=m.group(1),
+                op=m.group(2),
+                threshold=threshold,
+                actions=actions,
+                delay=_float(e.get("delay", 0.0), f"{where}.delay", non_negative=True),
+            )
+        )
+    return sc
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Load a scenario file, or a shipped one by name (``None``: the default).
+
+    Raises
+    ------
+    ScenarioError
+        If the file does not exist, is not valid TOML or has invalid keys.
+    """
+    if path is None:
+        path = "default"
+    p = Path(path)
+    if not p.exists() and p.suffix == "" and str(path) in shipped_scenarios():
+        text = (resources.files("glider_cosim") / "scenarios" / f"{path}.toml").read_text()
+        source = f"<shipped>/{path}.toml"
+    else:
+        shown = _shown(str(path))
+        if not p.exists():
+            raise ScenarioError(
+                f"{shown}: scenario file does not exist (shipped scenarios: "
+                f"{', '.join(shipped_scenarios())})"
+            )
+        try:
+            regular_file(p, shown, "scenario file")
+            if p.stat().st_size > MAX_SCENARIO_BYTES:
+                raise ScenarioError(
+                    f"{shown}: scenario file is larger than {MAX_SCENARIO_BYTES} bytes"
+                )
+            text = p.read_text(encoding="utf-8")
+        except InputFileError as err:
+            raise ScenarioError(str(err)) from None
+        except (OSError, UnicodeDecodeError) as err:
+            reason = getattr(err, "strerror", None) or err
+            raise ScenarioError(f"{shown}: cannot read scenario file ({reason})") from None
+        source = str(p)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{_shown(source)}: not valid TOML ({err})") from None
+    except RecursionError:
+        raise ScenarioError(f"{_shown(source)}: not valid TOML (nested too deeply)") from None
+    try:
+        sc = parse_scenario(data, source)
+    except RecursionError:
+        raise ScenarioError(f"{_shown(source)}: values nested too deeply") from None
+    sc.sha256 = hashlib.sha256(text.encode()).hexdigest()
+    return sc
+
+
+_shown = shown_path
+
+
+def check_name(name: str, where: str) -> str:
+    """``name`` if it is a plain name (it becomes a results folder), else ScenarioError.
+
+    Letters, digits, ``.``, ``_``, ``+``, ``-``; at most 100 characters; not starting
+    with ``.`` or ``-`` (so no path, no ``..``).
+    """
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ScenarioError(
+            f"{where}: {quote(name)} is not a name: expected letters, digits, '.', '_', '+', "
+            "'-' (at most 100, not a path)"
+        )
+    return name
+
+
+def shipped_scenarios() -> list[str]:
+    """Names of the scenarios shipped in the package."""
+    d = resources.files("glider_cosim") / "scenarios"
+    return sorted(f.name[:-5] for f in d.iterdir() if f.name.endswith(".toml"))
+
+
+def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int | bool]:
+    """``["controller.K_c=6", "plant.theta_g_0=-30 deg"]`` -> overrides (angles in rad)."""
+    out: dict[str, float | int | bool] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        inst, dot, name = key.strip().partition(".")
+        where = f"{source} {quote(item)}"
+        if not sep or not dot or inst not in INSTANCES or not name:
+            raise ScenarioError(
+                f"{where}: expected INSTANCE.NAME=VALUE with INSTANCE one of {', '.join(INSTANCES)}"
+            )
+        text = text.strip()
+        if inst == "controller" and name == "law":
+            out[key.strip()] = _law(text, where)
+            continue
+        value: float | int | bool
+        if text in ("true", "false"):
+            value = text == "true"
+        elif re.fullmatch(r"[-+]?\d{1,40}", text):
+            value = int(text)
+        else:
+            try:
+                value = float(text)
+            except ValueError:
+                value = _number(text, where, key.strip())
+        out[key.strip()] = value
+    return out
+
+
+def with_sampling(
+    parameters: dict[str, dict[str, Any]],
+    step: float,
+    source: str = "<scenario>",
+    observer: bool = True,
+) -> dict[str, dict[str, Any]]:
+    """The parameters with the sampled parts following the communication step.
+
+    The observer's pre-filter runs once per communication step, so its sampling
+    frequency ``observer.f_sample`` (and with it the Butterworth coefficients) is set to
+    ``1 / step`` unless ``parameters`` set it explicitly. An explicit value that differs
+    from ``1 / step`` (relative difference above 1e-9) is kept and warned about in one
+    line (:class:`SamplingMismatchWarning`).
+
+    Parameters
+    ----------
+    parameters : dict
+        ``{instance: {name: value}}`` (not modified).
+    step : float
+        Communication step, s, > 0.
+    source : str
+        Named in the warning (the scenario file).
+    observer : bool
+        Whether the system has our observer FMU (:func:`has_our_observer`; nothing to do
+        otherwise: a swapped-in observer may have no ``f_sample``).
+
+    Returns
+    -------
+    dict
+        A copy of ``parameters``, with ``observer.f_sample`` [Hz] filled in.
+
+    Raises
+    ------
+    ScenarioError
+        If ``step`` is not > 0, or the pre-filter (enabled) would sample at or below
+        twice its cut-off frequency.
+    """
+    if not (math.isfinite(step) and step > 0):
+        raise ScenarioError(f"{source}: step = {step!r} is invalid: expected a number > 0 s")
+    out = {k: dict(v) for k, v in parameters.items()}
+    if not observer:
+        return out
+    obs = out.setdefault("observer", {})
+    if "f_sample" not in obs:
+        obs["f_sample"] = 1.0 / step
+        f_cut = float(obs.get("f_cutoff", DEFAULT_F_CUTOFF))
+        if obs.get("filter_enabled", True) and not f_cut < 0.5 * obs["f_sample"]:
+            raise ScenarioError(
+                f"{source}: step {step:g} s samples the observer's pre-filter at "
+                f"{obs['f_sample']:g} Hz, too slow for its cut-off f_cutoff = {f_cut:g} Hz: "
+                f"expected observer.f_cutoff below {0.5 * obs['f_sample']:g} Hz (or "
+                "observer.filter_enabled = false)"
+            )
+    elif abs(float(obs["f_sample"]) * step - 1.0) > 1e-9:
+        warnings.warn(
+            f"{source}: observer.f_sample = {float(obs['f_sample']):g} Hz differs from the "
+            f"communication rate 1/step = {1.0 / step:g} Hz (the pre-filter is designed for "
+            "the former and runs at the latter)",
+            SamplingMismatchWarning,
+            stacklevel=2,
+        )
+    return out
+
+
+def has_our_observer(sc: Scenario) -> bool:
+    """The scenario runs our GliderObserver FMU (not none, not a swapped-in one)."""
+    return sc.observer and "observer" not in sc.fmus

@@ -1,0 +1,61 @@
+"""The glider's closed loop as a master :class:`System`: which FMUs, how they connect,
+what a scenario sets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from glider_cosim.master.cosimulation import (
+    System,
+)
+from glider_cosim.scenarios.scenario import Scenario, has_our_observer, with_sampling
+
+FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
+
+
+DISTURBANCE_INPUTS = ("plant.F_x", "plant.F_z", "plant.M_y")
+
+
+def default_connections(feedback: str = "observer", observer: bool = True) -> list[tuple[str, str]]:
+    """The closed loop: plant -> observer -> controller -> plant (and -> observer)."""
+    conns = [("controller.delta_cmd", "plant.delta_cmd")]
+    if observer:
+        conns += [
+            ("plant.theta_meas", "observer.theta_meas"),
+            ("controller.delta_cmd", "observer.delta_cmd"),
+        ]
+    if feedback == "state":
+        conns += [("plant.V", "controller.V_hat"), ("plant.theta_g", "controller.theta_g_hat")]
+    else:
+        conns += [
+            ("observer.V_hat", "controller.V_hat"),
+            ("observer.theta_g_hat", "controller.theta_g_hat"),
+        ]
+    return conns
+
+
+def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
+    """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
+    run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
+    unless the scenario sets it (:func:`~glider_cosim.scenarios.scenario.with_sampling`)."""
+    fmus = {
+        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
+        for inst, name in FMU_NAMES.items()
+        if scenario.observer or inst != "observer"
+    }
+    driven = dict.fromkeys(DISTURBANCE_INPUTS, 0.0)
+    driven.update(scenario.inputs)
+    return System(
+        fmus=fmus,
+        connections=default_connections(scenario.feedback, scenario.observer),
+        parameters=with_sampling(
+            scenario.parameters,
+            step if step is not None else scenario.step,
+            scenario.source,
+            has_our_observer(scenario),
+        ),
+        driven=driven,
+        disturbances=list(scenario.disturbances),
+        events=[type(e)(**{**e.__dict__}) for e in scenario.events],
+        record=scenario.record,
+    )

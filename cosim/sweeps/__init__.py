@@ -1,0 +1,1 @@
+"""Parameter sweeps and Monte Carlo on Dask: spec, store, cluster, plots."""

@@ -1,0 +1,204 @@
+"""The sweep's parameter specs and its list of runs (``--param INSTANCE.NAME=SPEC``).
+
+See :mod:`glider_cosim.sweeps.sweep` for the grammar. Nothing here needs Dask.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.scenarios.scenario import INSTANCES, Scenario
+from glider_cosim.scenarios.system import FMU_NAMES, system_for
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_PCT = rf"({_NUM})(%?)"
+
+
+class SweepSpecError(ValueError):
+    """A ``--param`` spec or sweep option is malformed (the message names it)."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One swept parameter: a fixed list of values, or a random distribution."""
+
+    target: str  # instance.name
+    values: tuple[float, ...] = ()
+    dist: str = ""  # "uniform" | "normal"
+    args: tuple[tuple[float, bool], ...] = ()  # (value, is_percent)
+
+    @property
+    def random(self) -> bool:
+        return bool(self.dist)
+
+    def draw(self, nominal: float, rng: np.random.Generator) -> float:
+        def val(a: tuple[float, bool]) -> float:
+            x, pct = a
+            return nominal * (1 + x / 100) if pct else x
+
+        if self.dist == "uniform":
+            return float(rng.uniform(val(self.args[0]), val(self.args[1])))
+        sd = abs(nominal) * self.args[0][0] / 100 if self.args[0][1] else self.args[0][0]
+        return float(rng.normal(nominal, sd))
+
+
+def _value(text: str, where: str) -> float:
+    text = text.strip()
+    m = re.fullmatch(rf"({_NUM})\s*deg", text)
+    if m:
+        return math.radians(float(m.group(1)))
+    try:
+        return float(text)
+    except ValueError:
+        raise SweepSpecError(f"{where}: {text!r} is not a number (or 'X deg')") from None
+
+
+def parse_param(item: str) -> ParamSpec:
+    """Parse ``INSTANCE.NAME=SPEC`` (grammar in the module docstring)."""
+    where = f"--param {item!r}"
+    target, sep, spec = item.partition("=")
+    inst, dot, name = target.strip().partition(".")
+    if not sep or not dot or inst not in INSTANCES or not name:
+        raise SweepSpecError(
+            f"{where}: expected INSTANCE.NAME=SPEC with INSTANCE one of {', '.join(INSTANCES)}"
+        )
+    spec = spec.strip()
+    target = f"{inst}.{name}"
+    m = re.fullmatch(r"(uniform|normal)\(\s*(.*?)\s*\)", spec)
+    if m:
+        parts = [p.strip() for p in m.group(2).split(",")]
+        want = 2 if m.group(1) == "uniform" else 1
+        if len(parts) != want:
+            raise SweepSpecError(
+                f"{where}: {m.group(1)} takes {want} argument(s), e.g. "
+                + ("uniform(-20%,+20%)" if want == 2 else "normal(20%)")
+            )
+        args = []
+        for p in parts:
+            pm = re.fullmatch(_PCT, p)
+            if not pm:
+                raise SweepSpecError(f"{where}: {p!r} is not a number or a percentage")
+            args.append((float(pm.group(1)), pm.group(2) == "%"))
+        if m.group(1) == "normal" and args[0][0] < 0:
+            raise SweepSpecError(f"{where}: the standard deviation must be >= 0")
+        return ParamSpec(target, dist=m.group(1), args=tuple(args))
+    if ":" in spec:
+        parts = spec.split(":")
+        if len(parts) != 3:
+            raise SweepSpecError(f"{where}: a range is START:STOP:NUM, e.g. 2:20:10")
+        start, stop = _value(parts[0], where), _value(parts[1], where)
+        try:
+            num = int(parts[2])
+        except ValueError:
+            raise SweepSpecError(f"{where}: NUM {parts[2]!r} must be a whole number") from None
+        if num < 1:
+            raise SweepSpecError(f"{where}: NUM must be >= 1")
+        return ParamSpec(target, values=tuple(float(v) for v in np.linspace(start, stop, num)))
+    values = tuple(_value(v, where) for v in spec.split(",") if v.strip())
+    if not values:
+        raise SweepSpecError(f"{where}: no values")
+    return ParamSpec(target, values=values)
+
+
+def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop: float) -> str:
+    """Deterministic id of a run (resume key)."""
+    key = json.dumps([scenario.name, scenario.source, stop, seed, sorted(params.items())])
+    return hashlib.sha1(key.encode()).hexdigest()[:16]
+
+
+def check_targets(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> None:
+    """Check that every swept ``instance.name`` is a parameter or input of its FMU.
+
+    The model descriptions of the scenario's FMUs (``fmu_dir`` unless swapped) are the
+    source, as for ``run --set``; raises :class:`SweepSpecError` naming the first
+    target that is not there, before any work is sent.
+    """
+    from fmpy import read_model_description
+
+    fmus = system_for(scenario, fmu_dir).fmus
+    variables: dict[str, dict[str, str]] = {}
+    models: dict[str, str] = {}
+    for t in targets:
+        inst, _, name = t.partition(".")
+        if inst not in fmus:
+            raise SweepSpecError(
+                f"--param {t}: the scenario {scenario.name} has no instance '{inst}' "
+                f"(instances: {', '.join(fmus)})"
+            )
+        if inst not in variables:
+            try:
+                md = read_model_description(str(fmus[inst]))
+            except Exception as err:  # noqa: BLE001 - fmpy raises plain Exception
+                raise SweepSpecError(f"instance {inst}: {fmus[inst]} is not a readable FMU "
+                                     f"({err})") from None  # fmt: skip
+            variables[inst] = {v.name: v.causality for v in md.modelVariables}
+            models[inst] = md.modelName
+        causality = variables[inst].get(name)
+        if causality is None:
+            raise SweepSpecError(
+                f"--param {t}: instance {inst} ({models[inst]}) has no variable '{name}'"
+            )
+        if causality not in ("parameter", "input"):
+            raise SweepSpecError(f"--param {t}: {t} has causality {causality}: expected one of "
+                                 "parameter, input")  # fmt: skip
+
+
+def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
+    """Nominal value of each target: the scenario's, else the FMU's default."""
+    from glider_cosim.runner.monolithic import fmu_parameter_defaults
+
+    fmus = system_for(scenario, fmu_dir).fmus
+    defaults = {}
+    out = {}
+    for t in targets:
+        inst, _, name = t.partition(".")
+        if name in scenario.parameters.get(inst, {}):
+            out[t] = float(scenario.parameters[inst][name])
+            continue
+        if inst not in defaults:
+            defaults[inst] = fmu_parameter_defaults(fmus[inst])
+        if name not in defaults[inst]:
+            raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
+        out[t] = float(defaults[inst][name])
+    return out
+
+
+def expand(
+    specs: Sequence[ParamSpec],
+    scenario: Scenario,
+    fmu_dir: Path,
+    samples: int = 10,
+    seeds: Sequence[int] | None = None,
+    rng_seed: int = 0,
+    stop_time: float | None = None,
+) -> list[dict[str, Any]]:
+    """The list of runs: ``{"run_id", "params", "seed"}``."""
+    grid = [s for s in specs if not s.random]
+    rand = [s for s in specs if s.random]
+    nominal = nominal_values(scenario, fmu_dir, [s.target for s in rand])
+    rng = np.random.default_rng(rng_seed)
+    stop = stop_time or scenario.stop_time
+    runs = []
+    for combo in itertools.product(*(s.values for s in grid)):
+        base = {s.target: v for s, v in zip(grid, combo, strict=True)}
+        for _ in range(samples if rand else 1):
+            params = dict(base)
+            params.update({s.target: s.draw(nominal[s.target], rng) for s in rand})
+            for seed in seeds if seeds is not None else [None]:
+                runs.append({"run_id": run_id(params, seed, scenario, stop), "params": params,
+                             "seed": seed})  # fmt: skip
+    return runs
+
+
+__all__ = ["ParamSpec", "SweepSpecError", "check_targets", "expand", "nominal_values",
+           "parse_param", "run_id"]  # fmt: skip

@@ -1,0 +1,401 @@
+"""Parameter sweeps and Monte Carlo runs on Dask (``glider-cosim sweep``).
+
+Parameter specs (``--param INSTANCE.NAME=SPEC``, repeatable):
+
+- ``6,8,10,15``: a list of values (numbers or ``"X deg"``);
+- ``0.5:2.5:5``: ``num`` values from ``start`` to ``stop`` inclusive (linspace);
+- ``uniform(-20%,+20%)`` or ``uniform(LOW,HIGH)``: uniform random draws, relative to the
+  nominal value (the scenario's, else the FMU's default) or absolute;
+- ``normal(20%)`` or ``normal(SD)``: normal random draws around the nominal value.
+
+Lists and ranges form a full grid; random specs are drawn ``--samples`` times per grid
+point (numpy Generator seeded by ``--rng-seed``); ``--seeds N`` repeats every run with
+sensor-noise seeds 0..N-1 (``plant.noise_seed``). Every run has an id derived from its
+parameters and seed, so an interrupted sweep resumes where it stopped.
+
+Each Dask worker keeps one co-simulation per scenario and resets it between runs
+(pythonfmu's reset restores the defaults, so every run sets its full parameter set); an
+instance that failed is discarded and replaced. A failed run is recorded with its status
+and message; tasks of a worker that dies are retried elsewhere by Dask.
+
+Modules by purpose: :mod:`.sweep_spec` (specs, the list of runs, the up-front name
+check), :mod:`.sweep_store` (``sweep.csv``, safe to kill), :mod:`.sweep_cluster`
+(clients, version check, FMUs sent to workers), :mod:`.sweep_plots`; this module holds
+the worker-side run, the client loop and the CLI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import io
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.master.cosimulation import CoSimulation, FMUCallError, FMUStopped, MasterError
+from glider_cosim.runner.metrics import compute_metrics
+from glider_cosim.runner.recorders import ArrayRecorder
+from glider_cosim.scenarios.scenario import (
+    Scenario,
+    ScenarioError,
+    has_our_observer,
+    load_scenario,
+    with_sampling,
+)
+from glider_cosim.scenarios.system import system_for
+from glider_cosim.sweeps.cluster import (
+    DIST,
+    FmuBlob,
+    SweepClusterError,
+    check_workers,
+    local_fmu,
+    make_client,
+    package_version,
+    scatter_fmus,
+)
+from glider_cosim.sweeps.plots import write_plots
+from glider_cosim.sweeps.spec import (
+    ParamSpec,
+    SweepSpecError,
+    check_targets,
+    expand,
+    nominal_values,
+    parse_param,
+    run_id,
+)
+from glider_cosim.sweeps.store import SweepStore
+
+METRIC_KEYS = (
+    "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
+    "max_abs_delta_cmd_rad", "final_error_rad", "estimation_rms_rad", "end_time_s",
+    "outcome", "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s", "in_band_s",
+)  # fmt: skip
+METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
+
+
+# ----------------------------------------------------------------- worker side
+_SIMS: dict[tuple, CoSimulation] = {}
+
+
+def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    params = {k: dict(v) for k, v in scenario.parameters.items()}
+    for target, value in run["params"].items():
+        inst, _, name = target.partition(".")
+        params.setdefault(inst, {})[name] = int(value) if name in ("law", "noise_seed") else value
+    if run["seed"] is not None:
+        params.setdefault("plant", {})["noise_seed"] = int(run["seed"])
+    return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
+
+
+def _csv_text(columns: Sequence[str], data: np.ndarray) -> bytes:
+    """A trajectory as the CSV bytes ``run`` writes (17 significant digits)."""
+    buf = io.StringIO()
+    buf.write(",".join(columns) + "\n")
+    if len(data):
+        np.savetxt(buf, data, fmt="%.17g", delimiter=",")
+    return buf.getvalue().encode()
+
+
+def run_one(
+    scenario: Scenario, run: dict[str, Any], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False,
+) -> dict[str, Any]:  # fmt: skip
+    """Run one sweep point in this process, reusing a cached co-simulation.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    run : dict
+        ``{"run_id", "params", "seed"}`` (see :func:`expand`).
+    fmus : mapping
+        Instance -> FMU: an :class:`FmuBlob` (written once into this worker's cache) or a
+        path of this process.
+    stop_time : float, optional
+        Stop time, s (default the scenario's).
+    trajectories : bool
+        Record every output and return the trajectory as CSV bytes under
+        ``"trajectory"`` (written by the client).
+
+    Returns
+    -------
+    dict
+        The result row (parameters, seed, status, message, metrics).
+    """
+    local = {inst: local_fmu(f) for inst, f in fmus.items()}
+    key = (tuple(sorted((i, str(p)) for i, p in local.items())), scenario.source, scenario.name,
+           scenario.feedback, scenario.observer, bool(trajectories))  # fmt: skip
+    params = _full_parameters(scenario, run)
+    stop = stop_time or scenario.stop_time
+    row: dict[str, Any] = {"run_id": run["run_id"], "seed": run["seed"], **run["params"]}
+    rec = ArrayRecorder()
+    sim = _SIMS.pop(key, None)
+    status, message = "ok", ""
+    try:
+        if sim is None:
+            here = copy.copy(scenario)
+            here.fmus = {inst: str(p) for inst, p in local.items()}
+            system = system_for(here, Path("."))
+            if not trajectories:  # only what the metrics need
+                system.record = [
+                    c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c
+                ]
+            sim = CoSimulation(system, step=scenario.step, coupling=scenario.coupling)
+            sim.system.parameters = params
+            sim.initialize()
+        else:
+            sim.reset(params, replace=True)  # the previous run's values must not linger
+        n = round(stop / sim.step_size)
+        rec.start(sim.columns)
+        rec.row(sim.communication_point())
+        sim.advance(n, rec)
+    except FMUStopped as err:
+        status, message = "stopped", str(err)
+    except (FMUCallError, MasterError, ValueError) as err:
+        status, message = "error", str(err)
+    if sim is not None and status == "ok":
+        _SIMS[key] = sim  # reuse: reset next time
+    elif sim is not None:
+        sim.close()  # frees what is not fatal; a fatal instance is never called again
+    cols, data = rec.columns, rec.array() if len(rec) else None
+    row.update(status=status, message=message)
+    if data is not None and len(data) and sim is not None:
+        m = compute_metrics(cols, data, scenario, sim, status)
+        if "observer.theta_g_hat" in cols:
+            err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
+            m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
+        row.update({k: m.get(k) for k in METRIC_KEYS})
+    if trajectories and cols:  # recording started: the rows up to a failure too
+        row["trajectory"] = _csv_text(cols, data if data is not None else np.empty((0, 0)))
+    return row
+
+
+def run_many(
+    scenario: Scenario, runs: Sequence[dict[str, Any]], fmus: Mapping[str, FmuBlob | str | Path],
+    stop_time: float | None = None, trajectories: bool = False, version: str | None = None,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Several sweep points in one task (amortises the scheduling overhead).
+
+    ``version``: the client's glider-cosim version; a worker with another one (one that
+    joined after the check at connect) refuses the task with :class:`SweepClusterError`.
+    """
+    if version is not None and (mine := package_version()) != version:
+        raise SweepClusterError(
+            f"worker {_worker_address()} has {DIST} {mine}, the client {DIST} {version}"
+        )
+    return [run_one(scenario, r, fmus, stop_time, trajectories) for r in runs]
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return f"process {os.getpid()}"
+
+
+# ----------------------------------------------------------------- client side
+@dataclass
+class SweepResult:
+    """Summary of a sweep: counts and the results file.
+
+    ``failed`` counts the runs that failed in this call, ``failed_total`` every run of
+    the sweep recorded as failed in the file (earlier calls included: the exit code).
+    """
+
+    total: int
+    done: int
+    skipped: int
+    failed: int
+    seconds: float
+    path: Path
+    failed_total: int = 0
+
+    @property
+    def runs_per_s(self) -> float:
+        return self.done / self.seconds if self.seconds > 0 else 0.0
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def run_sweep(
+    scenario: Scenario,
+    runs: Sequence[dict[str, Any]],
+    out: Path,
+    client: Any,
+    fmu_dir: Path,
+    *,
+    stop_time: float | None = None,
+    trajectories: bool = False,
+    restart: bool = False,
+    progress: Callable[[int, int, int, float], None] | None = None,
+    chunk: int = 4,
+) -> SweepResult:
+    """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
+    per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
+    runs with the same id are run once; see :mod:`glider_cosim.sweeps.store`)."""
+    from distributed import as_completed
+
+    out.mkdir(parents=True, exist_ok=True)
+    unique = list({r["run_id"]: r for r in runs}.values())
+    ids = [r["run_id"] for r in unique]
+    param_cols = sorted({k for r in unique for k in r["params"]})
+    cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
+    traj = None
+    if trajectories:
+        traj = out / "trajectories"
+        traj.mkdir(exist_ok=True)
+        for stale in traj.glob(".*.tmp"):  # left by a kill while writing
+            stale.unlink(missing_ok=True)
+    t0 = time.perf_counter()
+    failed = done = 0
+    with SweepStore(out / "sweep.csv", cols, restart=restart) as store:
+        done_ids = store.done()
+        todo = [r for r in unique if r["run_id"] not in done_ids]
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
+        chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
+        fmus = scatter_fmus(client, system_for(scenario, Path(fmu_dir)).fmus) if todo else {}
+        futures = {
+            client.submit(run_many, scenario, c, fmus, stop_time, trajectories,
+                          package_version(), pure=False, retries=3): c
+            for c in chunks
+        }  # fmt: skip
+        for fut in as_completed(list(futures)):
+            try:
+                result = fut.result()
+            except Exception as err:  # noqa: BLE001 - a task that failed on every retry
+                result = [{"run_id": r["run_id"], "seed": r["seed"], **r["params"],
+                           "status": "error", "message": f"task failed: {err}"}
+                          for r in futures[fut]]  # fmt: skip
+            for row in result:
+                text = row.pop("trajectory", None)
+                if row["run_id"] in store.rows:
+                    continue  # recorded already (a run listed twice)
+                if traj is not None and text is not None:
+                    _write_atomically(traj / f"{row['run_id']}.csv", text)
+                store.add(row)
+                done += 1
+                failed += row.get("status") != "ok"
+            store.flush()
+            if progress:
+                progress(done, len(todo), failed, time.perf_counter() - t0)
+        failed_total = store.failed(ids)
+    return SweepResult(len(unique), done, len(unique) - len(todo), failed,
+                       time.perf_counter() - t0, store.path, failed_total)  # fmt: skip
+
+
+def add_parser(sub: Any) -> None:
+    """Add the ``sweep`` sub-command to the CLI's sub-parsers."""
+    s = sub.add_parser("sweep", help="parameter sweep / Monte Carlo on Dask",
+                       description=__doc__.split("\n\n")[1])  # fmt: skip
+    s.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
+    s.add_argument("--param", action="append", default=[], metavar="INSTANCE.NAME=SPEC",
+                   help="swept parameter (repeatable): 6,8,10 | 2:20:10 | uniform(-20%%,+20%%)"
+                   " | normal(20%%)")  # fmt: skip
+    s.add_argument("--samples", type=int, default=10, help="draws for random specs")
+    s.add_argument("--seeds", type=int, default=None, help="noise seeds 0..N-1 per run")
+    s.add_argument("--rng-seed", type=int, default=0, help="seed of the random draws")
+    s.add_argument("--workers", type=int, default=2, help="local worker processes")
+    s.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+    s.add_argument("--out", default="out/sweep", help="results folder")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
+    s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
+    s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
+    from glider_cosim.build.folders import add_fmu_options
+
+    add_fmu_options(s)
+    s.add_argument("--restart", action="store_true", help="ignore results already in --out")
+    s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
+    call or an earlier one recorded in ``sweep.csv``)."""
+    from glider_cosim.build.folders import build_all
+
+    if not args.param and args.seeds is None:
+        raise SweepSpecError("nothing to sweep: give --param INSTANCE.NAME=SPEC or --seeds N")
+    if args.samples < 1 or args.workers < 1 or (args.seeds is not None and args.seeds < 1):
+        raise SweepSpecError("--samples, --workers and --seeds must be >= 1")
+    if args.stop_time is not None and not args.stop_time > 0:
+        raise SweepSpecError(f"--stop-time {args.stop_time}: expected a number > 0")
+    if args.format == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise SweepSpecError("--format parquet needs pyarrow (pip install pyarrow)") from None
+    scenario = load_scenario(args.scenario)
+    fmu_dir = Path(args.fmu_dir).resolve()
+    build_all(fmu_dir, only_stale=True)
+    specs = [parse_param(p) for p in args.param]
+    seeds = list(range(args.seeds)) if args.seeds is not None else None
+    check_targets(scenario, fmu_dir, [s.target for s in specs] + ["plant.noise_seed"] * bool(seeds))
+    runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
+    out = Path(args.out)
+
+    from glider_cosim.runner.progress import sweep_line
+
+    progress = sweep_line()  # None in a pipe or CI: nothing printed
+
+    client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
+    try:
+        check_workers(client)
+        if args.dashboard:
+            print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
+        res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
+                        trajectories=args.trajectories, restart=args.restart,
+                        progress=progress)  # fmt: skip
+    finally:
+        client.close()
+        if not args.scheduler and client.cluster is not None:
+            client.cluster.close()
+    if args.format == "parquet":
+        import pyarrow.csv as pacsv
+        import pyarrow.parquet as pq
+
+        pq.write_table(pacsv.read_csv(res.path), out / "sweep.parquet")
+    if not args.no_plots:
+        write_plots(res.path, out)
+    print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
+          f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; {res.failed_total} of "
+          f"{res.total} failed overall; results in {res.path}")  # fmt: skip
+    return 1 if res.failed_total else 0
+
+
+__all__ = [
+    "FmuBlob",
+    "ParamSpec",
+    "ScenarioError",
+    "SweepClusterError",
+    "SweepResult",
+    "SweepSpecError",
+    "check_targets",
+    "check_workers",
+    "expand",
+    "main",
+    "make_client",
+    "nominal_values",
+    "parse_param",
+    "run_id",
+    "run_many",
+    "run_one",
+    "run_sweep",
+    "write_plots",
+]
