@@ -1,0 +1,252 @@
+"""What each subcommand does, once its arguments are parsed."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from glider_cosim.build.folders import default_dir
+from glider_cosim.cli.parser import UsageError
+from glider_cosim.inputs.text import one_line, quote, shown_path
+from glider_cosim.master.cosimulation import (
+    DEFAULT_MAX_STEPS,
+    SystemSpecError,
+)
+from glider_cosim.scenarios.scenario import shipped_scenarios
+
+
+def _check_out_dir(path: Path, option: str) -> None:
+    """Refuse an output folder that cannot be created or written (naming the option)."""
+    shown = f"{option} {quote(str(path))}"
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{shown}: exists and is not a folder: expected a folder")
+    parent = path
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UsageError(f"{shown}: {quote(str(parent))} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UsageError(f"{shown}: {quote(str(parent))} is not writable")
+
+
+def _check_out_file(path: Path, option: str) -> None:
+    """Refuse an output file that is a folder or cannot be created (naming the option)."""
+    if path.is_dir():
+        raise UsageError(f"{option} {quote(str(path))}: is a folder: expected a file name")
+    _check_out_dir(path.parent, option)
+
+
+def _os_error(err: OSError, paths: dict[str, Path]) -> UsageError:
+    """An OSError as a one-line error naming the option whose path it concerns."""
+    reason = err.strerror or one_line(err)
+    filename = str(err.filename or "")
+    for option, path in paths.items():
+        if filename and (filename == str(path) or filename.startswith(f"{path}{os.sep}")):
+            return UsageError(f"{option} {quote(str(path))}: {reason} ({quote(filename)})")
+    option, path = next(iter(paths.items()))
+    where = f" ({quote(filename)})" if filename else ""
+    return UsageError(f"{option} {quote(str(path))}: {reason}{where}")
+
+
+def _ssp_origin(source: str, ref: str) -> str:
+    inst, _, name = ref.partition(".")
+    return f"{source}: component '{inst}'" + (f": parameter '{name}'" if name else "")
+
+
+def _time(seconds: float | None) -> str:
+    """A time for display: rounded to 1 us, shortest form."""
+    return "n/a" if seconds is None else f"{round(seconds, 6):.10g}"
+
+
+def _run(args: argparse.Namespace) -> int:
+    from glider_cosim.inputs.archives import set_extract_limit
+    from glider_cosim.inputs.check import check_ranges, our_kinds
+    from glider_cosim.master.cosimulation import count_steps
+    from glider_cosim.runner.metrics import describe_outcome
+    from glider_cosim.runner.run import origin_of, simulate
+    from glider_cosim.scenarios.overrides import apply_overrides
+    from glider_cosim.scenarios.scenario import load_scenario, parse_sets
+
+    set_extract_limit(args.max_extract_mb * 2**20)
+    if args.scenario and str(args.scenario).endswith((".ssp", ".ssd")):
+        if args.set:
+            raise UsageError("--set does not apply to an SSP (edit its parameter values)")
+        from glider_cosim.inputs.ssp_files import ssp_name
+        from glider_cosim.interop.ssp_import import load_ssp
+
+        system, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
+        scenario = args.scenario
+        name, source = ssp_name(args.scenario), shown_path(args.scenario)
+        # our FMUs inside: their parameter tables' ranges
+        check_ranges(system.parameters, lambda ref: _ssp_origin(source, ref),
+                     kinds=our_kinds(system.fmus))  # fmt: skip
+    else:
+        scenario = load_scenario(args.scenario)
+        if args.set:
+            overrides = parse_sets(args.set)
+            scenario = apply_overrides(scenario, overrides)
+            for item in args.set:
+                scenario.origins[item.partition("=")[0].strip()] = f"--set {quote(item)}"
+        # our FMUs' valid ranges, before anything is built or instantiated
+        check_ranges(scenario.parameters, origin_of(scenario), set(scenario.fmus), scenario.events)
+        name, source, step, stop = scenario.name, scenario.source, scenario.step, scenario.stop_time
+    given = [(o, v) for o, v in (("--step", args.step), ("--stop-time", args.stop_time)) if v]
+    try:
+        count_steps(args.stop_time or stop, args.step or step, args.max_steps)
+    except SystemSpecError as err:
+        where = " and ".join(f"{o} {v:g}" for o, v in given) or source
+        raise UsageError(f"{where}: {err}") from None
+    out = Path(args.out)
+    if args.out == "out":
+        out = out / name
+    _check_out_dir(out, "--out")
+    options = {
+        opt: value
+        for opt, value, default in (
+            ("--coupling", args.coupling, None),
+            ("--step", args.step, None),
+            ("--stop-time", args.stop_time, None),
+            ("--fmu-dir", getattr(args, "fmu_dir_given", args.fmu_dir), None),
+            ("--flavor", getattr(args, "flavor", None), None),
+            ("--fmi", getattr(args, "fmi", None), None),
+            ("--no-plots", args.no_plots, False),
+            ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
+            ("--max-extract-mb", args.max_extract_mb, 256),
+            ("--format", args.format, "csv"),
+        )
+        if value != default
+    }
+    try:
+        result = simulate(
+            scenario,
+            out,
+            fmu_dir=args.fmu_dir,
+            coupling=args.coupling,
+            step=args.step,
+            stop_time=args.stop_time,
+            plots=not args.no_plots,
+            max_steps=args.max_steps,
+            options=options,
+            results_format=args.format,
+        )
+    except OSError as err:
+        raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
+    m = result.metrics
+    scenario = result.scenario
+    deg = 57.29577951308232
+
+    def fmt(key: str, scale: float = 1.0, unit: str = "") -> str:
+        v = m.get(key)
+        return "n/a" if v is None else f"{v * scale:.3f}{unit}"
+
+    print(
+        f"scenario {scenario.name} ({scenario.source}): {m['rows']} rows to "
+        f"t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, step {_time(m['step_s'])} s"
+    )
+    print(
+        f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"
+        f", overshoot {fmt('overshoot_rad', deg, ' deg')}, effort "
+        f"{fmt('control_effort', unit=' rad s')}, max |delta_cmd| "
+        f"{fmt('max_abs_delta_cmd_rad', deg, ' deg')}"
+    )
+    print(f"  outcome: {describe_outcome(m)}")
+    print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
+    if result.status != "ok":
+        print(f"glider-cosim: run {result.status}: {one_line(result.message)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from glider_cosim.studies.report import build_report
+
+    try:
+        from glider_cosim.studies.analysis import analyze
+    except ImportError:  # pragma: no cover - analysis is part of the package
+        analyze = None
+    from glider_cosim.studies.roa import parse_grid
+
+    grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
+    if args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: expected a number >= 1")
+    path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
+                        roa_grid=grid, workers=args.workers, scheduler=args.scheduler)  # fmt: skip
+    print(f"wrote {path}")
+    return 0
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    from glider_cosim.studies.analysis import analyze, format_report
+
+    result = analyze()
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(format_report(result))
+    return 0
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
+    # asked; verify builds ours only for --write-references/--export
+    if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
+        from glider_cosim.build.folders import cache_root, prepare_fmus
+
+        folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
+        args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
+        try:
+            args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
+        except OSError as err:
+            raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
+    if args.command == "build":
+        from glider_cosim.build.folders import build_all
+
+        out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
+        _check_out_dir(out, "build --out")
+        try:
+            built = build_all(out, flavor=args.flavor, fmi=args.fmi)
+        except OSError as err:
+            raise _os_error(err, {"build --out": out}) from None
+        for name, path in built.items():
+            print(f"{name}: {path}")
+        return 0
+    if args.command == "run":
+        return _run(args)
+    if args.command in ("export-fmu", "export-ssp"):
+        out = Path(args.out)
+        _check_out_file(out, f"{args.command} OUT")
+        if args.command == "export-fmu":
+            from glider_cosim.interop.onefmu import export_one_fmu as export
+        else:
+            from glider_cosim.interop.ssp_export import export_ssp as export
+        try:
+            print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
+        except OSError as err:
+            raise _os_error(
+                err, {f"{args.command} OUT": out, "--fmu-dir": Path(args.fmu_dir)}
+            ) from None
+        return 0
+    if args.command == "host-env":
+        from glider_cosim.interop.hostenv import main as host_env_main
+
+        return host_env_main(["--config"] if args.config else [])
+    if args.command == "sweep":
+        from glider_cosim.sweeps.sweep import main as sweep_main
+
+        return sweep_main(args)
+    if args.command == "report":
+        _check_out_dir(Path(args.out), "report --out")
+        return _report(args)
+    if args.command == "analyze":
+        return _analyze(args)
+    if args.command == "verify":
+        from glider_cosim.verify.kit import run_command
+
+        if args.export:
+            _check_out_dir(Path(args.export), "verify --export")
+        return run_command(args)
+    print("\n".join(shipped_scenarios()))
+    return 0

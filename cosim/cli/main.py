@@ -1,0 +1,112 @@
+"""The console script: parse, run the command, turn every error into one line and an exit code.
+
+Exit codes: 0 success, 1 the run stopped or failed in an FMU (results up to the failure
+are written), 2 bad input (arguments, scenario, SSP, FMU files; one line), 130
+interrupted by Ctrl-C, 143 terminated by SIGTERM (results so far are written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+import warnings
+from collections.abc import Sequence
+
+from glider_cosim.cli.commands import _dispatch
+from glider_cosim.cli.parser import build_parser
+from glider_cosim.inputs.text import one_line
+from glider_cosim.master.cosimulation import (
+    Interrupted,
+    MasterError,
+    SystemSpecError,
+)
+from glider_cosim.scenarios.scenario import ScenarioError
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Interrupted(signum)
+
+
+class _NoteHandler(logging.Handler):
+    """Warnings of our modules as one-line notes on the current ``sys.stderr``."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        sys.stderr.write(f"glider-cosim: note: {one_line(record.getMessage())}\n")
+
+
+def _notes_to_stderr() -> None:
+    """Warnings of our modules (e.g. a skipped optional connection) as one-line notes."""
+    logger = logging.getLogger("glider_cosim")
+    if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
+        handler = _NoteHandler(logging.WARNING)
+        logger.addHandler(handler)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"glider-cosim: warning: {message}", file=sys.stderr if file is None else file)
+
+
+def _private_matplotlib_cache() -> None:
+    """matplotlib's font cache in this process's temporary folder, not ``~/.cache``: a
+    command writes nothing outside its output and FMU folders (unless the user points
+    ``MPLCONFIGDIR`` somewhere). Rebuilding the cache costs about 0.1 s of CPU."""
+    if "MPLCONFIGDIR" not in os.environ and "matplotlib" not in sys.modules:
+        from glider_cosim.inputs.tempdirs import new_temp_dir
+
+        os.environ["MPLCONFIGDIR"] = str(new_temp_dir("matplotlib_"))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``glider-cosim`` console script (returns the exit code; notes and
+    warnings one line each)."""
+    args = build_parser().parse_args(argv)
+    _notes_to_stderr()
+    _private_matplotlib_cache()
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        return _main(args)
+
+
+def _main(args: argparse.Namespace) -> int:
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C
+    try:
+        code = _dispatch(args)
+    except (ScenarioError, SystemSpecError, ValueError) as err:
+        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        code = 2
+    except MasterError as err:
+        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        code = 1
+    except KeyboardInterrupt as err:
+        if isinstance(err, Interrupted) and err.signum == signal.SIGTERM:
+            print("glider-cosim: terminated (SIGTERM); results so far are written",
+                  file=sys.stderr)  # fmt: skip
+            code = 143
+        else:
+            print("glider-cosim: interrupted; results so far are written", file=sys.stderr)
+            code = 130
+    except OSError as err:
+        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        code = 2
+    except RecursionError:
+        print("glider-cosim: error: input nested too deeply", file=sys.stderr)
+        code = 2
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+    return code
+
+
+def console_main() -> None:
+    """Console script: run :func:`main` and exit with its code (a normal interpreter exit)."""
+    sys.exit(main())
+
+
+if __name__ == "__main__":
+    console_main()

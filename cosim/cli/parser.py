@@ -1,0 +1,186 @@
+"""The command line's parser: every subcommand, its options and their defaults."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+from glider_cosim.build.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
+from glider_cosim.inputs.text import one_line, quote
+from glider_cosim.master.cosimulation import (
+    DEFAULT_MAX_STEPS,
+)
+from glider_cosim.scenarios.scenario import shipped_scenarios
+
+
+class UsageError(ValueError):
+    """A command-line argument cannot be used (the message names the option)."""
+
+
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Plain-text help: defaults shown, reST markup of the docstrings removed."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return super()._fill_text(_plain(text), width, indent)
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = _plain(action.help or "")
+        if action.default in (None, False, [], argparse.SUPPRESS) or "%(default)" in text:
+            return text
+        if "default" in text:
+            return text
+        return text + " (default: %(default)s)"
+
+
+def _plain(text: str) -> str:
+    text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
+    return text.replace("``", "'")
+
+
+class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", _Formatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> None:  # one line, exit code 2
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{quote(text)} is not a number") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected a finite number > 0")
+    return v
+
+
+def _count(text: str) -> int:
+    if not re.fullmatch(r"\+?\d{1,18}", text.strip()) or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected an integer >= 1")
+    return int(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="glider-cosim", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
+    b.add_argument(
+        "--out",
+        default=None,
+        help="output folder (default: fmus, fmus/native for native, fmus/fmi3 and "
+        "fmus/fmi3/native with --fmi 3)",
+    )
+    b.add_argument(
+        "--flavor", choices=FLAVORS, default="python", help="Python reference or native C99"
+    )
+    b.add_argument(
+        "--fmi", type=int, choices=FMI_VERSIONS, default=2, help="FMI version: 2.0 or 3.0"
+    )
+
+    r = sub.add_parser(
+        "run",
+        help="run a scenario or an SSP (default: the paper's Sec. 3.3 case)",
+        description="Run a TOML scenario, a shipped scenario or an SSP (.ssp archive, .ssd\n"
+        "file) with our master; write results.csv, metrics.json and PNG plots.",
+    )
+    r.add_argument(
+        "scenario",
+        nargs="?",
+        default=None,
+        help=f"TOML file, shipped name ({', '.join(shipped_scenarios())}) or .ssp/.ssd "
+        "file; default: default",
+    )
+    r.add_argument("--out", default="out", help="results folder ('out' means out/<scenario>)")
+    add_fmu_options(r, fmi=True)
+    r.add_argument(
+        "--coupling",
+        type=str.lower,
+        choices=("gauss-seidel", "jacobi"),
+        default=None,
+        help="coupling scheme (default: the scenario's, gauss-seidel for an SSP)",
+    )
+    r.add_argument(
+        "--step",
+        type=_positive,
+        default=None,
+        help="communication step, s (default: the scenario's)",
+    )
+    r.add_argument(
+        "--stop-time", type=_positive, default=None, help="stop time, s (default: the scenario's)"
+    )
+    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument(
+        "--format",
+        choices=("csv", "parquet"),
+        default="csv",
+        help="results file: results.csv (text) or results.parquet (binary float64, read by "
+        "pandas and polars; needs pyarrow)",
+    )
+    r.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="INSTANCE.NAME=VALUE",
+        help="override a parameter (repeatable): controller.K_c=6, plant.theta_g_0='-30 deg'",
+    )
+    r.add_argument(
+        "--max-steps", type=_count, default=DEFAULT_MAX_STEPS, help="most communication steps"
+    )
+    r.add_argument(
+        "--max-extract-mb",
+        type=_count,
+        default=256,
+        help="most MiB one FMU or SSP archive may unpack to",
+    )
+
+    e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
+    e.add_argument("out", help="output .ssp file")
+    e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
+    add_fmu_options(e, fmi=True)
+
+    he = sub.add_parser(
+        "host-env", help="environment a C/C++ host on another machine needs for our FMUs"
+    )
+    he.add_argument(
+        "--config",
+        action="store_true",
+        help="print the FMU runtime's Python configuration instead (for GLIDER_FMI_PYTHON_CONFIG)",
+    )
+
+    xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
+    xf.add_argument("out", help="output .fmu file")
+    xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
+    add_fmu_options(xf)
+
+    rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
+    rep.add_argument("--out", default="out/report", help="report folder")
+    add_fmu_options(rep)
+    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
+                     help="region-of-attraction grid: N glide angles x M speeds (default "
+                     "7x5; none: skip the map)")  # fmt: skip
+    rep.add_argument("--workers", type=int, default=2, help="local Dask workers for the map")
+    rep.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+
+    a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
+    a.add_argument("--json", action="store_true", help="one JSON object on stdout")
+
+    from glider_cosim.sweeps.sweep import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
+    from glider_cosim.verify.kit import _tolerance
+    from glider_cosim.verify.kit import add_arguments as add_verify_arguments
+
+    v = sub.add_parser(
+        "verify",
+        help="run the component verification kit on an FMU",
+        description="Run the reference cases of a component (plant, observer, controller) on\n"
+        "an FMI 2.0 co-simulation FMU and compare with the references; exit 0 if every case\n"
+        "passes, 1 if any fails, 2 on bad input.",
+    )
+    add_verify_arguments(v, _tolerance)
+    sub.add_parser("scenarios", help="list the shipped scenarios")
+    return p
