@@ -5,7 +5,9 @@ from __future__ import annotations
 import pytest
 
 from glider_cosim.cli import main
-from glider_cosim.scenarios.scenario import ScenarioError, parse_scenario, parse_sets
+from glider_cosim.scenarios.fields import ScenarioError
+from glider_cosim.scenarios.overrides import parse_sets
+from glider_cosim.scenarios.scenario import parse_scenario
 
 LAW = "expected one of 'open-loop', 'passivity', 'p', 'pi' (any case) or an integer 0..3"
 

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from glider_cosim.scenarios.scenario import ScenarioError, load_scenario, shipped_scenarios
+from glider_cosim.scenarios.fields import ScenarioError
+from glider_cosim.scenarios.scenario import load_scenario, shipped_scenarios
 
 
 def test_shipped_scenarios_load():
@@ -90,7 +91,7 @@ set = { "controller.law" = "pi", "controller.K_P" = 3 }
 
 
 def test_set_overrides_parse_numbers_degrees_and_laws():
-    from glider_cosim.scenarios.scenario import parse_sets
+    from glider_cosim.scenarios.overrides import parse_sets
 
     out = parse_sets(["controller.K_c=6", "plant.theta_g_0=-30 deg", "controller.law=pi",
                       "plant.noise_seed=4"])  # fmt: skip
@@ -112,7 +113,7 @@ def test_with_observer_false_needs_state_feedback(tmp_path):
 
 
 def test_f_sample_follows_the_step_unless_set():
-    from glider_cosim.scenarios.scenario import with_sampling
+    from glider_cosim.scenarios.sampling import with_sampling
 
     params = {"controller": {"K_c": 10.0}}
     out = with_sampling(params, 0.005)
@@ -124,7 +125,7 @@ def test_f_sample_follows_the_step_unless_set():
 def test_explicit_f_sample_mismatch_is_warned_in_one_line():
     import warnings
 
-    from glider_cosim.scenarios.scenario import SamplingMismatchWarning, with_sampling
+    from glider_cosim.scenarios.sampling import SamplingMismatchWarning, with_sampling
 
     with pytest.warns(SamplingMismatchWarning, match=r"s\.toml: observer\.f_sample = 50 Hz") as w:
         out = with_sampling({"observer": {"f_sample": 50.0}}, 0.01, "s.toml")
@@ -137,7 +138,7 @@ def test_explicit_f_sample_mismatch_is_warned_in_one_line():
 
 
 def test_a_step_too_long_for_the_pre_filter_is_refused():
-    from glider_cosim.scenarios.scenario import with_sampling
+    from glider_cosim.scenarios.sampling import with_sampling
 
     with pytest.raises(ScenarioError, match=r"step 0\.1 s samples .* at 10 Hz.*below 5 Hz"):
         with_sampling({}, 0.1, "s.toml")
@@ -147,7 +148,8 @@ def test_a_step_too_long_for_the_pre_filter_is_refused():
 
 
 def test_a_swapped_in_observer_gets_no_f_sample(tmp_path):
-    from glider_cosim.scenarios.scenario import has_our_observer, parse_scenario
+    from glider_cosim.scenarios.sampling import has_our_observer
+    from glider_cosim.scenarios.scenario import parse_scenario
 
     assert has_our_observer(load_scenario(None))
     assert not has_our_observer(load_scenario("fig2-open-loop"))  # no observer

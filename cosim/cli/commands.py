@@ -67,8 +67,8 @@ def _run(args: argparse.Namespace) -> int:
     from glider_cosim.master.cosimulation import count_steps
     from glider_cosim.runner.metrics import describe_outcome
     from glider_cosim.runner.run import origin_of, simulate
-    from glider_cosim.scenarios.overrides import apply_overrides
-    from glider_cosim.scenarios.scenario import load_scenario, parse_sets
+    from glider_cosim.scenarios.overrides import apply_overrides, parse_sets
+    from glider_cosim.scenarios.scenario import load_scenario
 
     set_extract_limit(args.max_extract_mb * 2**20)
     if args.scenario and str(args.scenario).endswith((".ssp", ".ssd")):

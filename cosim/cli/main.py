@@ -24,7 +24,7 @@ from glider_cosim.master.cosimulation import (
     MasterError,
     SystemSpecError,
 )
-from glider_cosim.scenarios.scenario import ScenarioError
+from glider_cosim.scenarios.fields import ScenarioError
 
 
 def _terminate(signum: int, frame: object) -> None:

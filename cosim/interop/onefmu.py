@@ -137,12 +137,8 @@ def export_one_fmu(
     from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
 
     from glider_cosim.build.folders import build_all, fmu_folder
-    from glider_cosim.scenarios.scenario import (
-        Scenario,
-        has_our_observer,
-        load_scenario,
-        with_sampling,
-    )
+    from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
+    from glider_cosim.scenarios.scenario import Scenario, load_scenario
     from glider_cosim.scenarios.system import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)

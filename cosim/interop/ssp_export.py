@@ -57,12 +57,8 @@ def export_ssp(
     from fmpy import read_model_description
 
     from glider_cosim.build.folders import build_all, fmu_folder
-    from glider_cosim.scenarios.scenario import (
-        Scenario,
-        has_our_observer,
-        load_scenario,
-        with_sampling,
-    )
+    from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
+    from glider_cosim.scenarios.scenario import Scenario, load_scenario
     from glider_cosim.scenarios.system import FMU_NAMES, default_connections
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)

@@ -11,7 +11,9 @@ import numpy as np
 from fmpy import read_model_description
 
 from glider_controller.laws import Law, PIController, passivity_law
-from glider_cosim.scenarios.scenario import Scenario, ScenarioError, with_sampling
+from glider_cosim.scenarios.fields import ScenarioError
+from glider_cosim.scenarios.sampling import with_sampling
+from glider_cosim.scenarios.scenario import Scenario
 from glider_cosim.scenarios.system import FMU_NAMES
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step

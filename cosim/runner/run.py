@@ -28,7 +28,8 @@ from glider_cosim.master.cosimulation import (
 from glider_cosim.runner.metrics import compute_metrics
 from glider_cosim.runner.provenance import clear_owned, marked_events, run_record
 from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
-from glider_cosim.scenarios.scenario import Scenario, load_scenario, with_sampling
+from glider_cosim.scenarios.sampling import with_sampling
+from glider_cosim.scenarios.scenario import Scenario, load_scenario
 from glider_cosim.scenarios.system import DISTURBANCE_INPUTS, system_for
 
 log = logging.getLogger(__name__)

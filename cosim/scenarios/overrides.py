@@ -1,11 +1,14 @@
-"""Overrides of a scenario's parameters and events (the report's and sweeps' variants)."""
+"""Overrides of a scenario: ``--set INSTANCE.NAME=VALUE`` and the report's and sweeps' variants."""
 
 from __future__ import annotations
 
 import copy
+import re
 from typing import Any
 
-from glider_cosim.scenarios.scenario import LAWS, Scenario
+from glider_cosim.inputs.text import quote
+from glider_cosim.scenarios.fields import LAWS, ScenarioError, _law, _number
+from glider_cosim.scenarios.scenario import INSTANCES, Scenario
 
 
 def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
@@ -25,3 +28,32 @@ def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:
         inst, _, name = key.partition(".")
         sc.parameters.setdefault(inst, {})[name] = value
     return sc
+
+
+def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int | bool]:
+    """``["controller.K_c=6", "plant.theta_g_0=-30 deg"]`` -> overrides (angles in rad)."""
+    out: dict[str, float | int | bool] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        inst, dot, name = key.strip().partition(".")
+        where = f"{source} {quote(item)}"
+        if not sep or not dot or inst not in INSTANCES or not name:
+            raise ScenarioError(
+                f"{where}: expected INSTANCE.NAME=VALUE with INSTANCE one of {', '.join(INSTANCES)}"
+            )
+        text = text.strip()
+        if inst == "controller" and name == "law":
+            out[key.strip()] = _law(text, where)
+            continue
+        value: float | int | bool
+        if text in ("true", "false"):
+            value = text == "true"
+        elif re.fullmatch(r"[-+]?\d{1,40}", text):
+            value = int(text)
+        else:
+            try:
+                value = float(text)
+            except ValueError:
+                value = _number(text, where, key.strip())
+        out[key.strip()] = value
+    return out

@@ -17,8 +17,7 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
     [fmus]                    instance = "path/to/other.fmu" (swap a component)
     [inputs]                  "plant.F_x" = 0.0: constant values of driven inputs
     [[disturbance]]           target, kind ("step"|"pulse"), time, value, duration
-    [[event]]                 when = "plant.z >= 1.0" | "time >= 5", delay, set = {...}
-"""
+    [[event]]                 when = "plant.z >= 1.0" | "time >= 5", delay, set = {...}"""
 
 from __future__ import annotations
 
@@ -26,7 +25,6 @@ import hashlib
 import math
 import re
 import tomllib
-import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -36,30 +34,32 @@ from glider_cosim.inputs.archives import InputFileError, regular_file
 from glider_cosim.inputs.text import quote, shown_path
 from glider_cosim.inputs.values import Degrees
 from glider_cosim.master.cosimulation import Disturbance, Event
-from glider_observer.filter import DEFAULT_F_CUTOFF
+from glider_cosim.scenarios.fields import ScenarioError, _choice, _float, _law, _number, _table
 
 INSTANCES = ("plant", "observer", "controller")
-LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
+
+
 COUPLINGS = ("gauss-seidel", "jacobi")
+
+
 FEEDBACKS = ("observer", "state")
+
+
 _TOP = {
     "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
     "record",
     "fmus", "inputs", "disturbance", "event", *INSTANCES,
 }  # fmt: skip
-_DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
+
+
 _COND = re.compile(r"^\s*([A-Za-z_][\w.]*)\s*(>=|<=)\s*(.+?)\s*$")
+
+
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
+
+
 #: largest scenario file read (bytes)
 MAX_SCENARIO_BYTES = 4 * 2**20
-
-
-class ScenarioError(ValueError):
-    """A scenario file is malformed; the message names the file and the key."""
-
-
-class SamplingMismatchWarning(UserWarning):
-    """The observer's ``f_sample`` is set explicitly and differs from 1 / step."""
 
 
 @dataclass
@@ -87,109 +87,6 @@ class Scenario:
     sha256: str = ""
     #: ``instance.variable`` (or ``event.instance.variable``) -> value set over the file's
     overrides: dict[str, Any] = field(default_factory=dict)
-
-
-def _number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
-    """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
-
-    Types are kept (an int stays an int, a boolean a boolean): the variable's type and
-    unit are checked against its FMU before the run. ``ref`` (``instance.variable``)
-    selects the unit hint of the message.
-    """
-    expect = _expect_number(ref)
-    if isinstance(value, bool | int | float):
-        return value
-    if isinstance(value, str):
-        m = _DEG.match(value)
-        if m:
-            rad = math.radians(float(m.group(1)))
-            if math.isfinite(rad):
-                return Degrees(rad, value.strip())
-    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected {expect}")
-
-
-def _expect_number(ref: str | None) -> str:
-    """What a number for ``instance.variable`` ``ref`` looks like: its unit from our FMUs'
-    variable tables, and ``'X deg'`` only for an angle (rad). A variable we do not know
-    (a swapped FMU's, a time) gets no unit hint."""
-    unit = _our_unit(ref) if ref else None
-    if unit == "rad":
-        return "a number (rad) or 'X deg'"
-    if unit and unit != "1":
-        return f"a number ({unit})"
-    return "a number"
-
-
-def _our_unit(ref: str) -> str | None:
-    inst, _, name = ref.partition(".")
-    try:
-        from glider_cosim.inputs.check import our_table
-
-        spec = our_table(inst).get(name)
-    except (KeyError, ImportError):
-        return None
-    return None if spec is None else spec.unit
-
-
-def _float(
-    value: Any,
-    where: str,
-    positive: bool = False,
-    non_negative: bool = False,
-    angle: bool = False,
-) -> float:
-    """A finite float (``angle``: ``"X deg"`` accepted, checked against the unit later)."""
-    v = _number(value, where)
-    if isinstance(v, Degrees) and not angle:
-        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number without a unit")
-    try:
-        finite = not isinstance(v, bool) and math.isfinite(float(v))
-    except OverflowError:
-        finite = False
-    if not finite:
-        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a finite number")
-    if positive and not v > 0:
-        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number > 0")
-    if non_negative and v < 0:
-        raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number >= 0")
-    return v if isinstance(v, Degrees) else float(v)
-
-
-def _choices(names: Any) -> str:
-    names = [f"'{n}'" for n in names]
-    return " or ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + " or " + names[-1]
-
-
-#: what ``controller.law`` accepts, for messages
-LAW_CHOICES = f"one of {', '.join(repr(n) for n in LAWS)} (any case) or an integer 0..3"
-
-
-def _law(value: Any, where: str) -> Any:
-    """``controller.law``: a name (any case) or an exact integer 0..3."""
-    if isinstance(value, str):
-        key = value.strip().lower()
-        if key in LAWS:
-            return LAWS[key]
-        if re.fullmatch(r"[-+]?\d{1,3}", key) and int(key) in LAWS.values():
-            return int(key)
-    elif not isinstance(value, bool) and isinstance(value, int) and value in LAWS.values():
-        return value
-    raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
-
-
-def _choice(value: Any, choices: tuple[str, ...], where: str) -> str:
-    """An enumerated string option (``coupling``, ``feedback``), any case."""
-    if isinstance(value, str) and value.strip().lower() in choices:
-        return value.strip().lower()
-    raise ScenarioError(
-        f"{where}: {quote(value)} is invalid: expected {_choices(choices)} (any case)"
-    )
-
-
-def _table(value: Any, where: str) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{where}: expected a table, got {type(value).__name__}")
-    return value
 
 
 def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
@@ -403,101 +300,3 @@ def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped in the package."""
     d = resources.files("glider_cosim") / "scenarios"
     return sorted(f.name[:-5] for f in d.iterdir() if f.name.endswith(".toml"))
-
-
-def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int | bool]:
-    """``["controller.K_c=6", "plant.theta_g_0=-30 deg"]`` -> overrides (angles in rad)."""
-    out: dict[str, float | int | bool] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        inst, dot, name = key.strip().partition(".")
-        where = f"{source} {quote(item)}"
-        if not sep or not dot or inst not in INSTANCES or not name:
-            raise ScenarioError(
-                f"{where}: expected INSTANCE.NAME=VALUE with INSTANCE one of {', '.join(INSTANCES)}"
-            )
-        text = text.strip()
-        if inst == "controller" and name == "law":
-            out[key.strip()] = _law(text, where)
-            continue
-        value: float | int | bool
-        if text in ("true", "false"):
-            value = text == "true"
-        elif re.fullmatch(r"[-+]?\d{1,40}", text):
-            value = int(text)
-        else:
-            try:
-                value = float(text)
-            except ValueError:
-                value = _number(text, where, key.strip())
-        out[key.strip()] = value
-    return out
-
-
-def with_sampling(
-    parameters: dict[str, dict[str, Any]],
-    step: float,
-    source: str = "<scenario>",
-    observer: bool = True,
-) -> dict[str, dict[str, Any]]:
-    """The parameters with the sampled parts following the communication step.
-
-    The observer's pre-filter runs once per communication step, so its sampling
-    frequency ``observer.f_sample`` (and with it the Butterworth coefficients) is set to
-    ``1 / step`` unless ``parameters`` set it explicitly. An explicit value that differs
-    from ``1 / step`` (relative difference above 1e-9) is kept and warned about in one
-    line (:class:`SamplingMismatchWarning`).
-
-    Parameters
-    ----------
-    parameters : dict
-        ``{instance: {name: value}}`` (not modified).
-    step : float
-        Communication step, s, > 0.
-    source : str
-        Named in the warning (the scenario file).
-    observer : bool
-        Whether the system has our observer FMU (:func:`has_our_observer`; nothing to do
-        otherwise: a swapped-in observer may have no ``f_sample``).
-
-    Returns
-    -------
-    dict
-        A copy of ``parameters``, with ``observer.f_sample`` [Hz] filled in.
-
-    Raises
-    ------
-    ScenarioError
-        If ``step`` is not > 0, or the pre-filter (enabled) would sample at or below
-        twice its cut-off frequency.
-    """
-    if not (math.isfinite(step) and step > 0):
-        raise ScenarioError(f"{source}: step = {step!r} is invalid: expected a number > 0 s")
-    out = {k: dict(v) for k, v in parameters.items()}
-    if not observer:
-        return out
-    obs = out.setdefault("observer", {})
-    if "f_sample" not in obs:
-        obs["f_sample"] = 1.0 / step
-        f_cut = float(obs.get("f_cutoff", DEFAULT_F_CUTOFF))
-        if obs.get("filter_enabled", True) and not f_cut < 0.5 * obs["f_sample"]:
-            raise ScenarioError(
-                f"{source}: step {step:g} s samples the observer's pre-filter at "
-                f"{obs['f_sample']:g} Hz, too slow for its cut-off f_cutoff = {f_cut:g} Hz: "
-                f"expected observer.f_cutoff below {0.5 * obs['f_sample']:g} Hz (or "
-                "observer.filter_enabled = false)"
-            )
-    elif abs(float(obs["f_sample"]) * step - 1.0) > 1e-9:
-        warnings.warn(
-            f"{source}: observer.f_sample = {float(obs['f_sample']):g} Hz differs from the "
-            f"communication rate 1/step = {1.0 / step:g} Hz (the pre-filter is designed for "
-            "the former and runs at the latter)",
-            SamplingMismatchWarning,
-            stacklevel=2,
-        )
-    return out
-
-
-def has_our_observer(sc: Scenario) -> bool:
-    """The scenario runs our GliderObserver FMU (not none, not a swapped-in one)."""
-    return sc.observer and "observer" not in sc.fmus

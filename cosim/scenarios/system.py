@@ -8,7 +8,8 @@ from pathlib import Path
 from glider_cosim.master.cosimulation import (
     System,
 )
-from glider_cosim.scenarios.scenario import Scenario, has_our_observer, with_sampling
+from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
+from glider_cosim.scenarios.scenario import Scenario
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 
@@ -37,7 +38,7 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
 def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
     """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
     run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
-    unless the scenario sets it (:func:`~glider_cosim.scenarios.scenario.with_sampling`)."""
+    unless the scenario sets it (:func:`~glider_cosim.scenarios.sampling.with_sampling`)."""
     fmus = {
         inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
         for inst, name in FMU_NAMES.items()

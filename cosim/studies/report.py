@@ -21,8 +21,9 @@ from glider_cosim.runner.monolithic import COLUMNS, simulate_continuous, simulat
 from glider_cosim.runner.progress import Progress
 from glider_cosim.runner.progress import wanted as progress_wanted
 from glider_cosim.runner.run import RunResult, simulate
+from glider_cosim.scenarios.fields import LAWS
 from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import LAWS, Scenario, load_scenario
+from glider_cosim.scenarios.scenario import Scenario, load_scenario
 from glider_cosim.studies.sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 from glider_observer.filter import butterworth_coefficients
 

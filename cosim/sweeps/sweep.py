@@ -42,13 +42,9 @@ import numpy as np
 from glider_cosim.master.cosimulation import CoSimulation, FMUCallError, FMUStopped, MasterError
 from glider_cosim.runner.metrics import compute_metrics
 from glider_cosim.runner.recorders import ArrayRecorder
-from glider_cosim.scenarios.scenario import (
-    Scenario,
-    ScenarioError,
-    has_our_observer,
-    load_scenario,
-    with_sampling,
-)
+from glider_cosim.scenarios.fields import ScenarioError
+from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
+from glider_cosim.scenarios.scenario import Scenario, load_scenario
 from glider_cosim.scenarios.system import system_for
 from glider_cosim.sweeps.cluster import (
     DIST,

@@ -16,8 +16,9 @@ import pytest
 from glider_cosim.cli import main
 from glider_cosim.interop.ssp_export import export_ssp
 from glider_cosim.runner import simulate
+from glider_cosim.scenarios.fields import ScenarioError
 from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import ScenarioError, load_scenario, parse_scenario
+from glider_cosim.scenarios.scenario import load_scenario, parse_scenario
 
 pytestmark = pytest.mark.integration
 PLANT = "GliderPlant"

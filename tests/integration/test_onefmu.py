@@ -19,8 +19,8 @@ from fmpy.validation import validate_fmu
 
 from glider_cosim.interop.onefmu import EXPOSED, OneFMUError, export_one_fmu
 from glider_cosim.runner import simulate
-from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import load_scenario, parse_sets
+from glider_cosim.scenarios.overrides import apply_overrides, parse_sets
+from glider_cosim.scenarios.scenario import load_scenario
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 

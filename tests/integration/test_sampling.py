@@ -10,7 +10,8 @@ import pytest
 
 from glider_cosim.runner import simulate
 from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import SamplingMismatchWarning, load_scenario
+from glider_cosim.scenarios.sampling import SamplingMismatchWarning
+from glider_cosim.scenarios.scenario import load_scenario
 
 pytestmark = pytest.mark.integration
 
