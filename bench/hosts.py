@@ -59,7 +59,7 @@ print(json.dumps(statistics.median(times)))
 OURS = """
 import json, statistics, sys, time
 from glider_cosim.master import CoSimulation
-from glider_cosim.ssp import load_ssp
+from glider_cosim.interop.ssp_import import load_ssp
 system, step, _ = load_ssp(sys.argv[1])
 sim = CoSimulation(system, step=step, coupling="jacobi")
 sim.initialize()

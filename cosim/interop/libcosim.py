@@ -148,7 +148,7 @@ def simulate_libcosim_isolated(
     args = [str(path), json.dumps(list(variables)), json.dumps(stop_time)]
     try:
         p = subprocess.run(
-            [sys.executable, "-m", "glider_cosim.interop.ssp_import", *args],
+            [sys.executable, "-m", "glider_cosim.interop.libcosim", *args],
             capture_output=True,
             text=True,
             timeout=timeout,

@@ -108,7 +108,7 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
         [sys.executable, "-c", CLI, "run", "--no-plots", "--stop-time", "1",
          "--out", str(tmp_path / "out")],
         [sys.executable, "-c", CLI, "export-ssp", str(tmp_path / "glider.ssp")],
-        [sys.executable, "-c", "from glider_cosim.runner.run import simulate; "
+        [sys.executable, "-c", "from glider_cosim.runner import simulate; "
          "r = simulate(None, None, stop_time=1.0); assert r.status == 'ok', r.status"],
     ]  # fmt: skip
     for cmd in runs:
@@ -126,7 +126,7 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
 def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, flavor):
     env = _outside_env(tmp_path)
     code = (
-        "import sys; from glider_cosim.build.python import prepare_fmus; "
+        "import sys; from glider_cosim.build.folders import prepare_fmus; "
         "print(prepare_fmus(None, sys.argv[1]))"
     )
     procs = [subprocess.Popen([sys.executable, "-c", code, flavor], env=env, text=True,

@@ -212,7 +212,7 @@ def test_cli_run_repeatedly_exits_0(fmu_dir, tmp_path):
         )
         assert p.returncode == 0, p.stderr
     script = (
-        "from glider_cosim.runner.run import simulate; "
+        "from glider_cosim.runner import simulate; "
         f"r = simulate(None, None, fmu_dir={str(fmu_dir)!r}, build=False, stop_time=1.0);"
         "assert r.status == 'ok'"
     )
