@@ -22,7 +22,7 @@ from glider_cosim.verify import (
     load_case,
     verify,
 )
-from glider_cosim.verify.kit import DEFAULT_CASE, Run, check_tolerance, compare
+from glider_cosim.verify.compare import DEFAULT_CASE, Run, check_tolerance, compare
 
 ROOT = Path(__file__).resolve().parents[1]
 ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]

@@ -4,7 +4,7 @@ Run once by a maintainer (``python tools/make_verification_cases.py``); what it 
 under ``cosim/verification/<component>/`` *is* the case (``<Case>_in.csv``,
 ``<Case>_par.csv``, ``<Case>_ref.opt``): the kit reads those files as data and never runs
 this script. The references (``<Case>_ref.csv``) are then made by
-``python -m glider_cosim.verify.kit --write``.
+``python -m glider_cosim.verify --write``.
 """
 
 from __future__ import annotations

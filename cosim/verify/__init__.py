@@ -4,7 +4,7 @@
 its front ends; ``python -m glider_cosim.verify --write`` regenerates the references.
 """
 
-from glider_cosim.verify.kit import (
+from glider_cosim.verify.compare import (
     COMPONENTS,
     RUNNERS,
     CaseFileError,

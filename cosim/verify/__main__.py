@@ -1,4 +1,4 @@
-"""``python -m glider_cosim.verify.kit [--write] ...``: the ``verify`` subcommand of the CLI
+"""``python -m glider_cosim.verify [--write] ...``: the ``verify`` subcommand of the CLI
 (same options; ``--write`` is ``--write-references``)."""
 
 from __future__ import annotations

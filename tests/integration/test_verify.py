@@ -28,7 +28,7 @@ from glider_cosim.verify import (
     verify,
     write_references,
 )
-from glider_cosim.verify.kit import DEFAULT_CASE, open_fmu
+from glider_cosim.verify.compare import DEFAULT_CASE, open_fmu
 
 pytestmark = pytest.mark.integration
 

@@ -16,7 +16,7 @@ FMI Cross-Check file layout (nothing in a case is executed):
     discarded step starts from). The file stays readable by fmpy's ``read_ref_opt_file``.
 ``<Case>_ref.csv``
     ``time`` and the outputs compared, from the Python reference models run as our
-    FMUs (``python -m glider_cosim.verify.kit --write`` regenerates them).
+    FMUs (``python -m glider_cosim.verify --write`` regenerates them).
 
 The comparison is a plain max-error test at the communication points: a case passes if
 ``|y - y_ref| <= atol + rtol * |y_ref|`` for every output and point (see the README,
