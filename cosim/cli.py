@@ -188,8 +188,8 @@ def build_parser() -> argparse.ArgumentParser:
     from glider_cosim.sweeps.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from glider_cosim.verify.compare import _tolerance
-    from glider_cosim.verify.compare import add_arguments as add_verify_arguments
+    from glider_cosim.verify.command import _tolerance
+    from glider_cosim.verify.command import add_arguments as add_verify_arguments
 
     v = sub.add_parser(
         "verify",
@@ -504,7 +504,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "analyze":
         return _analyze(args)
     if args.command == "verify":
-        from glider_cosim.verify.compare import run_command
+        from glider_cosim.verify.command import run_command
 
         if args.export:
             _check_out_dir(Path(args.export), "verify --export")
