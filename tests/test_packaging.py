@@ -75,7 +75,7 @@ def test_the_api_defaults_are_the_cache_not_the_current_folder():
     from glider_cosim.runner import monolithic
     from glider_cosim.runner import run as runner
     from glider_cosim.studies import report
-    from glider_cosim.verify import kit as verify
+    from glider_cosim.verify import writing as verify
 
     assert runner.DEFAULT_FMU_DIR is None
     for f in (runner.simulate, report.build_report, ssp.export_ssp, onefmu.export_one_fmu,

@@ -22,7 +22,9 @@ from glider_cosim.verify import (
     load_case,
     verify,
 )
-from glider_cosim.verify.kit import DEFAULT_CASE, Run, check_tolerance, compare
+from glider_cosim.verify.cases import DEFAULT_CASE
+from glider_cosim.verify.compare import check_tolerance, compare
+from glider_cosim.verify.run import Run
 
 ROOT = Path(__file__).resolve().parents[1]
 ALL = [(c, n) for c in COMPONENTS for n in case_names(c)]

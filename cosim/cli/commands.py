@@ -243,7 +243,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "analyze":
         return _analyze(args)
     if args.command == "verify":
-        from glider_cosim.verify.kit import run_command
+        from glider_cosim.verify.command import run_command
 
         if args.export:
             _check_out_dir(Path(args.export), "verify --export")

@@ -171,8 +171,8 @@ def build_parser() -> argparse.ArgumentParser:
     from glider_cosim.sweeps.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from glider_cosim.verify.kit import _tolerance
-    from glider_cosim.verify.kit import add_arguments as add_verify_arguments
+    from glider_cosim.verify.command import _tolerance
+    from glider_cosim.verify.command import add_arguments as add_verify_arguments
 
     v = sub.add_parser(
         "verify",

@@ -4,21 +4,18 @@
 its front ends; ``python -m glider_cosim.verify --write`` regenerates the references.
 """
 
-from glider_cosim.verify.kit import (
+from glider_cosim.verify.cases import (
     COMPONENTS,
-    RUNNERS,
     CaseFileError,
-    CaseResult,
-    Report,
     VerifyInputError,
     case_names,
-    export,
     kit_files,
     kit_root,
     load_case,
-    verify,
-    write_references,
 )
+from glider_cosim.verify.compare import CaseResult, Report, verify
+from glider_cosim.verify.run import RUNNERS
+from glider_cosim.verify.writing import export, write_references
 
 __all__ = [
     "COMPONENTS",

@@ -11,7 +11,9 @@ import pytest
 from glider_cosim.scenarios.overrides import apply_overrides
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.studies.analysis import analyze
-from glider_cosim.studies.report import FIGURES, build_report, kc_map, passivity_gain
+from glider_cosim.studies.figures import FIGURES, passivity_gain
+from glider_cosim.studies.kc_map import kc_map
+from glider_cosim.studies.report import build_report
 
 pytestmark = pytest.mark.integration
 
@@ -149,7 +151,7 @@ def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path
     import matplotlib.pyplot as plt
 
     from glider_cosim.runner import simulate
-    from glider_cosim.studies.report import _plot_sec53
+    from glider_cosim.studies.report_plots import _plot_sec53
 
     fig = FIGURES[3]
     results = [(run, simulate(apply_overrides(load_scenario(run.scenario), run.overrides), None,

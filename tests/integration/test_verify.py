@@ -28,7 +28,8 @@ from glider_cosim.verify import (
     verify,
     write_references,
 )
-from glider_cosim.verify.kit import DEFAULT_CASE, open_fmu
+from glider_cosim.verify.cases import DEFAULT_CASE
+from glider_cosim.verify.run import open_fmu
 
 pytestmark = pytest.mark.integration
 

@@ -1,0 +1,251 @@
+"""The report's PNG figures: a paper figure's panels, Figs. 11-20, the step study."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.runner.run import RunResult
+from glider_cosim.studies.figures import DEG, Figure, Run
+from glider_cosim.studies.kc_map import _kc_cell
+
+
+def _bounded(r: RunResult) -> bool:
+    """A run that stays bounded: it ran to the end and does not diverge."""
+    return r.status == "ok" and r.metrics.get("outcome") != "diverging"
+
+
+def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """One panel per (column, group); y-limits of a row from the runs that stay bounded
+    (shared by the row's panels); a run leaving them is clipped and marked (a triangle
+    where it leaves, a cross where a stopped run ends, both in the legend)."""
+    import textwrap
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = list(dict.fromkeys(run.group for run, _ in results)) if fig.by_group else [""]
+    nrow, ncol = len(fig.panels), len(groups)
+    width = 8.0 if ncol == 1 else 4.3 * ncol
+    f, axes = plt.subplots(nrow, ncol, figsize=(width, 2.6 * nrow + 0.6), sharex=True,
+                           squeeze=False, layout="constrained")  # fmt: skip
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colour = {run.label: colours[i % len(colours)] for i, (run, _) in enumerate(results)}
+    clipped = stopped = marked = False
+    for i, (col, ylabel) in enumerate(fig.panels):
+        series = [(run, r, r.data[:, 0], r.column(col) * DEG) for run, r in results
+                  if col in r.columns and len(r.data)]  # fmt: skip
+        for j, g in enumerate(groups):
+            ax = axes[i, j]
+            mine = [y for run, r, _, y in series if _bounded(r)
+                    and (fig.share_y or not fig.by_group or run.group == g)]  # fmt: skip
+            lim = None
+            if mine:
+                lo = min(float(np.min(y)) for y in mine)
+                hi = max(float(np.max(y)) for y in mine)
+                pad = 0.08 * max(hi - lo, 1.0)
+                lim = (lo - pad, hi + pad)
+            for run, r, t, y in series:
+                if fig.by_group and run.group != g:
+                    continue
+                c = colour[run.label]
+                notes = []
+                if lim is not None:
+                    out_of = np.nonzero((y < lim[0]) | (y > lim[1]))[0]
+                    if len(out_of):
+                        k = out_of[0]
+                        above = y[k] > lim[1]
+                        ax.plot(t[k], lim[1] if above else lim[0], marker="^" if above else "v",
+                                color=c, ms=8, clip_on=False, zorder=5)  # fmt: skip
+                if r.status != "ok":
+                    notes.append(f"stopped at {t[-1]:.1f} s")
+                    y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
+                    ax.plot(t[-1], y_end, marker="x", color=c, ms=8, mew=2, clip_on=False,
+                            zorder=5)  # fmt: skip
+                for ev in r.metrics.get("events") or ():  # the takeover, in the run's colour
+                    if ev["kind"] in ("takeover", "enable"):
+                        ax.axvline(ev["time_s"], color=c, ls="-.", lw=0.8, alpha=0.8,
+                                   gid=f"event:{ev['kind']}")  # fmt: skip
+                        marked = True
+                label = run.label + (f" ({'; '.join(notes)})" if notes else "")
+                ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
+                clipped |= lim is not None and bool(np.any((y < lim[0]) | (y > lim[1])))
+                stopped |= r.status != "ok"
+            if lim is not None:
+                ax.set_ylim(*lim)
+            if col in ("plant.theta_g", "observer.theta_g_hat"):
+                th = next((r.metrics.get("theta_ge_rad") for _, r in results), None)
+                if th is not None:
+                    ax.axhline(th * DEG, color="k", ls=":", lw=0.8,
+                               label="equilibrium" if i == 0 else None)  # fmt: skip
+            ax.grid(alpha=0.3)
+            if j == 0:
+                ax.set_ylabel(ylabel, fontsize=8)
+            if i == 0 and fig.by_group:
+                ax.set_title(g, fontsize=9)
+            if i == 0 and not fig.by_group:
+                ax.legend(fontsize=7, loc="best")
+            if i == nrow - 1:
+                ax.set_xlabel("time [s]")
+    if fig.by_group:  # legends under each column, out of the curves' way
+        for j in range(ncol):
+            h, lab = axes[0, j].get_legend_handles_labels()
+            axes[-1, j].legend(h, lab, fontsize=7, loc="upper center", ncol=1,
+                               bbox_to_anchor=(0.5, -0.28))  # fmt: skip
+    keys = []
+    if clipped:
+        keys.append("triangle: the run leaves the axes (clipped there)")
+    if stopped:
+        keys.append("cross: the run stops (stall)")
+    if marked:
+        keys.append("dash-dot: the controller takes over")
+    title = "\n".join(textwrap.wrap(fig.title, int(width * 11)))
+    f.suptitle(title + (f"\n{'; '.join(keys)}" if keys else ""), fontsize=10)
+    path = out / f"{fig.key}.png"
+    f.savefig(path, dpi=100)
+    plt.close(f)
+    return path
+
+
+def _plot_steps(study: dict[str, Any], out: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tr = study["traces"]
+    f, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 4.8), sharex=True, layout="constrained",
+                                height_ratios=(3, 2))  # fmt: skip
+    for k in ("50 Hz", "200 Hz", "continuous"):
+        ax.plot(tr["t"], tr[k] * DEG, lw=1.0, label=k)
+    for k in ("50 Hz", "200 Hz"):
+        ax2.plot(tr["t"], (tr[k] - tr["continuous"]) * DEG, lw=1.0, label=f"{k} - continuous")
+    ax.set(ylabel="glide angle theta_g [deg]",
+           title="Default scenario: effect of the communication step")  # fmt: skip
+    ax2.set(xlabel="time [s]", ylabel="difference [deg]")
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    path = out / "communication_step.png"
+    f.savefig(path, dpi=100)
+    plt.close(f)
+    return path
+
+
+def _feedback(r: RunResult) -> str:
+    return "observer" if r.scenario.feedback == "observer" else "full-state"
+
+
+#: fixed axes of Figs. 11-20 (deg): the angles, the tail command (symmetric log above 5)
+SEC53_ANGLES = (-70.0, 40.0)
+
+
+SEC53_TAIL = 100.0
+
+
+#: Figs. 11-20 start at 20 s: before the takeover (31.1 s) every run is the same 2 deg hold
+SEC53_FROM = 20.0
+
+
+def _plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """Figs. 11-20 as small multiples: one row per law family, one column per run; per
+    run the glide angle and pitch over the tail command, on the same fixed axes in every
+    panel (angles -70..40 deg, clipped with a triangle where a run leaves them; the tail
+    on a symmetric log scale to +-100 deg, its +-90 deg limit dotted). Each heading names
+    the run, its feedback and how it ends; the takeover (dash-dot) and a stop (cross)
+    are marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    groups = list(dict.fromkeys(run.group for run, _ in results))
+    handles: dict[str, Any] = {}
+    ncol = max(sum(1 for run, _ in results if run.group == g) for g in groups)
+    f = plt.figure(figsize=(4.6 * ncol, 4.4 * len(groups) + 0.8), layout="constrained")
+    sub = f.subfigures(len(groups), 1, squeeze=False)[:, 0]
+    stop = max(float(r.data[-1, 0]) for _, r in results)
+    start = SEC53_FROM if stop > SEC53_FROM + 10 else 0.0
+    colours = {"plant.theta_g": "C0", "plant.theta": "C1", "controller.delta_cmd": "C2"}
+    for gi, g in enumerate(groups):
+        runs = [(run, r) for run, r in results if run.group == g]
+        axes = sub[gi].subplots(2, ncol, sharex=True, squeeze=False,
+                                gridspec_kw={"height_ratios": [2, 1]})  # fmt: skip
+        sub[gi].suptitle(g, fontsize=11, fontweight="bold")
+        for j in range(ncol):
+            top, bottom = axes[0, j], axes[1, j]
+            if j >= len(runs):
+                top.set_visible(False)
+                bottom.set_visible(False)
+                continue
+            run, r = runs[j]
+            t = r.data[:, 0]
+            end = _kc_cell(r)
+            top.set_title(f"{run.label}\n{_feedback(r)} feedback: {end}", fontsize=8.5)
+            lo, hi = SEC53_ANGLES
+            for col, label, lw in (("plant.theta_g", "glide angle", 1.3),
+                                   ("plant.theta", "pitch", 0.8)):  # fmt: skip
+                y = r.column(col) * DEG
+                top.plot(t, np.clip(y, lo, hi), color=colours[col], lw=lw, label=label)
+                out_of = np.nonzero((y < lo) | (y > hi))[0]
+                if len(out_of):
+                    k = out_of[0]
+                    above = y[k] > hi
+                    top.plot(t[k], hi if above else lo, marker="^" if above else "v",
+                             color=colours[col], ms=7, clip_on=False, zorder=5,
+                             gid="clipped")  # fmt: skip
+            th = r.metrics.get("theta_ge_rad")
+            if th is not None:
+                top.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
+            d = r.column("controller.delta_cmd") * DEG
+            bottom.plot(t, d, color=colours["controller.delta_cmd"], lw=1.0, label="tail command")
+            dmax = float(r.scenario.parameters.get("controller", {}).get("delta_max", math.pi / 2))
+            for sign in (1, -1):
+                bottom.axhline(sign * dmax * DEG, color="0.4", ls=":", lw=0.8)
+            bottom.set_yscale("symlog", linthresh=5.0)
+            bottom.set_ylim(-SEC53_TAIL, SEC53_TAIL)
+            bottom.yaxis.set_major_locator(FixedLocator([-90, -10, 0, 10, 90]))
+            bottom.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            bottom.yaxis.set_minor_locator(FixedLocator([]))
+            top.set_ylim(lo, hi)
+            for ax in (top, bottom):
+                ax.set_xlim(start, stop)
+                ax.grid(alpha=0.3)
+                for ev in r.metrics.get("events") or ():
+                    if ev["kind"] == "takeover":
+                        ax.axvline(ev["time_s"], color="k", ls="-.", lw=0.9,
+                                   gid=f"event:{ev['kind']}",
+                                   label="takeover" if ax is top else None)  # fmt: skip
+            if r.status != "ok":
+                y_end = float(np.clip(r.column("plant.theta_g")[-1] * DEG, lo, hi))
+                top.plot(t[-1], y_end, marker="x", color="r", ms=9, mew=2, clip_on=False,
+                         zorder=6, gid="event:stop", label="stop")  # fmt: skip
+                bottom.axvline(t[-1], color="r", lw=0.8, gid="event:stop")
+            if j == 0:
+                top.set_ylabel("angle [deg]", fontsize=8)
+                bottom.set_ylabel("tail cmd [deg]", fontsize=8)
+            if gi == len(groups) - 1:
+                bottom.set_xlabel("time [s]")
+            if gi == 0 and j == 0:
+                handles = dict(zip(*reversed(top.get_legend_handles_labels()), strict=False))
+            elif r.status != "ok" and "stop" not in handles:
+                handles.update(zip(*reversed(top.get_legend_handles_labels()), strict=False))
+    f.legend(list(handles.values()), list(handles.keys()), loc="outside lower center",
+             ncol=len(handles), fontsize=8)  # fmt: skip
+    f.suptitle(
+        fig.title + f"\nfrom t = {start:g} s (before the takeover every run is the same 2 deg "
+        "hold); dash-dot: the controller takes over at 1 m depth;\ntriangle: the curve leaves "
+        "the axes (clipped there); cross: the run stops (stall)",
+        fontsize=10,
+    )
+    path = out / f"{fig.key}.png"
+    f.savefig(path, dpi=90)
+    plt.close(f)
+    return path

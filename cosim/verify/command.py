@@ -1,0 +1,81 @@
+"""``glider-cosim verify`` (and ``python -m glider_cosim.verify``): its options and its run."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from glider_cosim.inputs.text import quote
+from glider_cosim.verify.cases import COMPONENTS, VerifyInputError, kit_root
+from glider_cosim.verify.compare import check_tolerance, verify
+from glider_cosim.verify.writing import export, write_references
+
+
+def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float]) -> None:
+    """The options of ``glider-cosim verify`` (shared with ``python -m``)."""
+    p.add_argument("fmu", nargs="?", default=None, help="the FMU to verify")
+    p.add_argument(
+        "--component",
+        choices=tuple(COMPONENTS),
+        default=None,
+        help="plant, observer or controller (default: found from the variables)",
+    )
+    p.add_argument("--case", default=None, help="one case (default: every case)")
+    p.add_argument(
+        "--rtol",
+        type=tolerance,
+        default=None,
+        help="relative tolerance for every case (default: each case's)",
+    )
+    p.add_argument(
+        "--atol",
+        type=tolerance,
+        default=None,
+        help="absolute tolerance for every case, SI units (default: each case's)",
+    )
+    p.add_argument(
+        "--write-references",
+        action="store_true",
+        help="rerun the cases on our FMUs and rewrite the shipped references",
+    )
+    p.add_argument(
+        "--export",
+        default=None,
+        metavar="DIR",
+        help="write the cases with our FMUs in the FMI Cross-Check layout",
+    )
+    p.add_argument(
+        "--fmu-dir",
+        default=None,
+        help="our FMUs for --write-references/--export, built if missing or stale "
+        "(default: the per-user cache)",
+    )
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``glider-cosim verify``: 0 all cases pass, 1 any fails; VerifyInputError -> 2."""
+    if args.write_references or args.export:
+        if args.fmu is not None:
+            raise VerifyInputError("verify: give an FMU or --write-references/--export, not both")
+        if args.write_references:
+            files = write_references(args.fmu_dir)
+            print(f"wrote {len(files)} files under {kit_root()}")
+        if args.export:
+            print(f"wrote {export(args.export, args.fmu_dir)}")
+        return 0
+    if args.fmu is None:
+        raise VerifyInputError("verify: expected an FMU (or --write-references, --export DIR)")
+    report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
+    print(report.table())
+    return 0 if report.passed else 1
+
+
+def _tolerance(text: str) -> float:
+    try:
+        value = check_tolerance(text, "")
+    except VerifyInputError:
+        raise argparse.ArgumentTypeError(
+            f"{quote(text)} is invalid: expected a finite number >= 0"
+        ) from None
+    assert value is not None
+    return value

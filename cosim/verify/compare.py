@@ -1,0 +1,276 @@
+"""Comparing an FMU's runs with the verification kit's references: :func:`verify` and its report.
+
+The comparison is a plain max-error test at the communication points: a case passes if
+``|y - y_ref| <= atol + rtol * |y_ref|`` for every output and point (see the README,
+"Verification kit", for why not fmpy's tube test).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glider_cosim.inputs.text import one_line, quote, shown_path
+from glider_cosim.verify.cases import (
+    COMPONENTS,
+    Case,
+    CaseFileError,
+    VerifyInputError,
+    case_names,
+    kit_root,
+    load_case,
+    read_table,
+)
+from glider_cosim.verify.run import RUNNERS, Run, open_fmu
+
+
+@dataclass
+class CaseResult:
+    """The outcome of one case: pass/fail, the worst variable and where."""
+
+    case: Case
+    passed: bool
+    variable: str | None
+    max_error: float
+    tolerance: float
+    time: float | None
+    value: float | None
+    ref_value: float | None
+    seconds: float
+    note: str = ""
+    rtol: float = 0.0
+    atol: float = 0.0
+
+    def describe(self, fmu: str = "") -> str:
+        """One readable line: case, variable, time, values, error against tolerance."""
+        head = f"{fmu + ': ' if fmu else ''}{self.case.component} case {self.case.name!r}"
+        verdict = "passes" if self.passed else "fails"
+        parts = [f"{head} {verdict}"]
+        if self.variable is not None and self.time is not None:
+            rel = "<=" if self.max_error <= self.tolerance else ">"
+            parts.append(
+                f"{self.variable} = {self.value:.10g} at t = {self.time:.6g} s, reference "
+                f"{self.ref_value:.10g}: error {self.max_error:.3g} {rel} tolerance "
+                f"{self.tolerance:.3g} (rtol {self.rtol:g}, atol {self.atol:g})"
+            )
+        if self.note:
+            parts.append(self.note)
+        return "; ".join(parts)
+
+
+def compare(case: Case, run: Run, rtol: float | None = None, atol: float | None = None):
+    """Compare a run with the case's reference (max-error test at every point)."""
+    rtol = case.rtol if rtol is None else rtol
+    atol = case.atol if atol is None else atol
+    ref = case.reference
+    assert ref is not None
+    notes = []
+    passed = True
+    n = min(len(ref), len(run.data))
+    expected_end = case.discard_time
+    if expected_end is not None:
+        if run.stop is None or run.stop[0] != "discard":
+            passed = False
+            got = "ran to the stop time" if run.stop is None else run.stop[2]
+            notes.append(f"expected fmi2Discard at t = {expected_end:g} s, {got}")
+        elif abs(run.stop[1] - expected_end) > case.step * (1 + 1e-9):
+            passed = False
+            notes.append(
+                f"fmi2Discard at t = {run.stop[1]:g} s, expected at {expected_end:g} s "
+                f"(within one step, {case.step:g} s)"
+            )
+        else:
+            notes.append(f"fmi2Discard at t = {run.stop[1]:g} s as expected")
+    elif run.stop is not None:
+        passed = False
+        notes.append(f"stopped at t = {run.stop[1]:g} s: {run.stop[2]}")
+    elif len(run.data) != len(ref):
+        passed = False
+        notes.append(f"{len(run.data)} rows, reference {len(ref)}")
+    if n and np.max(np.abs(run.data[:n, 0] - ref[:n, 0])) > 1e-9 * max(1.0, case.stop):
+        passed = False
+        notes.append("communication points differ from the reference")
+    worst = (-1.0, None, 0.0, 0.0, None, None, None)
+    col = {c: i for i, c in enumerate(run.columns)}
+    for j, name in enumerate(case.ref_columns[1:], start=1):
+        y = run.data[:n, col[name]]
+        y_ref = ref[:n, j]
+        err = np.abs(y - y_ref)
+        err = np.where(np.isfinite(err), err, np.inf)
+        tol = atol + rtol * np.abs(y_ref)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(tol > 0, err / tol, np.where(err > 0, np.inf, 0.0))
+        if not len(ratio):
+            continue
+        k = int(np.argmax(ratio))
+        if ratio[k] > worst[0] or worst[1] is None:
+            worst = (ratio[k], name, err[k], tol[k], ref[k, 0], y[k], y_ref[k])
+    _, var, err, tol, t, y, y_ref = worst
+    if var is not None and not err <= tol:
+        passed = False
+    return CaseResult(case, passed, var, float(err), float(tol), t, y, y_ref, run.seconds,
+                      "; ".join(notes), rtol, atol)  # fmt: skip
+
+
+# ------------------------------------------------------------------- the front door
+def check_tolerance(value: Any, name: str) -> float | None:
+    """``None`` or a finite number >= 0; else :class:`VerifyInputError` (one line)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+    elif isinstance(value, bool) or not isinstance(value, int | float):
+        number = math.nan
+    else:
+        number = float(value)
+    if not (math.isfinite(number) and number >= 0):
+        raise VerifyInputError(f"{name} {quote(value)} is invalid: expected a finite number >= 0")
+    return number
+
+
+def _interface(component: str, cases: Sequence[str], root: Path | None) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for name in cases:
+        out.update(load_case(component, name, root, with_reference=False).variables)
+        cols, _ = read_table((root or kit_root()) / component / f"{name}_ref.csv")
+        out.update({c: "output" for c in cols[1:]})
+    return out
+
+
+def _missing(md: Any, needed: dict[str, str]) -> list[str]:
+    have = {v.name: v.causality for v in md.modelVariables}
+    out = []
+    for name, causality in needed.items():
+        got = have.get(name)
+        if got is None:
+            out.append(f"{name} ({causality})")
+        elif got != causality:
+            out.append(f"{name} (is {got}, expected {causality})")
+    return out
+
+
+def detect_component(md: Any, root: Path | None = None) -> str:
+    """The component whose inputs and outputs the FMU has (the best match)."""
+    have = {(v.name, v.causality) for v in md.modelVariables}
+    scores = {}
+    for component in COMPONENTS:
+        io = {n: c for n, c in _interface(component, case_names(component, root), root).items()
+              if c in ("input", "output")}  # fmt: skip
+        scores[component] = sum((n, c) in have for n, c in io.items()) / len(io)
+    best = max(scores, key=lambda c: scores[c])
+    if scores[best] == 0:
+        raise VerifyInputError(
+            f"verify: FMU {quote(md.modelName)} has none of the inputs and outputs of a "
+            f"component ({', '.join(COMPONENTS)}): expected e.g. the {best} interface"
+        )
+    return best
+
+
+@dataclass
+class Report:
+    """The results of :func:`verify`."""
+
+    fmu: Path
+    model_name: str
+    component: str
+    results: list[CaseResult] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.results)
+
+    def table(self) -> str:
+        """One row per case: pass/fail, worst variable, max error vs tolerance, time."""
+        head = ("case", "result", "worst variable", "max error", "tolerance", "at t (s)",
+                "run (s)", "note")  # fmt: skip
+        rows = [head]
+        for r in self.results:
+            rows.append((
+                r.case.name, "pass" if r.passed else "FAIL", r.variable or "-",
+                f"{r.max_error:.3g}", f"{r.tolerance:.3g}",
+                "-" if r.time is None else f"{r.time:.6g}", f"{r.seconds:.2f}", r.note,
+            ))  # fmt: skip
+        widths = [max(len(row[i]) for row in rows) for i in range(len(head) - 1)]
+        lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths)) + "  " + row[-1]
+                 for row in rows]  # fmt: skip
+        n_fail = sum(not r.passed for r in self.results)
+        lines.append(
+            f"{self.component} ({self.model_name}, {shown_path(self.fmu)}): "
+            f"{len(self.results) - n_fail} of {len(self.results)} cases pass"
+        )
+        return "\n".join(line.rstrip() for line in lines)
+
+
+def verify(
+    fmu: str | Path,
+    component: str | None = None,
+    case: str | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    root: Path | None = None,
+) -> Report:
+    """Run the cases of a component on ``fmu`` and compare with the references.
+
+    Parameters
+    ----------
+    fmu : path
+        Any FMI 2.0 co-simulation FMU with the component's interface (variables looked
+        up by name in its model description).
+    component : str, optional
+        ``plant``, ``observer`` or ``controller``; found from the variables if omitted.
+    case : str, optional
+        One case (default: every case of the component).
+    rtol, atol : float, optional
+        Override every case's tolerances (finite, >= 0).
+    root : Path, optional
+        Another kit folder (default: the shipped cases).
+
+    Raises
+    ------
+    VerifyInputError
+        Not a usable FMU, unknown component or case, a bad tolerance, or variables of the
+        interface missing (all named, in one line).
+    """
+    rtol = check_tolerance(rtol, "rtol")
+    atol = check_tolerance(atol, "atol")
+    if component is not None and component not in COMPONENTS:
+        raise VerifyInputError(
+            f"component {quote(component)} is unknown: expected one of {', '.join(COMPONENTS)}"
+        )
+    path = Path(fmu)
+    md = open_fmu(path)
+    component = component or detect_component(md, root)
+    names = case_names(component, root)
+    if case is not None:
+        if case not in names:
+            raise VerifyInputError(
+                f"case {quote(case)} is unknown for the {component}: expected one of "
+                f"{', '.join(names)}"
+            )
+        names = [case]
+    missing = _missing(md, _interface(component, names, root))
+    if missing:
+        raise VerifyInputError(
+            f"verify: FMU {quote(path.name)} ({md.modelName}) lacks the {component} interface: "
+            f"missing {', '.join(missing)}"
+        )
+    report = Report(path, md.modelName, component)
+    runner = RUNNERS[md.fmiVersion]
+    for name in names:
+        c = load_case(component, name, root)
+        try:
+            run = runner(path, md, c, c.ref_columns[1:])
+        except CaseFileError:
+            raise
+        except ValueError as err:  # e.g. a parameter out of the FMU's declared range
+            raise VerifyInputError(f"case {name}: {one_line(err)}") from None
+        report.results.append(compare(c, run, rtol, atol))
+    return report
