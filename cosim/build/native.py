@@ -1,17 +1,15 @@
 """Build the native flavor of the three FMUs (``glider-cosim build --flavor native``).
 
 The same models in C99 (``src/*/<component>_model.c``) behind the same FMI layer
-(``src/fmi/fmi2_layer.c``) as the Python flavor, with the native back end
-(``src/fmi/backend_native.c``) instead of the embedded Python. The variables come from the
-Python slaves' tables: :func:`vars_header` writes them as C (struct, value references,
-start values, valid ranges and their wording), and the model description is the Python
-slave's own, so both flavors have the same names, value references, causalities,
-variabilities, units, start values and ranges.
+(``src/fmi/fmi_layer.c``) as the Python flavor, with the native back end
+(``src/fmi/backend_native.c``). The variables come from the Python slaves' tables:
+:func:`vars_header` writes them as C (struct, value references, start values, ranges and
+their wording), and the model description is the Python slave's own, so both flavors
+declare the same variables.
 
 Each FMU carries ``binaries/linux64/<id>.so`` (system C compiler), ``binaries/win64/<id>.dll``
-(mingw-w64, when ``x86_64-w64-mingw32-gcc`` is installed) and ``sources/`` with every C file,
-``buildDescription.xml`` and ``<SourceFiles>`` in the model description, so tools can
-rebuild it (fmpy's ``build_platform_binary`` builds the sources as they are).
+(mingw-w64, when ``x86_64-w64-mingw32-gcc`` is installed) and ``sources/`` with every C
+file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can rebuild it.
 """
 
 from __future__ import annotations
