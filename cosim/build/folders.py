@@ -210,7 +210,7 @@ def add_fmu_options(parser: Any, fmi: bool = False) -> None:
             choices=FMI_VERSIONS,
             default=None,
             help="FMI version of our FMUs (default: the one the FMU folder holds, 2 if it is "
-            "empty; FMI 3 FMUs are built in fmus/fmi3, fmus/fmi3/native)",
+            "empty; FMI 3 FMUs are built in the per-user cache, or in --fmu-dir)",
         )
 
 

@@ -178,8 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
         "verify",
         help="run the component verification kit on an FMU",
         description="Run the reference cases of a component (plant, observer, controller) on\n"
-        "an FMI 2.0 co-simulation FMU and compare with the references; exit 0 if every case\n"
-        "passes, 1 if any fails, 2 on bad input.",
+        "an FMI 2.0 or 3.0 co-simulation FMU and compare with the references; exit 0 if\n"
+        "every case passes, 1 if any fails, 2 on bad input.",
     )
     add_verify_arguments(v, _tolerance)
     sub.add_parser("scenarios", help="list the shipped scenarios")
