@@ -21,12 +21,8 @@ from pathlib import Path
 
 from glider_cosim.build.folders import FLAVORS, FMI_VERSIONS, add_fmu_options, default_dir
 from glider_cosim.inputs.text import one_line, quote, shown_path
-from glider_cosim.master.cosimulation import (
-    DEFAULT_MAX_STEPS,
-    Interrupted,
-    MasterError,
-    SystemSpecError,
-)
+from glider_cosim.master.errors import Interrupted, MasterError, SystemSpecError
+from glider_cosim.master.spec import DEFAULT_MAX_STEPS
 from glider_cosim.scenarios.scenario import ScenarioError, shipped_scenarios
 
 
@@ -249,7 +245,7 @@ def _time(seconds: float | None) -> str:
 def _run(args: argparse.Namespace) -> int:
     from glider_cosim.inputs.archives import set_extract_limit
     from glider_cosim.inputs.check import check_ranges, our_kinds
-    from glider_cosim.master.cosimulation import count_steps
+    from glider_cosim.master.spec import count_steps
     from glider_cosim.runner.metrics import describe_outcome
     from glider_cosim.runner.run import origin_of, simulate
     from glider_cosim.scenarios.overrides import apply_overrides

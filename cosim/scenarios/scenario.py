@@ -35,7 +35,7 @@ from typing import Any
 from glider_cosim.inputs.archives import InputFileError, regular_file
 from glider_cosim.inputs.text import quote, shown_path
 from glider_cosim.inputs.values import Degrees
-from glider_cosim.master.cosimulation import Disturbance, Event
+from glider_cosim.master.spec import Disturbance, Event
 from glider_observer.filter import DEFAULT_F_CUTOFF
 
 INSTANCES = ("plant", "observer", "controller")

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from glider_cosim.master.cosimulation import (
-    System,
-)
+from glider_cosim.master.spec import System
 from glider_cosim.scenarios.scenario import Scenario, has_our_observer, with_sampling
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
