@@ -30,6 +30,7 @@ from typing import Any
 
 from fmpy.fmi1 import FMICallException
 
+from glider_cosim.master.driven import DrivenInputs
 from glider_cosim.master.errors import (
     FMUCallError,
     FMUStopped,
@@ -40,7 +41,6 @@ from glider_cosim.master.errors import (
 )
 from glider_cosim.master.fastloop import FastLoop
 from glider_cosim.master.fmi3 import fmi3_call_name
-from glider_cosim.master.inputs import DrivenInputs
 from glider_cosim.master.instance import Instance
 from glider_cosim.master.plan import (
     check_wiring,
