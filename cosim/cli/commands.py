@@ -11,10 +11,8 @@ from pathlib import Path
 from glider_cosim.build.folders import default_dir
 from glider_cosim.cli.parser import UsageError
 from glider_cosim.inputs.text import one_line, quote, shown_path
-from glider_cosim.master.cosimulation import (
-    DEFAULT_MAX_STEPS,
-    SystemSpecError,
-)
+from glider_cosim.master.errors import SystemSpecError
+from glider_cosim.master.spec import DEFAULT_MAX_STEPS
 from glider_cosim.scenarios.scenario import shipped_scenarios
 
 
@@ -64,7 +62,7 @@ def _time(seconds: float | None) -> str:
 def _run(args: argparse.Namespace) -> int:
     from glider_cosim.inputs.archives import set_extract_limit
     from glider_cosim.inputs.check import check_ranges, our_kinds
-    from glider_cosim.master.cosimulation import count_steps
+    from glider_cosim.master.spec import count_steps
     from glider_cosim.runner.metrics import describe_outcome
     from glider_cosim.runner.run import origin_of, simulate
     from glider_cosim.scenarios.overrides import apply_overrides, parse_sets

@@ -19,11 +19,7 @@ from collections.abc import Sequence
 from glider_cosim.cli.commands import _dispatch
 from glider_cosim.cli.parser import build_parser
 from glider_cosim.inputs.text import one_line
-from glider_cosim.master.cosimulation import (
-    Interrupted,
-    MasterError,
-    SystemSpecError,
-)
+from glider_cosim.master.errors import Interrupted, MasterError, SystemSpecError
 from glider_cosim.scenarios.fields import ScenarioError
 
 

@@ -7,9 +7,7 @@ import re
 
 from glider_cosim.build.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
 from glider_cosim.inputs.text import one_line, quote
-from glider_cosim.master.cosimulation import (
-    DEFAULT_MAX_STEPS,
-)
+from glider_cosim.master.spec import DEFAULT_MAX_STEPS
 from glider_cosim.scenarios.scenario import shipped_scenarios
 
 

@@ -21,7 +21,7 @@ from glider_cosim.interop.ssp_common import (
     _local,
     _q,
 )
-from glider_cosim.master.cosimulation import System
+from glider_cosim.master.spec import System
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)

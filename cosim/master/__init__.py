@@ -4,19 +4,21 @@ The public API: :class:`CoSimulation` runs a :class:`System` (FMUs, parameters,
 connections, driven inputs, disturbances, events), and the typed errors it raises.
 """
 
-from glider_cosim.master.cosimulation import (
-    COUPLINGS,
-    DEFAULT_MAX_STEPS,
-    CoSimulation,
-    Disturbance,
-    Event,
+from glider_cosim.master.cosimulation import CoSimulation
+from glider_cosim.master.errors import (
     FMUCallError,
     FMUStopped,
     Interrupted,
     MasterError,
+    SystemSpecError,
+)
+from glider_cosim.master.spec import (
+    COUPLINGS,
+    DEFAULT_MAX_STEPS,
+    Disturbance,
+    Event,
     Recorder,
     System,
-    SystemSpecError,
     VarRef,
     count_steps,
 )

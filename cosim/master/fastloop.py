@@ -1,7 +1,7 @@
 """The master's per-step FMI calls in C: one ctypes call per exchange and per step.
 
 :class:`CoSimulation` plans its exchange as a list of batched Real gets and sets in a
-fixed order (see :mod:`glider_cosim.master.cosimulation`). Run from Python, every one of them is a
+fixed order (see :mod:`glider_cosim.master.plan`). Run from Python, every one of them is a
 ctypes call (about 0.5 us each, 9 per macro step for the glider loop). Here the plan is
 handed to a small C function (``fastloop.c``, compiled once per process into its
 temporary folder with the system C compiler) that makes the same FMI calls, in the same

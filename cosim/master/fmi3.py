@@ -76,7 +76,7 @@ _FIELDS = {
 
 class ShimCalls:
     """The per-step calls of an FMI 3 instance under their FMI 2 names (what
-    :meth:`glider_cosim.master.cosimulation.Instance.call_dll` returns for it)."""
+    :meth:`glider_cosim.master.instance.Instance.call_dll` returns for it)."""
 
     def __init__(self, functions: dict[str, Any], holds_gil: bool):
         for name, fn in functions.items():

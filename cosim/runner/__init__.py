@@ -6,7 +6,7 @@ errors raised before anything is instantiated (all ``ValueError``).
 """
 
 from glider_cosim.inputs.ssp_files import SSPError
-from glider_cosim.master.cosimulation import SystemSpecError
+from glider_cosim.master.errors import SystemSpecError
 from glider_cosim.runner.run import RunResult, simulate
 from glider_cosim.runner.ssp import run_ssp
 from glider_cosim.scenarios.scenario import ScenarioError

@@ -15,16 +15,15 @@ import numpy as np
 from glider_cosim.build.folders import build_all, fmu_folder
 from glider_cosim.inputs.check import check_system_values
 from glider_cosim.inputs.text import quote
-from glider_cosim.master.cosimulation import (
-    DEFAULT_MAX_STEPS,
-    CoSimulation,
+from glider_cosim.master.cosimulation import CoSimulation
+from glider_cosim.master.errors import (
     FMUCallError,
     FMUStopped,
     Interrupted,
     MasterError,
     SystemSpecError,
-    count_steps,
 )
+from glider_cosim.master.spec import DEFAULT_MAX_STEPS, count_steps
 from glider_cosim.runner.metrics import compute_metrics
 from glider_cosim.runner.provenance import clear_owned, marked_events, run_record
 from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder

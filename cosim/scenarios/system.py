@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from glider_cosim.master.cosimulation import (
-    System,
-)
+from glider_cosim.master.spec import System
 from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
 from glider_cosim.scenarios.scenario import Scenario
 

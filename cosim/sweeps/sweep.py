@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.master.cosimulation import CoSimulation, FMUCallError, FMUStopped, MasterError
+from glider_cosim.master.cosimulation import CoSimulation
+from glider_cosim.master.errors import FMUCallError, FMUStopped, MasterError
 from glider_cosim.runner.metrics import compute_metrics
 from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.fields import ScenarioError

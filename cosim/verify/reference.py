@@ -15,7 +15,8 @@ import numpy as np
 import glider_controller
 import glider_observer
 import glider_plant
-from glider_cosim.master.cosimulation import CoSimulation, System
+from glider_cosim.master.cosimulation import CoSimulation
+from glider_cosim.master.spec import System
 from glider_cosim.runner.recorders import ArrayRecorder
 
 STEP = 0.02

@@ -61,7 +61,9 @@ def _value(text: str, var: Any, where: str) -> float | int | bool:
 
 def _run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
     """Run ``case`` on an FMI 2.0 or 3.0 co-simulation FMU with our master."""
-    from glider_cosim.master.cosimulation import CoSimulation, FMUCallError, FMUStopped, System
+    from glider_cosim.master.cosimulation import CoSimulation
+    from glider_cosim.master.errors import FMUCallError, FMUStopped
+    from glider_cosim.master.spec import System
     from glider_cosim.runner.recorders import ArrayRecorder
 
     variables = {v.name: v for v in md.modelVariables}

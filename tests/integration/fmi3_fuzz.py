@@ -52,7 +52,7 @@ from fmpy import read_model_description
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.master.instance import _extracted
 
 CATEGORIES = [b"logAll", b"logStatusError", b"logStatusWarning", b"logFmiCalls", b"nope", None]
 REALS = [0.0, 1.0, -1.0, 0.02, 1e308, -1e308, math.inf, -math.inf, math.nan, 5e-324, 1e-3]

@@ -20,7 +20,7 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.master.instance import _extracted
 
 STATUS = ("OK", "Warning", "Discard", "Error", "Fatal")
 _VR = POINTER(c_uint)

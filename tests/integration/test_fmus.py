@@ -17,7 +17,7 @@ from scipy.integrate import solve_ivp
 from glider_controller.laws import passivity_law
 from glider_cosim.build.python import COMPONENTS
 from glider_cosim.master import CoSimulation, FMUCallError, System
-from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.master.instance import _extracted
 from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.verify.reference import ATOL, CASES, read_csv, run_reference
 from glider_plant.model import derivatives, equilibrium

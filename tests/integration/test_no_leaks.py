@@ -150,7 +150,7 @@ def test_sweep_leaves_no_temporary_folder(fmu_dir, tmp_path):
 
 
 def test_extractions_are_reused_within_a_process(fmu_dir):
-    from glider_cosim.master.cosimulation import _extracted
+    from glider_cosim.master.instance import _extracted
 
     a = _extracted(fmu_dir / "GliderPlant.fmu")
     b = _extracted(fmu_dir / "GliderPlant.fmu")

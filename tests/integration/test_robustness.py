@@ -19,7 +19,7 @@ from fmpy.fmi2 import FMU2Slave
 
 from glider_cosim.build.python import COMPONENTS
 from glider_cosim.master import CoSimulation, FMUCallError, System
-from glider_cosim.master.cosimulation import _extracted
+from glider_cosim.master.instance import _extracted
 from glider_cosim.runner import simulate
 from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.scenario import load_scenario

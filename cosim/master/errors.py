@@ -1,0 +1,99 @@
+"""The master's typed errors (ill-formed system, failed FMI call, interrupted run), and Ctrl-C."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Sequence
+
+#: FMI 2.0 status names, by value (the FMI 3.0 ones in :data:`STATUS3`)
+STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
+STATUS3 = {k: v.replace("fmi2", "fmi3") for k, v in STATUS.items()}
+
+
+class MasterError(Exception):
+    """Base of the master's errors."""
+
+
+class SystemSpecError(MasterError, ValueError):
+    """The system is ill-formed: unknown instance or variable, type mismatch, input left
+    unconnected, algebraic loop, bad step or stop time."""
+
+
+class FMUCallError(MasterError, RuntimeError):
+    """An FMI call returned fmi2Error or fmi2Fatal (fmi3Error, fmi3Fatal).
+
+    Attributes ``instance``, ``call``, ``time`` (s), ``status``, ``log`` (the FMU's own
+    messages for that instance) and ``fmi`` (the FMI version, 2 or 3: the call and the
+    status are named in its terms).
+    """
+
+    def __init__(
+        self, instance: str, call: str, time: float, status: int, log: Sequence[str], fmi: int = 2
+    ):
+        self.instance, self.call, self.time, self.status = instance, call, time, status
+        self.log = list(log)
+        self.fmi = fmi
+        names = STATUS3 if fmi == 3 else STATUS
+        errors = [m for m in self.log if m.startswith((f"[{names[3]}]", f"[{names[2]}]"))]
+        detail = (errors[0] if errors else self.log[-1]) if self.log else "no log message"
+        detail = " ".join(detail.split())
+        # the FMU's message often starts with the instance's and the call's names (ours
+        # do), which are said already
+        status_tag, _, text = detail.partition("] ")
+        base = call.partition("(")[0]
+        if text.startswith(f"{instance}: {base}: "):
+            text = text.removeprefix(f"{instance}: ")
+            detail = f"{status_tag}] {text}"
+        if text.startswith(f"{base}: "):
+            detail = f"{status_tag}] {text[len(base) + 2 :]}"
+        super().__init__(
+            f"{instance}: {call} at t = {time:.6g} s returned {names.get(status, status)}: {detail}"
+        )
+
+
+class FMUStopped(FMUCallError):
+    """An FMI call returned fmi2Discard (fmi3Discard, or fmi3DoStep set
+    terminateSimulation): the FMU stopped the run cleanly (e.g. a stall)."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by SIGINT (Ctrl-C) or SIGTERM at a communication point.
+
+    ``signum`` is the signal's number.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+    def describe(self) -> str:
+        """``"interrupted by the user (Ctrl-C)"`` or ``"terminated (SIGTERM)"``."""
+        if self.signum == signal.SIGTERM:
+            return "terminated (SIGTERM)"
+        return "interrupted by the user (Ctrl-C)"
+
+
+@contextlib.contextmanager
+def deferred_sigint():
+    """Turn Ctrl-C and SIGTERM into a flag checked between steps (main thread only).
+
+    A KeyboardInterrupt raised inside an FMU's Python code would become fmi2Fatal; the
+    master stops at the next communication point instead and raises
+    :class:`Interrupted` there. Yields a function returning the signal number or 0.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: 0
+        return
+    flag: list[int] = []
+
+    def handler(signum, frame):
+        flag.append(signum)
+
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: flag[0] if flag else 0
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)

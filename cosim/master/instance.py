@@ -1,0 +1,196 @@
+"""One FMU instance: its unpacked binary, its variables, its FMI calls and its state."""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import ctypes
+import shutil
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from fmpy import calloc as fmpy_calloc
+from fmpy import free as fmpy_free
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+
+from glider_cosim.inputs.archives import InputFileError, read_fmu, safe_extract
+from glider_cosim.inputs.tempdirs import new_temp_dir
+from glider_cosim.inputs.text import one_line, quote
+from glider_cosim.master.errors import STATUS, STATUS3, FMUCallError, SystemSpecError
+from glider_cosim.master.fmi3 import (
+    TYPE_AS_FMI2,
+    FMU3Adapter,
+    fmi3_call_name,
+    fmi3LogMessageCallback,
+)
+from glider_fmi.compile import PYTHON_CONFIG_FILE
+
+#: the calls made at every step, through :meth:`Instance.call_dll`
+_HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
+_HOT_CALLS += ("fmi2DoStep",)
+
+_EXTRACTED: dict[tuple[str, int, int], str] = {}
+
+
+def _extracted(fmu: Path) -> str:
+    """Folder an FMU is unpacked to, once per process and FMU file version.
+
+    Instances of the same FMU share the unpacked binary, and a binary is never unloaded
+    (no dlclose): unloading and reloading C++ libraries with thread-local storage while
+    other threads (e.g. OpenBLAS's) live can corrupt the heap at process exit. The
+    folders are removed at exit.
+    """
+    st = fmu.stat()
+    key = (str(fmu.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _EXTRACTED or not Path(_EXTRACTED[key]).is_dir():
+        folder = new_temp_dir(f"{fmu.stem[:40]}_")
+        try:
+            safe_extract(fmu, folder, f"FMU {quote(fmu.name)}")
+        except InputFileError:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        _EXTRACTED[key] = str(folder)
+    return _EXTRACTED[key]
+
+
+@atexit.register
+def _remove_extracted() -> None:
+    for folder in _EXTRACTED.values():
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+class Instance:
+    """One FMU instance under a name (fmpy ``FMU2Slave``, or ``FMU3Slave`` behind
+    :class:`~glider_cosim.master.fmi3.FMU3Adapter`, with batched value access)."""
+
+    def __init__(self, name: str, fmu: Path):
+        self.name = name
+        self.fmu = Path(fmu)
+        try:  # complete and readable, checked before the binary is loaded
+            self.md = read_fmu(self.fmu, f"instance {name}")
+        except InputFileError as err:
+            raise SystemSpecError(str(err)) from None
+        #: FMI version, 2 or 3
+        self.fmi = 3 if self.md.fmiVersion.startswith("3") else 2
+        if self.fmi == 3:  # Float64, Int32 as Real, Integer (this description is ours)
+            for v in self.md.modelVariables:
+                v.type = TYPE_AS_FMI2.get(v.type, v.type)
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
+        # outputs that depend directly on inputs (None = all inputs, conservatively)
+        self.feedthrough = {
+            u.variable.name
+            for u in self.md.outputs
+            if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
+        }
+        try:
+            self.unzipdir = _extracted(self.fmu)
+        except InputFileError as err:
+            raise SystemSpecError(f"instance {name}: {err}") from None
+        try:
+            self.slave = (FMU3Adapter if self.fmi == 3 else FMU2Slave)(
+                guid=self.md.guid,
+                unzipDirectory=self.unzipdir,
+                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                instanceName=name,
+            )
+        except Exception as err:  # fmpy and ctypes raise plain Exception/OSError here
+            raise SystemSpecError(
+                f"instance {name}: the binary of {quote(self.fmu.name)} cannot be loaded "
+                f"({one_line(err)})"
+            ) from None
+        self.log: list[str] = []
+        self._call_dll: ctypes.CDLL | None = None
+        self.alive = False  # instantiated and not fatal
+        self.fatal = False
+        self.failed = False  # returned fmi2Error: only getters, reset and free are allowed
+
+    def call_dll(self) -> Any:
+        """The FMU's binary for the per-step calls (for FMI 3, the shims of
+        :meth:`~glider_cosim.master.fmi3.FMU3Adapter.calls` under the FMI 2 names).
+
+        An FMU on our FMI runtime runs its code under the GIL, which the runtime takes for
+        every call: it is called with the GIL held (``ctypes.PyDLL``), saving a release
+        and re-acquisition per call. Any other FMU is called through fmpy's handle, with
+        the GIL released.
+        """
+        if self._call_dll is None:
+            dll = self.slave.dll
+            on_runtime = (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file()
+            if self.fmi == 3:  # the FMI 2-signature shims over the fmi3 calls
+                self._call_dll = self.slave.calls(holds_gil=on_runtime)
+                return self._call_dll
+            if on_runtime:
+                # the master passes ctypes objects of the exact types: no argtypes to check
+                gil_dll = ctypes.PyDLL(dll._name)
+                for name in _HOT_CALLS:
+                    getattr(gil_dll, name).restype = ctypes.c_int
+                dll = gil_dll
+            self._call_dll = dll
+        return self._call_dll
+
+    def var(self, name: str, causality: Iterable[str] | None = None):
+        v = self.vars.get(name)
+        if v is None:
+            raise SystemSpecError(
+                f"instance {self.name} ({self.md.modelName}) has no variable {quote(name)}"
+            )
+        if causality is not None and v.causality not in causality:
+            raise SystemSpecError(
+                f"{self.name}.{name} has causality {v.causality}: expected one of "
+                f"{', '.join(causality)}"
+            )
+        return v
+
+    def callbacks(self) -> Any:
+        """The callbacks for :meth:`instantiate`, with a logger that keeps the last 50
+        messages in :attr:`log` (the caller keeps them alive as long as the instance)."""
+        names = STATUS3 if self.fmi == 3 else STATUS
+
+        def logger(env, instance_name, status, category, message):
+            text = message.decode("utf-8", "replace") if message else ""
+            self.log.append(f"[{names.get(status, status)}] {text}")
+            del self.log[:-50]
+
+        if self.fmi == 3:  # fmi3LogMessageCallback(env, status, category, message)
+            return fmi3LogMessageCallback(lambda env, st, cat, msg: logger(env, None, st, cat, msg))
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(logger)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy_calloc)  # void* restype
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy_free)
+        return cb
+
+    def instantiate(self, callbacks: Any, t0: float) -> None:
+        """fmi2Instantiate (fmi3InstantiateCoSimulation) with :meth:`callbacks`; raises
+        :class:`FMUCallError` at ``t0`` s if it fails."""
+        try:
+            if self.fmi == 3:
+                self.slave.instantiate(log_message=callbacks, loggingOn=True)
+            else:
+                self.slave.instantiate(callbacks=callbacks, loggingOn=True)
+        except Exception as err:  # fmpy raises plain Exception here
+            call = fmi3_call_name("fmi2Instantiate") if self.fmi == 3 else "fmi2Instantiate"
+            raise FMUCallError(self.name, call, t0, 3, self.log, self.fmi) from err
+        self.alive = True
+
+    def free(self) -> None:
+        """Terminate (unless it failed) and free the instance if it is alive."""
+        if self.alive:
+            self.alive = False
+            slave = self.slave
+            if not self.failed:
+                with contextlib.suppress(FMICallException):
+                    slave.terminate()
+            # free the instance but keep the library loaded (see _extracted)
+            with contextlib.suppress(FMICallException):
+                slave.fmi2FreeInstance(slave.component)

@@ -1,0 +1,296 @@
+"""Turning a System into the call plan: wiring checks, exchange order, batched calls.
+
+Instances are connected output -> input by variable name; value references come from
+each FMU's model description.
+
+Coupling schemes (what happens at every communication point ``t_k``):
+
+``gauss-seidel`` (default)
+    Values are exchanged in the order of the declared dependencies: outputs without
+    direct feedthrough are read first, then each instance with direct feedthrough gets
+    its inputs and is read (in topological order), then the remaining inputs are set;
+    all instances then step from ``t_k`` to ``t_k + h``. A feedthrough output (our
+    controller) therefore acts on inputs set at the same point.
+``jacobi``
+    All outputs are read, then all inputs are set, then all instances step: a
+    feedthrough output acts on the inputs of the previous point (one extra sample).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import operator
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from glider_cosim.inputs.text import quote
+from glider_cosim.master.errors import SystemSpecError
+from glider_cosim.master.fastloop import FastLoop
+from glider_cosim.master.instance import Instance
+from glider_cosim.master.spec import System, VarRef
+
+_CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
+
+
+def _tuple_getter(keys: Sequence[Any]) -> Callable[[Any], tuple]:
+    """``d -> tuple(d[k] for k in keys)``, as one C-level call."""
+    get = operator.itemgetter(*keys)
+    return get if len(keys) > 1 else (lambda d: (get(d),))
+
+
+class Group:
+    """Preallocated value-reference and value arrays for a batched get/set."""
+
+    def __init__(self, vrs: Sequence[int], type_: str):
+        n = len(vrs)
+        self.n = n
+        self.cn = ctypes.c_size_t(n)  # passed as is: no conversion per call
+        self.type = type_
+        self.vr = (ctypes.c_uint * n)(*vrs)
+        self.value = (_CTYPES[type_] * n)()
+
+
+def resolve(instances: dict[str, Instance], ref: str, causality: Iterable[str] | None = None):
+    """The instance and the model variable of ``instance.variable`` (of a causality in
+    ``causality``, if given); raises :class:`SystemSpecError`."""
+    r = VarRef.parse(ref)
+    inst = instances.get(r.instance)
+    if inst is None:
+        raise SystemSpecError(
+            f"{quote(ref)}: no instance {quote(r.instance)} (instances: {', '.join(instances)})"
+        )
+    return inst, inst.var(r.variable, causality)
+
+
+def driven_refs(system: System) -> list[str]:
+    """The inputs the master drives: constant, disturbed or from a table, once each."""
+    refs = list(system.driven) + [d.target for d in system.disturbances] + list(system.tables)
+    return list(dict.fromkeys(refs))
+
+
+def check_wiring(system: System, instances: dict[str, Instance]) -> dict[str, str]:
+    """Check ``system`` against the model descriptions of its ``instances``; returns the
+    source of every connected input (``{input: output}``).
+
+    Raises :class:`SystemSpecError` for an unknown instance or variable, a connection of
+    two types, an input connected twice, connected and driven or left unconnected, and
+    parameters, events and recorded variables that name no fitting variable.
+    """
+    sources: dict[str, str] = {}
+    for src, dst in system.connections:
+        try:
+            si, sv = resolve(instances, src, ("output",))
+            di, dv = resolve(instances, dst, ("input",))
+        except SystemSpecError as err:
+            raise SystemSpecError(f"connection {src} -> {dst}: {err}") from None
+        if sv.type != dv.type:
+            raise SystemSpecError(
+                f"connection {src} -> {dst}: type mismatch ({sv.type} -> {dv.type})"
+            )
+        if dst in sources:
+            raise SystemSpecError(f"input {dst} is connected twice ({sources[dst]}, {src})")
+        sources[dst] = src
+    for ref in driven_refs(system):
+        try:
+            _, v = resolve(instances, ref, ("input",))
+        except SystemSpecError as err:
+            raise SystemSpecError(f"driven input {ref}: {err}") from None
+        if v.type != "Real":
+            raise SystemSpecError(f"driven input {ref} must be Real, is {v.type}")
+        if ref in sources:
+            raise SystemSpecError(f"input {ref} is both connected and driven")
+    driven = set(driven_refs(system))
+    for inst in instances.values():
+        for name in inst.inputs:
+            ref = f"{inst.name}.{name}"
+            if ref not in sources and ref not in driven:
+                raise SystemSpecError(
+                    f"input {ref} is left unconnected: connect it or drive it "
+                    "(a constant, a table or a disturbance)"
+                )
+    for inst_name, params in system.parameters.items():
+        for name in params:
+            resolve(instances, f"{inst_name}.{name}", ("parameter", "input"))
+    for i, ev in enumerate(system.events):
+        try:
+            if ev.variable != "time":
+                resolve(instances, ev.variable, ("output",))
+            for target in ev.actions:
+                resolve(instances, target, ("parameter", "input"))
+        except SystemSpecError as err:
+            raise SystemSpecError(f"event[{i}]: {err}") from None
+    for ref in system.record or ():
+        try:
+            resolve(instances, ref)
+        except SystemSpecError as err:
+            raise SystemSpecError(f"record {quote(ref)}: {err}") from None
+    return sources
+
+
+def exchange_order(
+    instances: dict[str, Instance], sources: dict[str, str], coupling: str
+) -> tuple[list[str], list[str]]:
+    """The instances with direct feedthrough in the order they are resolved (none for
+    ``jacobi``), and the others; raises :class:`SystemSpecError` for an algebraic loop."""
+    ft = {n for n, i in instances.items() if i.feedthrough and coupling == "gauss-seidel"}
+    # feedthrough instance A must be resolved before B if B reads a feedthrough output of A
+    deps: dict[str, set[str]] = {n: set() for n in ft}
+    for dst, src in sources.items():
+        s, d = VarRef.parse(src), VarRef.parse(dst)
+        if (
+            s.instance in ft
+            and s.variable in instances[s.instance].feedthrough
+            and d.instance in ft
+        ):
+            deps[d.instance].add(s.instance)
+    order: list[str] = []
+    while deps:
+        ready = sorted(n for n, ds in deps.items() if not ds - set(order))
+        if not ready:
+            raise SystemSpecError(
+                "algebraic loop through direct-feedthrough outputs of "
+                f"{', '.join(sorted(deps))}: not supported"
+            )
+        for n in ready:
+            order.append(n)
+            del deps[n]
+    return order, [n for n in instances if n not in ft]
+
+
+def value_groups(inst: Instance, names: Sequence[str]) -> list[tuple[Group, list[str]]]:
+    """One :class:`Group` per type of the variables ``names`` of ``inst``, with their names."""
+    by_type: dict[str, list[str]] = {}
+    for n in names:
+        by_type.setdefault(inst.vars[n].type, []).append(n)
+    out = []
+    for type_, ns in by_type.items():
+        if type_ not in _CTYPES:
+            raise SystemSpecError(f"{inst.name}.{ns[0]}: type {type_} is not supported")
+        out.append((Group([inst.vars[n].valueReference for n in ns], type_), ns))
+    return out
+
+
+@dataclass
+class Exchange:
+    """What is read, set and recorded at a communication point, and in which order."""
+
+    #: feedthrough instances in the order they are resolved, and the other instances
+    ft_order: list[str]
+    plain: list[str]
+    #: ``time`` and the recorded variables
+    columns: list[str]
+    record: list[str]
+    #: per instance: its read groups (outputs it must provide) with the variables' names
+    read: dict[str, list[tuple[Group, list[str]]]]
+    #: per instance: its groups of connected inputs with their sources
+    write: dict[str, list[tuple[Group, list[str]]]]
+    #: driven inputs: one batched Real group per instance, with the inputs
+    driven: list[tuple[Instance, Group, list[str]]]
+    #: every variable read (recorded, a connection's source, an event's), 0.0 to start
+    values: dict[str, float]
+    #: the recorded row (without the time) from :attr:`values`
+    row_getter: Callable[[dict[str, float]], tuple]
+
+
+def plan_exchange(
+    system: System, instances: dict[str, Instance], sources: dict[str, str], coupling: str
+) -> Exchange:
+    """Order of the exchange and the batched value groups."""
+    ft_order, plain = exchange_order(instances, sources, coupling)
+    # recorded columns: every output by default (non-Real ones as numbers)
+    record = system.record
+    if record is None:
+        record = [f"{n}.{o}" for n, i in instances.items() for o in i.outputs]
+    needed = list(
+        dict.fromkeys(
+            record
+            + list(sources.values())
+            + [e.variable for e in system.events if e.variable != "time"]
+        )
+    )
+    read: dict[str, list[tuple[Group, list[str]]]] = {}
+    for n, inst in instances.items():
+        names = [VarRef.parse(r).variable for r in needed if VarRef.parse(r).instance == n]
+        read[n] = value_groups(inst, names)
+    write: dict[str, list[tuple[Group, list[str]]]] = {}
+    for n, inst in instances.items():
+        dsts = [d for d in sources if VarRef.parse(d).instance == n]
+        write[n] = [
+            (g, [sources[f"{n}.{v}"] for v in names])
+            for g, names in value_groups(inst, [VarRef.parse(d).variable for d in dsts])
+        ]
+    driven: list[tuple[Instance, Group, list[str]]] = []
+    by_inst: dict[str, list[str]] = {}
+    for ref in driven_refs(system):
+        by_inst.setdefault(VarRef.parse(ref).instance, []).append(ref)
+    for n, refs in by_inst.items():
+        inst = instances[n]
+        vrs = [inst.vars[VarRef.parse(r).variable].valueReference for r in refs]
+        driven.append((inst, Group(vrs, "Real"), refs))
+    getter = operator.itemgetter(*record) if record else (lambda v: ())
+    row_getter = getter if len(record) != 1 else (lambda v: (getter(v),))
+    values = dict.fromkeys(needed, 0.0)
+    return Exchange(
+        ft_order, plain, ["time"] + record, list(record), read, write, driven, values, row_getter
+    )
+
+
+@dataclass
+class Calls:
+    """The per-step calls as raw ctypes functions with preallocated arrays."""
+
+    #: the exchange of one communication point, flattened in its order: ``(read, inst,
+    #: fn, call, comp, vr, n, value, names, sources)``, names for a read, the source
+    #: variables for a write (with ``sources``, their values from the value table)
+    exchange_ops: list[tuple]
+    #: ``(inst, fmi2DoStep, comp)`` per instance
+    steppers: list[tuple]
+    #: the same calls from C, one ctypes call per exchange and per step (if possible)
+    fast: FastLoop | None
+    #: the read arrays with the names of their values, in the order of the exchange
+    reads: list[tuple[list[str], Any]]
+    #: the recorded row straight from the read arrays (no value table) when possible
+    row_from_reads: Callable[[Any], tuple] | None
+
+
+def plan_calls(instances: dict[str, Instance], exchange: Exchange) -> Calls:
+    """Raw ctypes functions with preallocated arrays for the per-step calls."""
+    readers: dict[str, list[tuple]] = {}
+    writers: dict[str, list[tuple]] = {}
+    for n, inst in instances.items():
+        dll, comp = inst.call_dll(), ctypes.c_void_p(inst.slave.component)
+        readers[n] = [
+            (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.cn,
+             g.value, [f"{n}.{v}" for v in names])
+            for g, names in exchange.read[n]
+        ]  # fmt: skip
+        writers[n] = [
+            (inst, getattr(dll, f"fmi2Set{g.type}"), f"fmi2Set{g.type}", comp, g.vr, g.cn,
+             g.value, srcs)
+            for g, srcs in exchange.write[n]
+        ]  # fmt: skip
+    ops = [(True, *r) for n in exchange.plain for r in readers[n]]
+    for n in exchange.ft_order:
+        ops += [(False, *w) for w in writers[n]]
+        ops += [(True, *r) for r in readers[n]]
+    ops += [(False, *w) for n in exchange.plain for w in writers[n]]
+    # a write's values come from the value table in one call (a tuple for a slice)
+    exchange_ops = [(*op, None if op[0] else _tuple_getter(op[-1])) for op in ops]
+    steppers = [
+        (inst, inst.call_dll().fmi2DoStep, ctypes.c_void_p(inst.slave.component))
+        for inst in instances.values()
+    ]
+    hold_gil = all(
+        getattr(i.call_dll(), "holds_gil", isinstance(i.call_dll(), ctypes.PyDLL))
+        for i in instances.values()
+    )
+    fast = FastLoop.plan(exchange_ops, steppers, hold_gil)
+    reads = [(op[8], op[7]) for op in exchange_ops if op[0]]
+    flat = [name for names, _ in reads for name in names]
+    pos = {name: i for i, name in enumerate(flat)}
+    row_from_reads = None
+    record = exchange.record
+    if fast is not None and record and all(r in pos for r in record):
+        row_from_reads = _tuple_getter([pos[r] for r in record])
+    return Calls(exchange_ops, steppers, fast, reads, row_from_reads)
