@@ -18,7 +18,7 @@ from pathlib import Path
 
 from _common import emit
 
-from glider_cosim.build.folders import build_all
+from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
 from glider_cosim.runner.parquet import ParquetRecorder

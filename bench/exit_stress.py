@@ -56,7 +56,7 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus")
     ap.add_argument("--json", action="store_true", help="only the JSON line")
     args = ap.parse_args()
-    from glider_cosim.build.folders import build_all
+    from glider_cosim.fmus.folders import build_all
 
     build_all(args.fmu_dir, only_stale=True)
     t0 = time.perf_counter()

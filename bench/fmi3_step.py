@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from glider_cosim.build.fmi3 import build_fmi3
-from glider_cosim.build.folders import build_all
+from glider_cosim.fmus.fmi3 import build_fmi3
+from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.scenario import load_scenario

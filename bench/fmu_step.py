@@ -32,7 +32,7 @@ from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from glider_controller.laws import passivity_law
-from glider_cosim.build.folders import build_all
+from glider_cosim.fmus.folders import build_all
 from glider_cosim.master.instance import _extracted
 from glider_observer.model import DEFAULT_Q, DEFAULT_R, observer_gain, observer_step
 from glider_plant.model import equilibrium, plant_step

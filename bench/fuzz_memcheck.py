@@ -93,7 +93,7 @@ def main() -> None:
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         sys.exit("bench/fuzz_memcheck.py: valgrind is not installed (apt-get install valgrind)")
-    from glider_cosim.build.folders import build_all
+    from glider_cosim.fmus.folders import build_all
 
     fmus = build_all(args.fmu_dir, only_stale=True)
     t0 = time.perf_counter()

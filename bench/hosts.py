@@ -92,7 +92,7 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    from glider_cosim.build.folders import build_all
+    from glider_cosim.fmus.folders import build_all
     from glider_cosim.interop.ssp_export import export_ssp
     from glider_cosim.scenarios.scenario import load_scenario
 

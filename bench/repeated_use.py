@@ -12,7 +12,7 @@ from pathlib import Path
 
 from _common import emit
 
-from glider_cosim.build.folders import build_all
+from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for

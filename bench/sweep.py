@@ -26,7 +26,7 @@ from pathlib import Path
 from _cluster import DaskCluster
 from _common import emit
 
-from glider_cosim.build.folders import build_all
+from glider_cosim.fmus.folders import build_all
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.sweeps.sweep import expand, make_client, parse_param, run_sweep
 

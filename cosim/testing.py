@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from glider_cosim.verify.compare import verify
+from .verify.compare import verify
 
 __all__ = ["assert_matches_reference"]
 

@@ -65,7 +65,7 @@ def _leaked_temp_files(config) -> list[str]:
 def fmu_dir() -> Path:
     """Our three FMUs, built from the current sources into the session's cache (the
     folder runs without ``fmu_dir`` use too)."""
-    from glider_cosim.build.folders import prepare_fmus
+    from glider_cosim.fmus.folders import prepare_fmus
 
     return prepare_fmus(None, "python")
 
@@ -74,7 +74,7 @@ def fmu_dir() -> Path:
 def native_dir() -> Path:
     """Our three FMUs in the native flavor (C99), built from the current sources into
     the session's cache."""
-    from glider_cosim.build.folders import prepare_fmus
+    from glider_cosim.fmus.folders import prepare_fmus
 
     return prepare_fmus(None, "native")
 
@@ -82,7 +82,7 @@ def native_dir() -> Path:
 @pytest.fixture(scope="session")
 def fmi3_dirs(tmp_path_factory) -> dict[str, Path]:
     """Our three FMUs as FMI 3.0, in both flavors (flavor -> folder), built once."""
-    from glider_cosim.build.fmi3 import build_fmi3
+    from glider_cosim.fmus.fmi3 import build_fmi3
 
     dirs = {}
     for flavor in ("python", "native"):
@@ -101,7 +101,7 @@ def flavor_dir(request) -> Path:
 def test_fmus(tmp_path_factory) -> dict[str, Path]:
     """Small FMUs written for the tests (integrator, gain, delay, runtime probe), on our
     FMI runtime like ours."""
-    from glider_cosim.build.python import package_slave
+    from glider_cosim.fmus.python import package_slave
     from glider_fmi.compile import compile_runtime
 
     out = tmp_path_factory.mktemp("test_fmus")

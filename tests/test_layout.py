@@ -31,7 +31,7 @@ LAYERS = (
     ("glider_plant",),
     ("glider_observer", "glider_controller"),
     ("inputs",),
-    ("build",),
+    ("fmus",),
     ("master",),
     ("scenarios",),
     ("interop",),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from glider_cosim.build import folders as build
+from glider_cosim.fmus import folders as build
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,7 +52,7 @@ def test_the_cache_follows_xdg_then_the_platform(monkeypatch, tmp_path):
 
 
 def test_the_cache_folder_is_keyed_by_version_flavor_and_sources(monkeypatch, tmp_path):
-    from glider_cosim.build.native import _version
+    from glider_cosim.fmus.files import package_version as _version
 
     monkeypatch.setenv(build.CACHE_ENV, str(tmp_path))
     python, native = build.cache_dir("python"), build.cache_dir("native")

@@ -4,7 +4,7 @@
 an argument list and returns the exit code; :func:`console_main` is the console script.
 """
 
-from glider_cosim.cli.main import console_main, main
-from glider_cosim.cli.parser import UsageError, build_parser
+from .main import console_main, main
+from .parser import UsageError, build_parser
 
 __all__ = ["UsageError", "build_parser", "console_main", "main"]

@@ -1,6 +1,6 @@
 """``python -m glider_cosim.cli``: the ``glider-cosim`` console script."""
 
-from glider_cosim.cli.main import console_main
+from .main import console_main
 
 if __name__ == "__main__":
     console_main()

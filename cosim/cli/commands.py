@@ -8,12 +8,12 @@ import os
 import sys
 from pathlib import Path
 
-from glider_cosim.build.folders import default_dir
-from glider_cosim.cli.parser import UsageError
-from glider_cosim.inputs.text import one_line, quote, shown_path
-from glider_cosim.master.errors import SystemSpecError
-from glider_cosim.master.spec import DEFAULT_MAX_STEPS
-from glider_cosim.scenarios.scenario import shipped_scenarios
+from ..fmus.folders import default_dir
+from ..inputs.text import one_line, quote, shown_path
+from ..master.errors import SystemSpecError
+from ..master.spec import DEFAULT_MAX_STEPS
+from ..scenarios.scenario import shipped_scenarios
+from .parser import UsageError
 
 
 def _check_out_dir(path: Path, option: str) -> None:
@@ -60,20 +60,20 @@ def _time(seconds: float | None) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from glider_cosim.inputs.archives import set_extract_limit
-    from glider_cosim.inputs.check import check_ranges, our_kinds
-    from glider_cosim.master.spec import count_steps
-    from glider_cosim.runner.metrics import describe_outcome
-    from glider_cosim.runner.run import origin_of, simulate
-    from glider_cosim.scenarios.overrides import apply_overrides, parse_sets
-    from glider_cosim.scenarios.scenario import load_scenario
+    from ..inputs.archives import set_extract_limit
+    from ..inputs.check import check_ranges, our_kinds
+    from ..master.spec import count_steps
+    from ..runner.metrics import describe_outcome
+    from ..runner.run import origin_of, simulate
+    from ..scenarios.overrides import apply_overrides, parse_sets
+    from ..scenarios.scenario import load_scenario
 
     set_extract_limit(args.max_extract_mb * 2**20)
     if args.scenario and str(args.scenario).endswith((".ssp", ".ssd")):
         if args.set:
             raise UsageError("--set does not apply to an SSP (edit its parameter values)")
-        from glider_cosim.inputs.ssp_files import ssp_name
-        from glider_cosim.interop.ssp_import import load_ssp
+        from ..inputs.ssp_files import ssp_name
+        from ..interop.ssp_import import load_ssp
 
         system, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
         scenario = args.scenario
@@ -159,13 +159,13 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from glider_cosim.studies.report import build_report
+    from ..studies.report import build_report
 
     try:
-        from glider_cosim.studies.analysis import analyze
+        from ..studies.analysis import analyze
     except ImportError:  # pragma: no cover - analysis is part of the package
         analyze = None
-    from glider_cosim.studies.roa import parse_grid
+    from ..studies.roa import parse_grid
 
     grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
     if args.workers < 1:
@@ -177,7 +177,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _analyze(args: argparse.Namespace) -> int:
-    from glider_cosim.studies.analysis import analyze, format_report
+    from ..studies.analysis import analyze, format_report
 
     result = analyze()
     if args.json:
@@ -191,7 +191,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
     # asked; verify builds ours only for --write-references/--export
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
-        from glider_cosim.build.folders import cache_root, prepare_fmus
+        from ..fmus.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
@@ -200,7 +200,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
-        from glider_cosim.build.folders import build_all
+        from ..fmus.folders import build_all
 
         out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
         _check_out_dir(out, "build --out")
@@ -217,9 +217,9 @@ def _dispatch(args: argparse.Namespace) -> int:
         out = Path(args.out)
         _check_out_file(out, f"{args.command} OUT")
         if args.command == "export-fmu":
-            from glider_cosim.interop.onefmu import export_one_fmu as export
+            from ..interop.onefmu import export_one_fmu as export
         else:
-            from glider_cosim.interop.ssp_export import export_ssp as export
+            from ..interop.ssp_export import export_ssp as export
         try:
             print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
         except OSError as err:
@@ -228,11 +228,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             ) from None
         return 0
     if args.command == "host-env":
-        from glider_cosim.interop.hostenv import main as host_env_main
+        from ..interop.hostenv import main as host_env_main
 
         return host_env_main(["--config"] if args.config else [])
     if args.command == "sweep":
-        from glider_cosim.sweeps.sweep import main as sweep_main
+        from ..sweeps.sweep import main as sweep_main
 
         return sweep_main(args)
     if args.command == "report":
@@ -241,7 +241,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.command == "analyze":
         return _analyze(args)
     if args.command == "verify":
-        from glider_cosim.verify.command import run_command
+        from ..verify.command import run_command
 
         if args.export:
             _check_out_dir(Path(args.export), "verify --export")

@@ -16,11 +16,11 @@ import threading
 import warnings
 from collections.abc import Sequence
 
-from glider_cosim.cli.commands import _dispatch
-from glider_cosim.cli.parser import build_parser
-from glider_cosim.inputs.text import one_line
-from glider_cosim.master.errors import Interrupted, MasterError, SystemSpecError
-from glider_cosim.scenarios.fields import ScenarioError
+from ..inputs.text import one_line
+from ..master.errors import Interrupted, MasterError, SystemSpecError
+from ..scenarios.fields import ScenarioError
+from .commands import _dispatch
+from .parser import build_parser
 
 
 def _terminate(signum: int, frame: object) -> None:
@@ -51,7 +51,7 @@ def _private_matplotlib_cache() -> None:
     command writes nothing outside its output and FMU folders (unless the user points
     ``MPLCONFIGDIR`` somewhere). Rebuilding the cache costs about 0.1 s of CPU."""
     if "MPLCONFIGDIR" not in os.environ and "matplotlib" not in sys.modules:
-        from glider_cosim.inputs.tempdirs import new_temp_dir
+        from ..inputs.tempdirs import new_temp_dir
 
         os.environ["MPLCONFIGDIR"] = str(new_temp_dir("matplotlib_"))
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 import re
 
-from glider_cosim.build.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
-from glider_cosim.inputs.text import one_line, quote
-from glider_cosim.master.spec import DEFAULT_MAX_STEPS
-from glider_cosim.scenarios.scenario import shipped_scenarios
+from ..fmus.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
+from ..inputs.text import one_line, quote
+from ..master.spec import DEFAULT_MAX_STEPS
+from ..scenarios.scenario import shipped_scenarios
 
 
 class UsageError(ValueError):
@@ -166,11 +166,11 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
 
-    from glider_cosim.sweeps.sweep import add_parser as add_sweep_parser
+    from ..sweeps.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from glider_cosim.verify.command import _tolerance
-    from glider_cosim.verify.command import add_arguments as add_verify_arguments
+    from ..verify.command import _tolerance
+    from ..verify.command import add_arguments as add_verify_arguments
 
     v = sub.add_parser(
         "verify",

@@ -6,6 +6,6 @@ against a variable's type and unit, :mod:`.check` checks a scenario against the 
 descriptions and our parameter tables before any FMU is instantiated.
 """
 
-from glider_cosim.inputs.text import quote
+from .text import quote
 
 __all__ = ["quote"]

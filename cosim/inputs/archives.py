@@ -15,7 +15,7 @@ import zlib
 from pathlib import Path
 from typing import Any
 
-from glider_cosim.inputs.text import one_line, quote, shown_path
+from .text import one_line, quote, shown_path
 
 #: default limit of the bytes one archive may unpack to (``--max-extract-mb``)
 DEFAULT_EXTRACT_LIMIT = 256 * 2**20

@@ -15,8 +15,8 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.inputs.values import (
+from .text import quote
+from .values import (
     Degrees,
     ValueCheckError,
     check_value,

@@ -11,10 +11,10 @@ import re
 import shutil
 from pathlib import Path
 
-from glider_cosim.inputs.archives import InputFileError, regular_file, safe_extract
-from glider_cosim.inputs.tempdirs import new_temp_dir
-from glider_cosim.inputs.text import quote, shown_path
-from glider_cosim.inputs.values import INT_MAX, INT_MIN
+from .archives import InputFileError, regular_file, safe_extract
+from .tempdirs import new_temp_dir
+from .text import quote, shown_path
+from .values import INT_MAX, INT_MIN
 
 SSD_NAME = "SystemStructure.ssd"
 

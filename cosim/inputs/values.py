@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from glider_cosim.inputs.text import quote
+from .text import quote
 
 INT_MIN, INT_MAX = -(2**31), 2**31 - 1
 _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")

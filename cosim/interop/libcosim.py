@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from glider_cosim.inputs.ssp_files import SSPError
-from glider_cosim.interop.ssp_import import load_ssp
+from ..inputs.ssp_files import SSPError
+from .ssp_import import load_ssp
 
 
 # --------------------------------------------------------------------------- libcosim

@@ -67,7 +67,7 @@ from typing import TYPE_CHECKING, Any
 from xml.etree import ElementTree as ET
 
 if TYPE_CHECKING:
-    from glider_cosim.scenarios.scenario import Scenario
+    from ..scenarios.scenario import Scenario
 
 #: model identifier (and file stem inside the build folder) of the container
 CONTAINER_NAME = "GliderLoop"
@@ -136,10 +136,10 @@ def export_one_fmu(
     from fmpy import read_model_description
     from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
 
-    from glider_cosim.build.folders import build_all, fmu_folder
-    from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
-    from glider_cosim.scenarios.scenario import Scenario, load_scenario
-    from glider_cosim.scenarios.system import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
+    from ..fmus.folders import build_all, fmu_folder
+    from ..scenarios.sampling import has_our_observer, with_sampling
+    from ..scenarios.scenario import Scenario, load_scenario
+    from ..scenarios.system import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     for key, present in (("event", sc.events), ("disturbance", sc.disturbances), ("fmus", sc.fmus)):
@@ -148,8 +148,8 @@ def export_one_fmu(
                 f"{sc.source}: key '{key}': events, disturbances and swapped FMUs cannot be "
                 "exported into one FMU"
             )
-    from glider_cosim.build.folders import folder_fmi
-    from glider_cosim.inputs.text import quote
+    from ..fmus.folders import folder_fmi
+    from ..inputs.text import quote
 
     if fmu_dir is not None and folder_fmi(fmu_dir) == 3:
         raise OneFMUError(

@@ -47,7 +47,7 @@ def _format_value(value: Any, type_: str) -> str:
 def _as_fmi2_types(md: Any) -> Any:
     """An FMI 3.0 model description's Float64/Int32 variables as SSP 1.0's Real/Integer
     (the types an FMI 2.0 one declares); an FMI 2.0 one as it is."""
-    from glider_cosim.master.fmi3 import TYPE_AS_FMI2
+    from ..master.fmi3 import TYPE_AS_FMI2
 
     if str(md.fmiVersion).startswith("3"):
         for v in md.modelVariables:

@@ -7,12 +7,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from xml.etree import ElementTree as ET
 
-from glider_cosim.build import osp
-from glider_cosim.inputs.ssp_files import SSD_NAME, SSPError
+from ..fmus import osp
+from ..inputs.ssp_files import SSD_NAME, SSPError
 
 if TYPE_CHECKING:
-    from glider_cosim.scenarios.scenario import Scenario
-from glider_cosim.interop.ssp_common import (
+    from ..scenarios.scenario import Scenario
+from .ssp_common import (
     _VALUE_TYPES,
     FMU_MIME,
     OSP_ANNOTATION_TYPE,
@@ -56,10 +56,10 @@ def export_ssp(
     """
     from fmpy import read_model_description
 
-    from glider_cosim.build.folders import build_all, fmu_folder
-    from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
-    from glider_cosim.scenarios.scenario import Scenario, load_scenario
-    from glider_cosim.scenarios.system import FMU_NAMES, default_connections
+    from ..fmus.folders import build_all, fmu_folder
+    from ..scenarios.sampling import has_our_observer, with_sampling
+    from ..scenarios.scenario import Scenario, load_scenario
+    from ..scenarios.system import FMU_NAMES, default_connections
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if sc.events or sc.disturbances:

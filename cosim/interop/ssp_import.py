@@ -8,10 +8,11 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from glider_cosim.inputs.archives import InputFileError, confined
-from glider_cosim.inputs.ssp_files import SSD_NAME, SSPError, locate, parse_value
-from glider_cosim.inputs.text import quote
-from glider_cosim.interop.ssp_common import (
+from ..inputs.archives import InputFileError, confined
+from ..inputs.ssp_files import SSD_NAME, SSPError, locate, parse_value
+from ..inputs.text import quote
+from ..master.spec import System
+from .ssp_common import (
     _VALUE_TYPES,
     FMU_MIME,
     NS,
@@ -21,7 +22,6 @@ from glider_cosim.interop.ssp_common import (
     _local,
     _q,
 )
-from glider_cosim.master.spec import System
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
@@ -41,7 +41,7 @@ class _Component:
 
 
 def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
-    from glider_cosim.inputs.archives import read_fmu
+    from ..inputs.archives import read_fmu
 
     name, source = el.get("name"), el.get("source")
     if not name:

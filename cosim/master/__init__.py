@@ -4,15 +4,15 @@ The public API: :class:`CoSimulation` runs a :class:`System` (FMUs, parameters,
 connections, driven inputs, disturbances, events), and the typed errors it raises.
 """
 
-from glider_cosim.master.cosimulation import CoSimulation
-from glider_cosim.master.errors import (
+from .cosimulation import CoSimulation
+from .errors import (
     FMUCallError,
     FMUStopped,
     Interrupted,
     MasterError,
     SystemSpecError,
 )
-from glider_cosim.master.spec import (
+from .spec import (
     COUPLINGS,
     DEFAULT_MAX_STEPS,
     Disturbance,

@@ -30,8 +30,8 @@ from typing import Any
 
 from fmpy.fmi1 import FMICallException
 
-from glider_cosim.master.driven import DrivenInputs
-from glider_cosim.master.errors import (
+from .driven import DrivenInputs
+from .errors import (
     FMUCallError,
     FMUStopped,
     Interrupted,
@@ -39,16 +39,16 @@ from glider_cosim.master.errors import (
     SystemSpecError,
     deferred_sigint,
 )
-from glider_cosim.master.fastloop import FastLoop
-from glider_cosim.master.fmi3 import fmi3_call_name
-from glider_cosim.master.instance import Instance
-from glider_cosim.master.plan import (
+from .fastloop import FastLoop
+from .fmi3 import fmi3_call_name
+from .instance import Instance
+from .plan import (
     check_wiring,
     plan_calls,
     plan_exchange,
     resolve,
 )
-from glider_cosim.master.spec import (
+from .spec import (
     COUPLINGS,
     DEFAULT_MAX_STEPS,
     Recorder,

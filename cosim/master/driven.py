@@ -7,9 +7,9 @@ import ctypes
 from collections.abc import Callable
 from typing import Any
 
-from glider_cosim.master.instance import Instance
-from glider_cosim.master.plan import Group, driven_refs
-from glider_cosim.master.spec import System, VarRef
+from .instance import Instance
+from .plan import Group, driven_refs
+from .spec import System, VarRef
 
 
 class DrivenInputs:

@@ -68,8 +68,9 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         return _LIB[hold_gil]
     lib = None
     try:
-        from glider_cosim.inputs.tempdirs import new_temp_dir
         from glider_fmi.compile import RuntimeBuildError, find_compiler
+
+        from ..inputs.tempdirs import new_temp_dir
 
         out = new_temp_dir("fastloop_") / "fastloop.so"
         cmd = [find_compiler(), "-O2", "-ffp-contract=off", "-fPIC", "-shared", str(SOURCE),

@@ -24,10 +24,11 @@ from typing import Any
 
 from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
 
-from glider_cosim.master.fastloop import SHIMS, shim_library
+from ..fmus.fmi3_description import FMI3_TYPES
+from .fastloop import SHIMS, shim_library
 
 #: FMI 3 types the master treats as the FMI 2 ones
-TYPE_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String"}
+TYPE_AS_FMI2 = {v3: v2 for v2, v3 in FMI3_TYPES.items()}
 #: FMI 2 call names (as the master writes them) -> the FMI 3 call made
 CALL_NAMES = {
     "fmi2Instantiate": "fmi3InstantiateCoSimulation",

@@ -21,17 +21,18 @@ from fmpy.fmi2 import (
     fmi2CallbackLoggerTYPE,
 )
 
-from glider_cosim.inputs.archives import InputFileError, read_fmu, safe_extract
-from glider_cosim.inputs.tempdirs import new_temp_dir
-from glider_cosim.inputs.text import one_line, quote
-from glider_cosim.master.errors import STATUS, STATUS3, FMUCallError, SystemSpecError
-from glider_cosim.master.fmi3 import (
+from glider_fmi.compile import PYTHON_CONFIG_FILE
+
+from ..inputs.archives import InputFileError, read_fmu, safe_extract
+from ..inputs.tempdirs import new_temp_dir
+from ..inputs.text import one_line, quote
+from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError
+from .fmi3 import (
     TYPE_AS_FMI2,
     FMU3Adapter,
     fmi3_call_name,
     fmi3LogMessageCallback,
 )
-from glider_fmi.compile import PYTHON_CONFIG_FILE
 
 #: the calls made at every step, through :meth:`Instance.call_dll`
 _HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))

@@ -24,11 +24,11 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.master.errors import SystemSpecError
-from glider_cosim.master.fastloop import FastLoop
-from glider_cosim.master.instance import Instance
-from glider_cosim.master.spec import System, VarRef
+from ..inputs.text import quote
+from .errors import SystemSpecError
+from .fastloop import FastLoop
+from .instance import Instance
+from .spec import System, VarRef
 
 _CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int, "Boolean": ctypes.c_int}
 

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.master.errors import SystemSpecError
+from ..inputs.text import quote
+from .errors import SystemSpecError
 
 COUPLINGS = ("gauss-seidel", "jacobi")
 #: default limit of communication steps in one run (``--max-steps``)

@@ -5,10 +5,10 @@ The public API: :func:`simulate`, :class:`RunResult`, :func:`run_ssp`, and the t
 errors raised before anything is instantiated (all ``ValueError``).
 """
 
-from glider_cosim.inputs.ssp_files import SSPError
-from glider_cosim.master.errors import SystemSpecError
-from glider_cosim.runner.run import RunResult, simulate
-from glider_cosim.runner.ssp import run_ssp
-from glider_cosim.scenarios.scenario import ScenarioError
+from ..inputs.ssp_files import SSPError
+from ..master.errors import SystemSpecError
+from ..scenarios.scenario import ScenarioError
+from .run import RunResult, simulate
+from .ssp import run_ssp
 
 __all__ = ["RunResult", "SSPError", "ScenarioError", "SystemSpecError", "run_ssp", "simulate"]

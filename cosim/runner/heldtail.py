@@ -15,9 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glider_cosim.runner.outcome import Outcome, classify
 from glider_plant.model import StallError, derivatives, equilibrium, plant_step
 from glider_plant.params import GliderParams
+
+from .outcome import Outcome, classify
 
 
 class HeldTailError(ValueError):

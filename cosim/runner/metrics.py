@@ -33,10 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.heldtail import held_glide
-from glider_cosim.runner.outcome import STOPPED, classify
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
+
+from .heldtail import held_glide
+from .outcome import STOPPED, classify
 
 BAND_FRACTION = 0.02
 BAND_FLOOR = math.radians(0.1)

@@ -11,14 +11,15 @@ import numpy as np
 from fmpy import read_model_description
 
 from glider_controller.laws import Law, PIController, passivity_law
-from glider_cosim.scenarios.fields import ScenarioError
-from glider_cosim.scenarios.sampling import with_sampling
-from glider_cosim.scenarios.scenario import Scenario
-from glider_cosim.scenarios.system import FMU_NAMES
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step
 from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
 from glider_plant.params import GliderParams
+
+from ..scenarios.fields import ScenarioError
+from ..scenarios.sampling import with_sampling
+from ..scenarios.scenario import Scenario
+from ..scenarios.system import FMU_NAMES
 
 
 def fmu_parameter_defaults(fmu: Path) -> dict[str, Any]:
@@ -43,7 +44,7 @@ COLUMNS = [
 
 def _fmus(fmu_dir: str | Path | None) -> Path:
     """The folder whose FMUs give the parameter defaults; None: the cache (built there)."""
-    from glider_cosim.build.folders import prepare_fmus
+    from ..fmus.folders import prepare_fmus
 
     return prepare_fmus(fmu_dir, None)
 

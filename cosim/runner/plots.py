@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from glider_cosim.runner.provenance import settings_text
+from .provenance import settings_text
 
 _DEG = 180.0 / np.pi
 #: how each marked event is drawn (colour, line style)

@@ -13,9 +13,10 @@ import hashlib
 import json
 import math
 import platform
-from importlib import metadata
 from pathlib import Path
 from typing import Any
+
+from ..fmus.files import package_version
 
 #: files a run writes into its folder (removed before a run into the same folder)
 OWNED = (
@@ -47,13 +48,6 @@ def clear_owned(out: Path) -> list[Path]:
             path.unlink()
             removed.append(path)
     return removed
-
-
-def package_version() -> str:
-    try:
-        return metadata.version("glider-cosim")
-    except metadata.PackageNotFoundError:  # pragma: no cover - run from a plain checkout
-        return "unknown"
 
 
 def file_sha256(path: Path) -> str:

@@ -70,7 +70,7 @@ class CsvRecorder:
         self._pending = 0
 
     def start(self, columns: Sequence[str]) -> None:
-        from glider_cosim.master.fastloop import library
+        from ..master.fastloop import library
 
         self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
         self._f.write((",".join(columns) + "\n").encode())

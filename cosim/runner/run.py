@@ -12,30 +12,30 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.build.folders import build_all, fmu_folder
-from glider_cosim.inputs.check import check_system_values
-from glider_cosim.inputs.text import quote
-from glider_cosim.master.cosimulation import CoSimulation
-from glider_cosim.master.errors import (
+from ..fmus.folders import build_all, fmu_folder
+from ..inputs.check import check_system_values
+from ..inputs.text import quote
+from ..master.cosimulation import CoSimulation
+from ..master.errors import (
     FMUCallError,
     FMUStopped,
     Interrupted,
     MasterError,
     SystemSpecError,
 )
-from glider_cosim.master.spec import DEFAULT_MAX_STEPS, count_steps
-from glider_cosim.runner.metrics import compute_metrics
-from glider_cosim.runner.provenance import clear_owned, marked_events, run_record
-from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
-from glider_cosim.scenarios.sampling import with_sampling
-from glider_cosim.scenarios.scenario import Scenario, load_scenario
-from glider_cosim.scenarios.system import DISTURBANCE_INPUTS, system_for
+from ..master.spec import DEFAULT_MAX_STEPS, count_steps
+from ..scenarios.sampling import with_sampling
+from ..scenarios.scenario import Scenario, load_scenario
+from ..scenarios.system import DISTURBANCE_INPUTS, system_for
+from .metrics import compute_metrics
+from .provenance import clear_owned, marked_events, run_record
+from .recorders import ArrayRecorder, CsvRecorder
 
 log = logging.getLogger(__name__)
 
 
 #: ``simulate``'s FMU folder unless one is given: None, the per-user cache
-#: (:func:`glider_cosim.build.folders.cache_dir`), never the current folder
+#: (:func:`glider_cosim.fmus.folders.cache_dir`), never the current folder
 DEFAULT_FMU_DIR: Path | None = None
 
 
@@ -146,7 +146,7 @@ def simulate(
         it, nothing is written and the rows are kept in memory.
     fmu_dir : path, optional
         Where the FMUs are (built there first if missing or stale, when ``build``).
-        Default: the per-user cache (:func:`glider_cosim.build.folders.cache_dir`), so nothing is
+        Default: the per-user cache (:func:`glider_cosim.fmus.folders.cache_dir`), so nothing is
         written outside ``out``.
     coupling, step, stop_time : optional
         Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
@@ -193,7 +193,7 @@ def simulate(
             f"results_format {quote(results_format)} is invalid: expected 'csv' or 'parquet'"
         )
     if results_format == "parquet" and out is not None:
-        from glider_cosim.runner.parquet import _pyarrow
+        from .parquet import _pyarrow
 
         _pyarrow()  # one line now, not after the run
     for key, value in (("step", step), ("stop_time", stop_time)):
@@ -201,8 +201,8 @@ def simulate(
             raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
     ssp_system = None
     if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
-        from glider_cosim.inputs.ssp_files import ssp_name
-        from glider_cosim.interop.ssp_import import load_ssp
+        from ..inputs.ssp_files import ssp_name
+        from ..interop.ssp_import import load_ssp
 
         ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
         scenario = Scenario(name=ssp_name(scenario), source=str(scenario), step=ssp_step,
@@ -248,7 +248,7 @@ def simulate(
         out.mkdir(parents=True, exist_ok=True)
         clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
         if results_format == "parquet":
-            from glider_cosim.runner.parquet import ParquetRecorder
+            from .parquet import ParquetRecorder
 
             files["results"] = out / "results.parquet"
             recorder: Any = ParquetRecorder(files["results"])
@@ -257,7 +257,7 @@ def simulate(
             recorder = CsvRecorder(files["results"])
     else:
         recorder = ArrayRecorder()
-    from glider_cosim.runner.progress import RunProgress, wanted
+    from .progress import RunProgress, wanted
 
     if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
         recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
@@ -308,7 +308,7 @@ def simulate(
         files["metrics"] = out / "metrics.json"
         files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
         if plots and len(data) > 1:
-            from glider_cosim.runner.plots import write_plots
+            from .plots import write_plots
 
             files.update(write_plots(result, out))
     if interrupt is not None:

@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from glider_cosim.inputs.ssp_files import SSD_NAME
+from ..inputs.ssp_files import SSD_NAME
 
 if TYPE_CHECKING:
-    from glider_cosim.runner.run import RunResult
-from glider_cosim.interop.ssp_import import load_ssp
+    from .run import RunResult
+from ..interop.ssp_import import load_ssp
 
 
 def run_ssp(
@@ -47,7 +47,7 @@ def run_ssp(
     SSPError
         The SSP is malformed (checked before any FMU is instantiated).
     """
-    from glider_cosim.runner.run import simulate
+    from .run import simulate
 
     p = Path(path)
     if p.is_dir():

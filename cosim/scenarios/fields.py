@@ -6,8 +6,8 @@ import math
 import re
 from typing import Any
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.inputs.values import Degrees
+from ..inputs.text import quote
+from ..inputs.values import Degrees
 
 LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
 
@@ -53,7 +53,7 @@ def _expect_number(ref: str | None) -> str:
 def _our_unit(ref: str) -> str | None:
     inst, _, name = ref.partition(".")
     try:
-        from glider_cosim.inputs.check import our_table
+        from ..inputs.check import our_table
 
         spec = our_table(inst).get(name)
     except (KeyError, ImportError):

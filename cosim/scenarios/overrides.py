@@ -6,9 +6,9 @@ import copy
 import re
 from typing import Any
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.scenarios.fields import LAWS, ScenarioError, _law, _number
-from glider_cosim.scenarios.scenario import INSTANCES, Scenario
+from ..inputs.text import quote
+from .fields import LAWS, ScenarioError, _law, _number
+from .scenario import INSTANCES, Scenario
 
 
 def apply_overrides(sc: Scenario, overrides: dict[str, Any]) -> Scenario:

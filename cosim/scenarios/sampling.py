@@ -6,9 +6,10 @@ import math
 import warnings
 from typing import Any
 
-from glider_cosim.scenarios.fields import ScenarioError
-from glider_cosim.scenarios.scenario import Scenario
 from glider_observer.filter import DEFAULT_F_CUTOFF
+
+from .fields import ScenarioError
+from .scenario import Scenario
 
 
 class SamplingMismatchWarning(UserWarning):

@@ -30,11 +30,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from glider_cosim.inputs.archives import InputFileError, regular_file
-from glider_cosim.inputs.text import quote, shown_path
-from glider_cosim.inputs.values import Degrees
-from glider_cosim.master.spec import Disturbance, Event
-from glider_cosim.scenarios.fields import ScenarioError, _choice, _float, _law, _number, _table
+from ..inputs.archives import InputFileError, regular_file
+from ..inputs.text import quote, shown_path
+from ..inputs.values import Degrees
+from ..master.spec import Disturbance, Event
+from .fields import ScenarioError, _choice, _float, _law, _number, _table
 
 INSTANCES = ("plant", "observer", "controller")
 

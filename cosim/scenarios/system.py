@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from glider_cosim.master.spec import System
-from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
-from glider_cosim.scenarios.scenario import Scenario
+from ..master.spec import System
+from .sampling import has_our_observer, with_sampling
+from .scenario import Scenario
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 

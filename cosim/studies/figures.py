@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.run import RunResult
-from glider_cosim.scenarios.fields import LAWS
-from glider_cosim.scenarios.scenario import Scenario
+from ..runner.run import RunResult
+from ..scenarios.fields import LAWS
+from ..scenarios.scenario import Scenario
 
 DEG = 180.0 / math.pi
 

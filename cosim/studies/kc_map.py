@@ -8,11 +8,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from glider_cosim.runner.metrics import describe_outcome
-from glider_cosim.runner.run import RunResult, simulate
-from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import load_scenario
-from glider_cosim.studies.figures import _fmt
+from ..runner.metrics import describe_outcome
+from ..runner.run import RunResult, simulate
+from ..scenarios.overrides import apply_overrides
+from ..scenarios.scenario import load_scenario
+from .figures import _fmt
 
 #: the K_c grid of the map where the observer-fed loop works (default scenario)
 KC_MAP = tuple(3.0 + 0.5 * i for i in range(19))  # 3 .. 12

@@ -16,17 +16,17 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
-from glider_cosim.runner.progress import Progress
-from glider_cosim.runner.progress import wanted as progress_wanted
-from glider_cosim.runner.run import RunResult, simulate
-from glider_cosim.scenarios.overrides import apply_overrides
-from glider_cosim.scenarios.scenario import load_scenario
-from glider_cosim.studies.figures import FIGURES, Run
-from glider_cosim.studies.kc_map import kc_map
-from glider_cosim.studies.report_plots import _plot_figure, _plot_sec53, _plot_steps
-from glider_cosim.studies.report_text import _markdown
-from glider_cosim.studies.sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
+from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
+from ..runner.progress import Progress
+from ..runner.progress import wanted as progress_wanted
+from ..runner.run import RunResult, simulate
+from ..scenarios.overrides import apply_overrides
+from ..scenarios.scenario import load_scenario
+from .figures import FIGURES, Run
+from .kc_map import kc_map
+from .report_plots import _plot_figure, _plot_sec53, _plot_steps
+from .report_text import _markdown
+from .sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 
 
 def _step_study(fmu_dir: Path) -> dict[str, Any]:
@@ -76,7 +76,7 @@ def build_report(
     sweep on ``workers`` local processes (or the cluster at ``scheduler``); None skips it.
     ``fmu_dir``: our FMUs (default: the per-user cache), built there if missing or stale.
     """
-    from glider_cosim.build.folders import build_all, fmu_folder
+    from ..fmus.folders import build_all, fmu_folder
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -109,8 +109,8 @@ def build_report(
     roa_lines: list[str] = []
     maps = []
     if roa_grid is not None:
-        from glider_cosim.studies.roa import plot_roa, roa_markdown, run_roa
-        from glider_cosim.sweeps.sweep import make_client
+        from ..sweeps.sweep import make_client
+        from .roa import plot_roa, roa_markdown, run_roa
 
         client = make_client(workers, scheduler)
         try:

@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.run import RunResult
-from glider_cosim.studies.figures import DEG, Figure, Run
-from glider_cosim.studies.kc_map import _kc_cell
+from ..runner.run import RunResult
+from .figures import DEG, Figure, Run
+from .kc_map import _kc_cell
 
 
 def _bounded(r: RunResult) -> bool:

@@ -7,13 +7,14 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.metrics import describe_outcome
-from glider_cosim.runner.run import RunResult
-from glider_cosim.scenarios.fields import LAWS
-from glider_cosim.scenarios.scenario import Scenario
-from glider_cosim.studies.figures import DEG, FIGURES, Run, _fmt, estimation_error, passivity_gain
-from glider_cosim.studies.kc_map import _stall, kc_map_markdown
 from glider_observer.filter import butterworth_coefficients
+
+from ..runner.metrics import describe_outcome
+from ..runner.run import RunResult
+from ..scenarios.fields import LAWS
+from ..scenarios.scenario import Scenario
+from .figures import DEG, FIGURES, Run, _fmt, estimation_error, passivity_gain
+from .kc_map import _stall, kc_map_markdown
 
 
 def _metrics_row(label: str, r: RunResult) -> str:

@@ -17,7 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.outcome import (
+from glider_plant.model import equilibrium
+from glider_plant.params import GliderParams
+
+from ..runner.outcome import (
     DIVERGING,
     LIMIT_CYCLE,
     NOT_SETTLED,
@@ -25,9 +28,7 @@ from glider_cosim.runner.outcome import (
     STOPPED,
     TUMBLING,
 )
-from glider_cosim.scenarios.scenario import Scenario, load_scenario
-from glider_plant.model import equilibrium
-from glider_plant.params import GliderParams
+from ..scenarios.scenario import Scenario, load_scenario
 
 DEG = 180.0 / math.pi
 THETA_RANGE_DEG = (-165.0, 165.0)  # initial glide angle, deg (any attitude, no duplicates)
@@ -92,7 +93,7 @@ def parse_grid(text: str) -> tuple[int, int]:
 
 
 def _scenario(case: RoaCase) -> Scenario:
-    from glider_cosim.scenarios.overrides import apply_overrides
+    from ..scenarios.overrides import apply_overrides
 
     return apply_overrides(load_scenario(case.scenario), dict(case.overrides))
 
@@ -102,7 +103,7 @@ def run_roa(
 ) -> list[RoaMap]:
     """Sweep every case over the grid on the Dask ``client`` (results in
     ``out/<case>/sweep.csv``, recomputed each time)."""
-    from glider_cosim.sweeps.sweep import ParamSpec, expand, run_sweep
+    from ..sweeps.sweep import ParamSpec, expand, run_sweep
 
     n, m = grid
     th = np.radians(np.linspace(*THETA_RANGE_DEG, n))

@@ -14,16 +14,17 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.runner.heldtail import (
+from glider_plant.params import GliderParams
+
+from ..runner.heldtail import (
     carried,
     held_glide,
     largest_carried_from_release,
     largest_carried_u,
     release_run,
 )
-from glider_cosim.runner.run import RunResult, simulate
-from glider_cosim.scenarios.scenario import load_scenario
-from glider_plant.params import GliderParams
+from ..runner.run import RunResult, simulate
+from ..scenarios.scenario import load_scenario
 
 DEG = 180.0 / math.pi
 TAILS_DEG = (15.0, 30.0, 45.0)

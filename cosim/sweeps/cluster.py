@@ -57,7 +57,7 @@ def make_client(workers: int = 2, scheduler: str | None = None, dashboard: bool 
     import dask
     from distributed import Client, LocalCluster
 
-    from glider_cosim.inputs.tempdirs import new_temp_dir
+    from ..inputs.tempdirs import new_temp_dir
 
     if scheduler:
         return Client(scheduler, timeout="20s")

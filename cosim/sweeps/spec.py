@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.scenarios.scenario import INSTANCES, Scenario
-from glider_cosim.scenarios.system import FMU_NAMES, system_for
+from ..scenarios.scenario import INSTANCES, Scenario
+from ..scenarios.system import FMU_NAMES, system_for
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _PCT = rf"({_NUM})(%?)"
@@ -155,7 +155,7 @@ def check_targets(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> 
 
 def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
     """Nominal value of each target: the scenario's, else the FMU's default."""
-    from glider_cosim.runner.monolithic import fmu_parameter_defaults
+    from ..runner.monolithic import fmu_parameter_defaults
 
     fmus = system_for(scenario, fmu_dir).fmus
     defaults = {}

@@ -39,15 +39,15 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.master.cosimulation import CoSimulation
-from glider_cosim.master.errors import FMUCallError, FMUStopped, MasterError
-from glider_cosim.runner.metrics import compute_metrics
-from glider_cosim.runner.recorders import ArrayRecorder
-from glider_cosim.scenarios.fields import ScenarioError
-from glider_cosim.scenarios.sampling import has_our_observer, with_sampling
-from glider_cosim.scenarios.scenario import Scenario, load_scenario
-from glider_cosim.scenarios.system import system_for
-from glider_cosim.sweeps.cluster import (
+from ..master.cosimulation import CoSimulation
+from ..master.errors import FMUCallError, FMUStopped, MasterError
+from ..runner.metrics import compute_metrics
+from ..runner.recorders import ArrayRecorder
+from ..scenarios.fields import ScenarioError
+from ..scenarios.sampling import has_our_observer, with_sampling
+from ..scenarios.scenario import Scenario, load_scenario
+from ..scenarios.system import system_for
+from .cluster import (
     DIST,
     FmuBlob,
     SweepClusterError,
@@ -57,8 +57,8 @@ from glider_cosim.sweeps.cluster import (
     package_version,
     scatter_fmus,
 )
-from glider_cosim.sweeps.plots import write_plots
-from glider_cosim.sweeps.spec import (
+from .plots import write_plots
+from .spec import (
     ParamSpec,
     SweepSpecError,
     check_targets,
@@ -67,7 +67,7 @@ from glider_cosim.sweeps.spec import (
     parse_param,
     run_id,
 )
-from glider_cosim.sweeps.store import SweepStore
+from .store import SweepStore
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
@@ -314,7 +314,7 @@ def add_parser(sub: Any) -> None:
                    help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
     s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
     s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
-    from glider_cosim.build.folders import add_fmu_options
+    from ..fmus.folders import add_fmu_options
 
     add_fmu_options(s)
     s.add_argument("--restart", action="store_true", help="ignore results already in --out")
@@ -325,7 +325,7 @@ def add_parser(sub: Any) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
-    from glider_cosim.build.folders import build_all
+    from ..fmus.folders import build_all
 
     if not args.param and args.seeds is None:
         raise SweepSpecError("nothing to sweep: give --param INSTANCE.NAME=SPEC or --seeds N")
@@ -347,7 +347,7 @@ def main(args: argparse.Namespace) -> int:
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
 
-    from glider_cosim.runner.progress import sweep_line
+    from ..runner.progress import sweep_line
 
     progress = sweep_line()  # None in a pipe or CI: nothing printed
 

@@ -4,7 +4,7 @@
 its front ends; ``python -m glider_cosim.verify --write`` regenerates the references.
 """
 
-from glider_cosim.verify.cases import (
+from .cases import (
     COMPONENTS,
     CaseFileError,
     VerifyInputError,
@@ -13,9 +13,9 @@ from glider_cosim.verify.cases import (
     kit_root,
     load_case,
 )
-from glider_cosim.verify.compare import CaseResult, Report, verify
-from glider_cosim.verify.run import RUNNERS
-from glider_cosim.verify.writing import export, write_references
+from .compare import CaseResult, Report, verify
+from .run import RUNNERS
+from .writing import export, write_references
 
 __all__ = [
     "COMPONENTS",

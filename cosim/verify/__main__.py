@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from glider_cosim.cli.main import main as cli_main
+from ..cli.main import main as cli_main
 
 
 def main(argv: Sequence[str] | None = None) -> int:

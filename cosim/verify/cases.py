@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glider_cosim.inputs.text import one_line, quote, shown_path
+from ..inputs.text import one_line, quote, shown_path
 
 
 class VerifyInputError(ValueError):

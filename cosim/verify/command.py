@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
-from glider_cosim.inputs.text import quote
-from glider_cosim.verify.cases import COMPONENTS, VerifyInputError, kit_root
-from glider_cosim.verify.compare import check_tolerance, verify
-from glider_cosim.verify.writing import export, write_references
+from ..inputs.text import quote
+from .cases import COMPONENTS, VerifyInputError, kit_root
+from .compare import check_tolerance, verify
+from .writing import export, write_references
 
 
 def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float]) -> None:

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.inputs.text import one_line, quote, shown_path
-from glider_cosim.verify.cases import (
+from ..inputs.text import one_line, quote, shown_path
+from .cases import (
     COMPONENTS,
     Case,
     CaseFileError,
@@ -26,7 +26,7 @@ from glider_cosim.verify.cases import (
     load_case,
     read_table,
 )
-from glider_cosim.verify.run import RUNNERS, Run, open_fmu
+from .run import RUNNERS, Run, open_fmu
 
 
 @dataclass

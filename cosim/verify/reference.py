@@ -15,9 +15,10 @@ import numpy as np
 import glider_controller
 import glider_observer
 import glider_plant
-from glider_cosim.master.cosimulation import CoSimulation
-from glider_cosim.master.spec import System
-from glider_cosim.runner.recorders import ArrayRecorder
+
+from ..master.cosimulation import CoSimulation
+from ..master.spec import System
+from ..runner.recorders import ArrayRecorder
 
 STEP = 0.02
 STOP = 10.0
@@ -99,7 +100,7 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from glider_cosim.build.folders import build_all, fmu_folder
+    from ..fmus.folders import build_all, fmu_folder
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="rewrite the reference CSVs")

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.inputs.archives import InputFileError, read_fmu, regular_file
-from glider_cosim.inputs.text import one_line, quote
-from glider_cosim.verify.cases import Case, CaseFileError, VerifyInputError
+from ..inputs.archives import InputFileError, read_fmu, regular_file
+from ..inputs.text import one_line, quote
+from .cases import Case, CaseFileError, VerifyInputError
 
 
 @dataclass
@@ -61,10 +61,10 @@ def _value(text: str, var: Any, where: str) -> float | int | bool:
 
 def _run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
     """Run ``case`` on an FMI 2.0 or 3.0 co-simulation FMU with our master."""
-    from glider_cosim.master.cosimulation import CoSimulation
-    from glider_cosim.master.errors import FMUCallError, FMUStopped
-    from glider_cosim.master.spec import System
-    from glider_cosim.runner.recorders import ArrayRecorder
+    from ..master.cosimulation import CoSimulation
+    from ..master.errors import FMUCallError, FMUStopped
+    from ..master.spec import System
+    from ..runner.recorders import ArrayRecorder
 
     variables = {v.name: v for v in md.modelVariables}
     params = {

@@ -10,8 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from glider_cosim.verify.cases import COMPONENTS, DEFAULT_CASE, case_names, kit_root, load_case
-from glider_cosim.verify.run import _run_case, open_fmu
+from ..fmus.files import package_version
+from .cases import COMPONENTS, DEFAULT_CASE, case_names, kit_root, load_case
+from .run import _run_case, open_fmu
 
 
 def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None) -> list[Path]:
@@ -21,7 +22,7 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
     ``dest`` (default: the shipped kit) receives a complete copy of the kit with the new
     references; the shipped case definitions are read from the shipped kit.
     """
-    from glider_cosim.build.folders import build_all, fmu_folder
+    from ..fmus.folders import build_all, fmu_folder
 
     fmus = build_all(fmu_folder(fmu_dir), only_stale=True)
     src = kit_root()
@@ -58,15 +59,6 @@ def table_text(columns: Sequence[str], data: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("glider-cosim")
-    except PackageNotFoundError:  # pragma: no cover - run from a plain checkout
-        return "0+unknown"
-
-
 def export(out: str | Path, fmu_dir: str | Path | None = None, platform: str = "linux64") -> Path:
     """Write the kit with our FMUs in the FMI Cross-Check layout; return the vendor folder.
 
@@ -77,10 +69,10 @@ def export(out: str | Path, fmu_dir: str | Path | None = None, platform: str = "
     case sets parameters. Cross-check tools find one FMU per model folder and run the
     default case; the subfolders hold no FMU and are not picked up by them.
     """
-    from glider_cosim.build.folders import build_all, fmu_folder
+    from ..fmus.folders import build_all, fmu_folder
 
     fmus = build_all(fmu_folder(fmu_dir), only_stale=True)
-    base = Path(out) / "fmus" / "2.0" / "cs" / platform / "glider-cosim" / _version()
+    base = Path(out) / "fmus" / "2.0" / "cs" / platform / "glider-cosim" / package_version()
     for component, model in COMPONENTS.items():
         folder = base / model
         if folder.exists():
@@ -126,7 +118,8 @@ def _purposes(readme: Path) -> dict[str, str]:
 def _readme(model: str, component: str, name: str, purposes: dict[str, str], md: Any) -> str:
     case = load_case(component, name)
     lines = [
-        f"{model} (glider-cosim {_version()}), {component} case '{name}': {purposes.get(name, '')}",
+        f"{model} (glider-cosim {package_version()}), {component} case '{name}': "
+        f"{purposes.get(name, '')}",
         "",
         f"Co-simulation from {case.start:g} s to {case.stop:g} s with a fixed communication "
         f"step of {case.step:g} s; the inputs of {model}_in.csv are held from each row's time "

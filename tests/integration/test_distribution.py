@@ -126,7 +126,7 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
 def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, flavor):
     env = _outside_env(tmp_path)
     code = (
-        "import sys; from glider_cosim.build.folders import prepare_fmus; "
+        "import sys; from glider_cosim.fmus.folders import prepare_fmus; "
         "print(prepare_fmus(None, sys.argv[1]))"
     )
     procs = [subprocess.Popen([sys.executable, "-c", code, flavor], env=env, text=True,
@@ -141,8 +141,8 @@ def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, fl
     assert sorted(f.name for f in folder.iterdir()) == sorted(
         [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
     )  # each FMU and its OSP-IS file beside it, nothing else
-    from glider_cosim.build import native
-    from glider_cosim.build.python import COMPONENTS, is_current
+    from glider_cosim.fmus import native
+    from glider_cosim.fmus.python import COMPONENTS, is_current
 
     for fmu in folder.glob("*.fmu"):
         with zipfile.ZipFile(fmu) as z:

@@ -40,7 +40,7 @@ from test_native import (
     write_plan,
 )
 
-from glider_cosim.build.folders import build_all, folder_flavor, folder_fmi
+from glider_cosim.fmus.folders import build_all, folder_flavor, folder_fmi
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner import simulate
 from glider_cosim.runner.recorders import ArrayRecorder

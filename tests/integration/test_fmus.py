@@ -15,7 +15,7 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import solve_ivp
 
 from glider_controller.laws import passivity_law
-from glider_cosim.build.python import COMPONENTS
+from glider_cosim.fmus.python import COMPONENTS
 from glider_cosim.master import CoSimulation, FMUCallError, System
 from glider_cosim.master.instance import _extracted
 from glider_cosim.runner.recorders import ArrayRecorder
@@ -239,8 +239,8 @@ def test_invalid_parameters_are_refused_before_the_first_step(fmu_dir, name, par
 
 
 def test_interface_docs_are_generated_from_the_fmus(fmu_dir):
-    from glider_cosim.build.docs import interface_markdown
+    from glider_cosim.fmus.docs import interface_markdown
 
     text = interface_markdown({n: fmu_dir / f"{n}.fmu" for n in NAMES})
     doc = Path(__file__).resolve().parents[2] / "docs" / "interfaces.md"
-    assert doc.read_text() == text, "run: python -m glider_cosim.build.docs"
+    assert doc.read_text() == text, "run: python -m glider_cosim.fmus.docs"

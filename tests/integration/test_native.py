@@ -31,8 +31,8 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 from raw_fmi import RawFMU
 
-from glider_cosim.build.folders import folder_flavor
-from glider_cosim.build.native import MINGW, NATIVE_COMPONENTS
+from glider_cosim.fmus.folders import folder_flavor
+from glider_cosim.fmus.native import MINGW, NATIVE_COMPONENTS
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner import simulate
 from glider_cosim.runner.recorders import ArrayRecorder
@@ -439,12 +439,12 @@ def test_every_command_takes_the_native_flavor(native_dir, tmp_path):
 
 
 def test_build_without_mingw_says_so_in_one_line(tmp_path, monkeypatch, caplog):
-    from glider_cosim.build import native
+    from glider_cosim.fmus import native
 
     monkeypatch.setattr(native, "mingw", lambda: None)
-    with caplog.at_level("WARNING", logger="glider_cosim.build.native"):
+    with caplog.at_level("WARNING", logger="glider_cosim.fmus.native"):
         native.build_native(tmp_path)
-    lines = [r.getMessage() for r in caplog.records if r.name == "glider_cosim.build.native"]
+    lines = [r.getMessage() for r in caplog.records if r.name == "glider_cosim.fmus.native"]
     assert lines == [
         "no x86_64-w64-mingw32-gcc found: the native FMUs carry linux64 only (win64 left "
         "out; install gcc-mingw-w64-x86-64)"

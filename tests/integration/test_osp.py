@@ -16,7 +16,7 @@ import pytest
 import xmlschema
 from fmpy import read_model_description
 
-from glider_cosim.build import osp
+from glider_cosim.fmus import osp
 from glider_cosim.interop.libcosim import simulate_libcosim_isolated
 from glider_cosim.interop.ssp_common import NS
 from glider_cosim.interop.ssp_export import export_ssp

@@ -17,7 +17,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
-from glider_cosim.build.python import COMPONENTS
+from glider_cosim.fmus.python import COMPONENTS
 from glider_cosim.master import CoSimulation, FMUCallError, System
 from glider_cosim.master.instance import _extracted
 from glider_cosim.runner import simulate

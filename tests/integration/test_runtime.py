@@ -491,7 +491,7 @@ CURRENT_AFTER_RUN = """
 import sys
 from pathlib import Path
 import fmpy
-from glider_cosim.build.python import COMPONENTS, is_current
+from glider_cosim.fmus.python import COMPONENTS, is_current
 fmus = Path(sys.argv[1])
 # an FMU run first in this process (before anything of ours imports the slave tables)
 r = fmpy.simulate_fmu(str(fmus / "GliderPlant.fmu"), stop_time=0.2, output_interval=0.02)

@@ -29,7 +29,7 @@ DISTURBANCES = ("plant.F_x", "plant.F_z", "plant.M_y")
 def foreign(tmp_path_factory) -> dict[str, Path]:
     """The two foreign FMUs (module names unique: one interpreter per process), packaged
     with our runtime: pythonfmu's own binary would abort the test process at exit."""
-    from glider_cosim.build.python import build_slave_fmu
+    from glider_cosim.fmus.python import build_slave_fmu
 
     out = tmp_path_factory.mktemp("swap_fmus")
     return {

@@ -92,7 +92,7 @@ def minimal(tmp_path_factory) -> dict[str, Path]:
     from pythonfmu.builder import FmuBuilder
 
     try:
-        from glider_cosim.build.python import build_slave_fmu
+        from glider_cosim.fmus.python import build_slave_fmu
     except ImportError:
         build_slave_fmu = None
     out = tmp_path_factory.mktemp("minimal_fmus")

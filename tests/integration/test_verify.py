@@ -141,7 +141,7 @@ class HalfPlant(Fmi2Slave):
 @pytest.fixture(scope="module")
 def broken(tmp_path_factory) -> dict[str, Path]:
     """FMUs with our interface but a defect, built from small slave scripts on our runtime."""
-    from glider_cosim.build.python import package_slave
+    from glider_cosim.fmus.python import package_slave
     from glider_fmi.compile import compile_runtime
 
     out = tmp_path_factory.mktemp("broken_fmus")

@@ -15,9 +15,10 @@ import glider_controller
 import glider_fmi
 import glider_observer
 import glider_plant
-from glider_cosim.build import osp
-from glider_cosim.build.files import replacing
 from glider_fmi import compile as runtime
+
+from . import osp
+from .files import replacing
 
 #: resource file in each FMU holding the hash of the sources it was built from
 HASH_FILE = "resources/glider_cosim_source.sha256"

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from xml.etree import ElementTree as ET
 
-_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
+#: FMI 2 variable types -> the FMI 3 ones (the master reads them the other way)
+FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 
 
 _COSIM_FLAGS = {
@@ -62,7 +63,7 @@ def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> by
             attrs.setdefault("initial", "exact")
         if typed.tag == "Boolean" and "start" in attrs:
             attrs["start"] = "true" if attrs["start"] in ("true", "1") else "false"
-        ET.SubElement(variables, _TYPES[typed.tag], attrs)
+        ET.SubElement(variables, FMI3_TYPES[typed.tag], attrs)
     # FMI 3 wants its independent variable declared: time, after the others' references
     next_vr = max((int(v) for v in vr_of_index.values()), default=-1) + 1
     ET.SubElement(variables, "Float64", name="time", valueReference=str(next_vr),

@@ -15,7 +15,6 @@ file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can rebuild it.
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import logging
 import math
 import shutil
@@ -32,13 +31,14 @@ import glider_controller
 import glider_fmi
 import glider_observer
 import glider_plant
-from glider_cosim.build import osp
 from glider_fmi import compile as runtime
+
+from . import osp
+from .files import FLAVOR_FILE, package_version
 
 log = logging.getLogger(__name__)
 
 #: resource naming the flavor of an FMU ("python" or "native")
-FLAVOR_FILE = "resources/glider_cosim_flavor.txt"
 #: resource holding the hash of the sources a native FMU was built from
 NATIVE_HASH_FILE = "resources/glider_cosim_native.sha256"
 #: flags of every native compile (the same on both platforms)
@@ -205,28 +205,12 @@ def native_hash(c: NativeComponent, fmi: int = 2) -> str:
     h = hashlib.sha256(vars_header(c).encode())
     h.update(f"fmi{fmi}".encode())
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
-    h.update(_version().encode())
+    h.update(package_version().encode())
     h.update(osp.fingerprint().encode())
     for f in source_files(c, fmi):
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()
-
-
-def _version() -> str:
-    try:
-        return importlib.metadata.version("glider-cosim")
-    except importlib.metadata.PackageNotFoundError:
-        return "0"
-
-
-def fmu_flavor(fmu: Path) -> str | None:
-    """The flavor an FMU of ours records ("python", "native"), None if it records none."""
-    try:
-        with zipfile.ZipFile(fmu) as z:
-            return z.read(FLAVOR_FILE).decode().strip() or None
-    except (OSError, KeyError, zipfile.BadZipFile):
-        return None
 
 
 def is_current(fmu: Path, c: NativeComponent, fmi: int = 2) -> bool:
@@ -297,8 +281,8 @@ def model_description(c: NativeComponent, sources: list[str]) -> bytes:
         "guid",
         "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + native_hash(c))) + "}",
     )
-    root.set("generationTool", f"glider-cosim {_version()} (native C99)")
-    root.set("version", _version())
+    root.set("generationTool", f"glider-cosim {package_version()} (native C99)")
+    root.set("version", package_version())
     cs = root.find("CoSimulation")
     cs.set("needsExecutionTool", "false")
     cs.set("canGetAndSetFMUstate", "true")
@@ -355,12 +339,12 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
                 raise NativeBuildError(f"{c.name} (win64): not warning-free: {printed[:300]}")
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{c.name}.fmu"
-        from glider_cosim.build.files import replacing
+        from .files import replacing
 
         linux, windows = BINARY_DIRS[fmi]
         md = model_description(c, c_names)
         if fmi == 3:
-            from glider_cosim.build.fmi3_description import fmi3_model_description
+            from .fmi3_description import fmi3_model_description
 
             md = fmi3_model_description(md)
         with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:

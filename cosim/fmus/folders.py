@@ -10,15 +10,17 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-from glider_cosim.build import osp
-from glider_cosim.build.python import (
+from glider_fmi import compile as runtime
+
+from . import osp
+from .files import fmu_flavor, package_version
+from .python import (
     COMPONENTS,
     DEFAULT_DIRS_FMI3,
     build_component,
     is_current,
     source_hash,
 )
-from glider_fmi import compile as runtime
 
 #: the flavors of our FMUs: the Python reference (default) and the native C99 build
 FLAVORS = ("python", "native")
@@ -55,9 +57,9 @@ def cache_root() -> Path:
 
 def sources_key(flavor: str = "python") -> str:
     """A short hash over the sources of the flavor's three FMUs (each FMU's own hash,
-    :func:`source_hash` or :func:`glider_cosim.build.native.native_hash`)."""
+    :func:`source_hash` or :func:`glider_cosim.fmus.native.native_hash`)."""
     if flavor == "native":
-        from glider_cosim.build.native import NATIVE_COMPONENTS, native_hash
+        from .native import NATIVE_COMPONENTS, native_hash
 
         hashes = [native_hash(c) for c in NATIVE_COMPONENTS]
     else:
@@ -69,12 +71,11 @@ def cache_dir(flavor: str = "python", fmi: int = 2) -> Path:
     """The cache folder of the flavor's FMUs (of FMI ``fmi``) built from the current
     sources: ``<cache_root>/<version>/<flavor>[-fmi3]-<sources_key>``. Other sources
     (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale."""
-    from glider_cosim.build.native import _version
 
     if flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
     kind = flavor if fmi == 2 else f"{flavor}-fmi{fmi}"
-    return cache_root() / _version() / f"{kind}-{sources_key(flavor)}"
+    return cache_root() / package_version() / f"{kind}-{sources_key(flavor)}"
 
 
 def fmu_folder(fmu_dir: str | Path | None, flavor: str | None = None) -> Path:
@@ -115,7 +116,6 @@ def folder_fmi(folder: Path | str) -> int | None:
 
 def folder_flavor(folder: Path | str) -> str | None:
     """The flavor the FMUs in ``folder`` record (the first of ours found), or None."""
-    from glider_cosim.build.native import fmu_flavor
 
     for c in COMPONENTS:
         found = fmu_flavor(Path(folder) / f"{c.name}.fmu")
@@ -160,13 +160,13 @@ def build_all(
     if fmi not in FMI_VERSIONS:
         raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
     if fmi == 3:
-        from glider_cosim.build.fmi3 import build_fmi3
+        from .fmi3 import build_fmi3
 
         return build_fmi3(out, flavor, only_stale)
     if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
-        from glider_cosim.build.native import build_native
+        from .native import build_native
 
         return _with_osp(build_native(out, only_stale))
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]

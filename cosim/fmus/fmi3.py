@@ -19,11 +19,12 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from glider_cosim.build import native, osp
-from glider_cosim.build.files import replacing
-from glider_cosim.build.fmi3_description import fmi3_model_description
-from glider_cosim.build.python import COMPONENTS, build_component, source_hash
 from glider_fmi import compile as runtime
+
+from . import native, osp
+from .files import replacing
+from .fmi3_description import fmi3_model_description
+from .python import COMPONENTS, build_component, source_hash
 
 log = logging.getLogger(__name__)
 

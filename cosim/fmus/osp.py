@@ -223,7 +223,7 @@ def write_beside(fmu: Path) -> Path:
     target = fmu.with_name(name)
     if target.is_file() and target.read_bytes() == content:
         return target
-    from glider_cosim.build.files import replacing
+    from .files import replacing
 
     with replacing(target) as part:  # a name of its own: builds may run at once
         part.write_bytes(content)

@@ -1,0 +1,48 @@
+"""What a built FMU records (package version, flavor) and writing it: a temporary name
+first, then renamed into place."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import os
+import uuid
+import zipfile
+from collections.abc import Iterator
+from pathlib import Path
+
+#: the resource naming an FMU's flavor (``python`` or ``native``)
+FLAVOR_FILE = "resources/glider_cosim_flavor.txt"
+
+
+def package_version() -> str:
+    """glider-cosim's installed version ("unknown" from a checkout that is not installed)."""
+    try:
+        return importlib.metadata.version("glider-cosim")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+def fmu_flavor(fmu: Path) -> str | None:
+    """The flavor an FMU of ours records ("python", "native"), None if it records none."""
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            return z.read(FLAVOR_FILE).decode().strip() or None
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return None
+
+
+@contextlib.contextmanager
+def replacing(target: Path) -> Iterator[Path]:
+    """A temporary path beside ``target``, unique to this call, moved onto ``target`` in
+    one step when the block ends without an error (removed otherwise).
+
+    Two processes building the same FMU at once each write their own file; a reader sees
+    the old FMU or a complete new one, never a part.
+    """
+    part = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
+    try:
+        yield part
+        part.replace(target)
+    finally:
+        part.unlink(missing_ok=True)
