@@ -15,9 +15,9 @@ variables.
     the shared libpython (``sysconfig``: ``INSTSONAME`` or ``LDLIBRARY`` in ``LIBDIR``),
     in front of any ``LD_PRELOAD`` already set;
 ``PYTHONPATH``
-    the site-packages folders holding numpy and scipy, and the other site-packages of
-    this interpreter (its pure and platform library folders, a virtual environment's
-    included), then any ``PYTHONPATH`` already set;
+    the site-packages folders of this interpreter (its pure and platform library
+    folders, a virtual environment's included), then any ``PYTHONPATH`` already set (the
+    FMUs bundle what they import; this keeps the host's own packages importable);
 ``PYTHONHOME``
     where it is needed: when this interpreter's base prefix differs from the prefix
     compiled into libpython (a relocated install), when the first ``python3`` on
@@ -29,7 +29,6 @@ variables.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import shlex
 import shutil
@@ -40,12 +39,9 @@ from pathlib import Path
 
 from glider_fmi import compile as runtime
 
-#: packages the FMUs import from the host's environment
-FMU_IMPORTS = ("numpy", "scipy")
-
 
 class HostEnvError(OSError):
-    """This Python cannot serve a C host (no shared libpython, a package missing)."""
+    """This Python cannot serve a C host (no shared libpython)."""
 
 
 def libpython() -> Path:
@@ -65,14 +61,6 @@ def libpython() -> Path:
         return runtime.libpython()
     except runtime.RuntimeBuildError as err:
         raise HostEnvError(str(err)) from None
-
-
-def _package_root(module: str) -> str:
-    """The folder a package is imported from (its site-packages)."""
-    spec = importlib.util.find_spec(module)
-    if spec is None or not spec.origin:
-        raise HostEnvError(f"PYTHONPATH: the FMUs need '{module}', which this Python lacks")
-    return str(Path(spec.origin).resolve().parent.parent)
 
 
 def _python_home_needed() -> bool:
@@ -100,11 +88,10 @@ def host_env() -> dict[str, str]:
     Raises
     ------
     HostEnvError
-        No shared libpython, or numpy or scipy missing.
+        No shared libpython.
     """
-    paths = [_package_root(m) for m in FMU_IMPORTS]
     scheme = sysconfig.get_paths()
-    paths += [scheme["purelib"], scheme["platlib"]]
+    paths = [scheme["purelib"], scheme["platlib"]]
     paths += [p for p in sys.path if p.endswith(("site-packages", "dist-packages"))]
     paths += [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
     preload = [str(libpython())]
