@@ -16,15 +16,13 @@ dependencies, directional and adjoint derivatives, output derivatives, intervals
 updateDiscreteStates; on live, freed and NULL instances, with valid and unknown value
 references, nvr = 0 and NULL arrays. ``sequence FMU INDEX SEED`` is printed and flushed
 before each sequence, so a crash names the sequence to replay. Exit 0 when every call
-returned a status (0-4) or, for an instantiate, an instance or NULL; 1 otherwise.
+returned a status (0-4) or, for an instantiate, an instance or NULL; 1 otherwise. What
+it shares with ``fmi_fuzz.py`` is in ``fuzz_common.py``.
 """
 
 from __future__ import annotations
 
-import collections
 import ctypes
-import math
-import random
 import sys
 from ctypes import (
     CFUNCTYPE,
@@ -50,12 +48,11 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
-sys.path.insert(0, str(Path(__file__).parent))
-
 from glider_cosim.master.instance import _extracted
 
-CATEGORIES = [b"logAll", b"logStatusError", b"logStatusWarning", b"logFmiCalls", b"nope", None]
-REALS = [0.0, 1.0, -1.0, 0.02, 1e308, -1e308, math.inf, -math.inf, math.nan, 5e-324, 1e-3]
+sys.path.insert(0, str(Path(__file__).parent))
+from fuzz_common import REALS, FuzzerBase, main  # noqa: E402
+
 LOG = CFUNCTYPE(None, c_void_p, c_int, c_char_p, c_char_p)
 _VR = POINTER(c_uint)
 _B = POINTER(c_bool)
@@ -131,7 +128,9 @@ class Raw3:
     def __getattr__(self, name: str):
         return getattr(self.dll, f"fmi3{name}")
 
-    def instantiate(self, name: bytes | None = b"x", logging: bool = False, **odd) -> int | None:
+    def instantiate(self, name: str | bytes | None = b"x", logging: bool = False, **odd):
+        if isinstance(name, str):
+            name = name.encode()
         return self.dll.fmi3InstantiateCoSimulation(
             name, odd.get("token", self.md.guid.encode()), odd.get("resources", self.resources),
             False, logging, odd.get("event", False), odd.get("early", False), None, 0, None,
@@ -143,39 +142,21 @@ class Raw3:
         return max(st, self.dll.fmi3ExitInitializationMode(c))
 
 
-class Fuzzer3:
-    def __init__(self, raw: Raw3, rng: random.Random):
-        self.raw, self.rng = raw, rng
-        self.counts: collections.Counter = collections.Counter()
-        self.live: list[int] = []
-        self.freed: list[int] = []
-        self.states: list[c_void_p] = []
-        self.blobs: list[bytes] = []
-        self.nvars = len(raw.md.modelVariables)
-        self.by_type: dict[str, list[int]] = collections.defaultdict(list)
-        for v in raw.md.modelVariables:
-            if v.causality in ("input", "output") or self.rng.random() < 0.2:
-                self.by_type[v.type].append(v.valueReference)
-        self.t: dict[int, float] = {}
+class Fuzzer3(FuzzerBase):
+    KINDS = [
+        "instantiate", "instantiate_odd", "other_kinds", "free", "enter", "exit", "step",
+        "step", "step", "terminate", "reset", "get", "get", "set", "set", "debug",
+        "getstate", "setstate", "freestate", "serialize", "deserialize", "modes",
+        "dependencies", "derivatives", "discrete", "init", "init", "init", "step", "step",
+        "get", "reset",
+    ]  # fmt: skip
+    REAL = "Float64"
+    VR_SLACK = 1
+    STATE = "FMUState"
+    DESERIALIZE = "DeserializeFMUState"
+    ERROR = "fmi3Error"
 
     # ------------------------------------------------------------ arguments
-    def comp(self):
-        r = self.rng.random()
-        if r < 0.85 and self.live:
-            return self.rng.choice(self.live)
-        if r < 0.95 and self.freed:
-            return self.rng.choice(self.freed)
-        return None
-
-    def refs(self, typ: str = "Float64"):
-        n = self.rng.choice([0, 1, 1, 2, 3, 5])
-        if n and self.rng.random() < 0.05:
-            return None, n
-        pool = self.by_type.get(typ) or [0]
-        if self.rng.random() < 0.2:
-            pool = [self.rng.randrange(self.nvars + 1), self.nvars + 1, 10**6, 2**32 - 1]
-        return (c_uint * max(n, 1))(*(self.rng.choice(pool) for _ in range(max(n, 1)))), n
-
     def n_values(self, n: int) -> int:
         """nValues: nvr mostly, sometimes another count (the array holds either)."""
         return n if self.rng.random() < 0.8 else self.rng.choice([0, max(n - 1, 0), n + 1, 7])
@@ -198,168 +179,95 @@ class Fuzzer3:
             vals = [rng.choice([0, 1, 2, 3, lo, hi]) for _ in range(size)]
         return (ctype * size)(*vals)
 
-    def time(self):
-        return self.rng.choice([0.0, 0.02, 0.04, -1.0, math.nan, math.inf, 1e9])
-
     def flags(self, k: int):
         """k output flags (fmi3Boolean*), each NULL now and then."""
         return [None if self.rng.random() < 0.1 else ctypes.byref(c_bool()) for _ in range(k)]
 
+    def boolean(self):
+        return self.rng.random() < 0.5
+
+    def do_step(self, c, t, h):
+        last = None if self.rng.random() < 0.1 else ctypes.byref(c_double())
+        return self.raw.DoStep(c, t, h, self.boolean(), *self.flags(3), last)
+
     # ------------------------------------------------------------ calls
-    def call(self) -> tuple[str, object]:
-        raw, rng = self.raw, self.rng
-        kind = rng.choice([
-            "instantiate", "instantiate_odd", "other_kinds", "free", "enter", "exit", "step",
-            "step", "step", "terminate", "reset", "get", "get", "set", "set", "debug",
-            "getstate", "setstate", "freestate", "serialize", "deserialize", "modes",
-            "dependencies", "derivatives", "discrete", "init", "init", "init", "step", "step",
-            "get", "reset",
-        ])  # fmt: skip
-        c = self.comp()
-        if kind == "instantiate":
-            h = raw.instantiate(f"f{len(self.live)}".encode(), logging=rng.random() < 0.3)
-            if h:
-                self.live.append(h)
-            return kind, None
-        if kind == "instantiate_odd":
-            odd = rng.choice([{"event": True}, {"early": True}, {"token": b"{not-ours}"},
-                              {"token": None}, {"resources": None}, {"resources": b"/nope/"},
-                              {}])  # fmt: skip
-            h = raw.instantiate(rng.choice([None, b"", b"odd"]), **odd)
-            if h:
-                self.live.append(h)
-            return kind, None
-        if kind == "other_kinds":
-            if rng.random() < 0.5:
-                h = raw.dll.fmi3InstantiateModelExchange(b"me", raw.md.guid.encode(),
-                                                         raw.resources, False, False, None,
-                                                         raw.log)  # fmt: skip
-            else:
-                h = raw.dll.fmi3InstantiateScheduledExecution(
-                    b"se",
-                    raw.md.guid.encode(),
-                    raw.resources,
-                    False,
-                    False,
-                    None,
-                    raw.log,
-                    None,
-                    None,
-                    None,
-                )
-            if h:
-                self.live.append(h)
-            return kind, None
-        if kind == "free":
-            if c in self.live:
-                self.live.remove(c)
-                self.freed.append(c)
-            raw.FreeInstance(c)
-            return kind, None
-        if kind == "init":
-            if c is None or c in self.freed:
-                c = raw.instantiate(f"f{len(self.live)}".encode(), logging=rng.random() < 0.3)
-                if not c:
-                    return kind, None
-                self.live.append(c)
-            self.t[c] = 0.0
-            return kind, raw.initialize(c)
-        if kind == "enter":
-            return kind, raw.EnterInitializationMode(
-                c, rng.random() < 0.5, rng.choice(REALS), self.time(), rng.random() < 0.5,
-                self.time(),
+    def call_instantiate_odd(self, c):
+        rng = self.rng
+        odd = rng.choice([{"event": True}, {"early": True}, {"token": b"{not-ours}"},
+                          {"token": None}, {"resources": None}, {"resources": b"/nope/"},
+                          {}])  # fmt: skip
+        h = self.raw.instantiate(rng.choice([None, b"", b"odd"]), **odd)
+        if h:
+            self.live.append(h)
+        return "instantiate_odd", None
+
+    def call_other_kinds(self, c):
+        raw = self.raw
+        if self.rng.random() < 0.5:
+            h = raw.dll.fmi3InstantiateModelExchange(b"me", raw.md.guid.encode(), raw.resources,
+                                                     False, False, None, raw.log)  # fmt: skip
+        else:
+            h = raw.dll.fmi3InstantiateScheduledExecution(
+                b"se", raw.md.guid.encode(), raw.resources, False, False, None, raw.log, None,
+                None, None,
             )  # fmt: skip
-        if kind == "exit":
-            return kind, raw.ExitInitializationMode(c)
-        if kind == "step":
-            h = rng.choice([0.02, 0.02, 0.02, 0.02, 0.0, -0.02, math.nan, math.inf, 1e-9, 10.0])
-            t = self.t.get(c, 0.0) if rng.random() < 0.8 else self.time()
-            last = None if rng.random() < 0.1 else ctypes.byref(c_double())
-            st = raw.DoStep(c, t, h, rng.random() < 0.5, *self.flags(3), last)
-            if st == 0:
-                self.t[c] = t + h
-            return kind, st
-        if kind == "terminate":
-            return kind, raw.Terminate(c)
-        if kind == "reset":
-            return kind, raw.Reset(c)
-        if kind in ("get", "set"):
-            typ = rng.choice(["Float64"] * 4 + ["Int32"] * 2 + ["Boolean"] * 2 + list(TYPES))
-            ctype = TYPES[typ]
-            vr, n = self.refs(typ)
-            nv = self.n_values(n)
-            size = max(n, nv, 1)
-            if kind == "get":
-                out = None if rng.random() < 0.08 else (ctype * size)()
-                return f"get{typ}", getattr(raw, f"Get{typ}")(c, vr, n, out, nv)
-            return f"set{typ}", getattr(raw, f"Set{typ}")(c, vr, n, self.values(ctype, size), nv)
-        if kind == "debug":
-            n = rng.randint(0, 3)
-            cats = None if (n and rng.random() < 0.1) else (c_char_p * max(n, 1))(
-                *(rng.choice(CATEGORIES) for _ in range(max(n, 1))))  # fmt: skip
-            return kind, raw.SetDebugLogging(c, rng.random() < 0.5, n, cats)
-        if kind == "getstate":
-            s = c_void_p() if rng.random() < 0.7 or not self.states else rng.choice(self.states)
-            st = raw.GetFMUState(c, ctypes.byref(s))
-            if st == 0 and s.value and s not in self.states:
-                self.states.append(s)
-            return kind, st
-        if kind == "setstate":
-            s = rng.choice(self.states) if self.states and rng.random() < 0.8 else c_void_p(77)
-            return kind, raw.SetFMUState(c, s)
-        if kind == "freestate":
-            s = rng.choice(self.states) if self.states else c_void_p()
-            st = raw.FreeFMUState(c, ctypes.byref(s))
-            if s.value is None:
-                self.states = [x for x in self.states if x.value is not None and x is not s]
-            return kind, st
-        if kind == "serialize":
-            s = rng.choice(self.states) if self.states else c_void_p(99)
-            size = c_size_t()
-            st = raw.SerializedFMUStateSize(c, s, ctypes.byref(size))
-            if st == 0:
-                n = max(size.value - (1 if rng.random() < 0.2 else 0), 0)
-                buf = ctypes.create_string_buffer(max(n, 1))
-                st = raw.SerializeFMUState(c, s, buf, n)
-                if st == 0:
-                    self.blobs.append(buf.raw[:n])
-            return kind, st
-        if kind == "deserialize":
-            blob = rng.choice(self.blobs) if self.blobs and rng.random() < 0.6 else b""
-            if blob and rng.random() < 0.5:
-                i = rng.randrange(len(blob))
-                blob = blob[:i] + bytes([rng.randrange(256)]) + blob[i + 1 :]
-            if rng.random() < 0.3:
-                blob = bytes(rng.randrange(256) for _ in range(rng.choice([0, 8, 300, 2000])))
-            s = c_void_p()
-            st = raw.DeserializeFMUState(c, blob, len(blob), ctypes.byref(s))
-            if st == 0 and s.value:
-                self.states.append(s)
-            return kind, st
-        if kind == "modes":
-            which = rng.choice(["EnterEventMode", "EnterStepMode", "EnterConfigurationMode",
-                                "ExitConfigurationMode", "EvaluateDiscreteStates",
-                                "EnterContinuousTimeMode"])  # fmt: skip
-            return which, getattr(raw, which)(c)
-        if kind == "dependencies":
-            vr = rng.choice(self.by_type.get("Float64") or [0]) if rng.random() < 0.8 else 10**6
-            if rng.random() < 0.5:
-                n = c_size_t()
-                return "ndeps", raw.GetNumberOfVariableDependencies(c, vr, ctypes.byref(n))
-            k = rng.choice([0, 1, 3])
-            arrays = [(c_size_t * max(k, 1))(), (c_uint * max(k, 1))(), (c_size_t * max(k, 1))(),
-                      (c_int * max(k, 1))()]  # fmt: skip
-            return "deps", raw.GetVariableDependencies(c, vr, *arrays, k)
-        if kind == "derivatives":
-            vr, n = self.refs()
-            which = rng.choice(["GetDirectionalDerivative", "GetAdjointDerivative"])
-            if rng.random() < 0.3:
-                orders = (c_int32 * max(n, 1))(1)
-                out = (c_double * max(n, 1))()
-                return "outder", raw.GetOutputDerivatives(c, vr, n, orders, out, n)
-            seed, sens = (c_double * max(n, 1))(), (c_double * max(n, 1))()
-            return which, getattr(raw, which)(c, vr, n, vr, n, seed, n, sens, n)
-        # discrete: updateDiscreteStates, intervals, clocks, binaries, set time
+        if h:
+            self.live.append(h)
+        return "other_kinds", None
+
+    def call_enter(self, c):
+        rng = self.rng
+        return "enter", self.raw.EnterInitializationMode(
+            c, rng.random() < 0.5, rng.choice(REALS), self.time(), rng.random() < 0.5,
+            self.time(),
+        )  # fmt: skip
+
+    def typed(self):
+        typ = self.rng.choice(["Float64"] * 4 + ["Int32"] * 2 + ["Boolean"] * 2 + list(TYPES))
+        vr, n = self.refs(typ)
+        nv = self.n_values(n)
+        return typ, TYPES[typ], vr, n, nv, max(n, nv, 1)
+
+    def call_get(self, c):
+        typ, ctype, vr, n, nv, size = self.typed()
+        out = None if self.rng.random() < 0.08 else (ctype * size)()
+        return f"get{typ}", getattr(self.raw, f"Get{typ}")(c, vr, n, out, nv)
+
+    def call_set(self, c):
+        typ, ctype, vr, n, nv, size = self.typed()
+        return f"set{typ}", getattr(self.raw, f"Set{typ}")(c, vr, n, self.values(ctype, size), nv)
+
+    def call_modes(self, c):
+        which = self.rng.choice(["EnterEventMode", "EnterStepMode", "EnterConfigurationMode",
+                                 "ExitConfigurationMode", "EvaluateDiscreteStates",
+                                 "EnterContinuousTimeMode"])  # fmt: skip
+        return which, getattr(self.raw, which)(c)
+
+    def call_dependencies(self, c):
+        raw, rng = self.raw, self.rng
+        vr = rng.choice(self.by_type.get("Float64") or [0]) if rng.random() < 0.8 else 10**6
+        if rng.random() < 0.5:
+            n = c_size_t()
+            return "ndeps", raw.GetNumberOfVariableDependencies(c, vr, ctypes.byref(n))
+        k = rng.choice([0, 1, 3])
+        arrays = [(c_size_t * max(k, 1))(), (c_uint * max(k, 1))(), (c_size_t * max(k, 1))(),
+                  (c_int * max(k, 1))()]  # fmt: skip
+        return "deps", raw.GetVariableDependencies(c, vr, *arrays, k)
+
+    def call_derivatives(self, c):
+        raw, rng = self.raw, self.rng
+        vr, n = self.refs()
+        which = rng.choice(["GetDirectionalDerivative", "GetAdjointDerivative"])
+        if rng.random() < 0.3:
+            orders = (c_int32 * max(n, 1))(1)
+            out = (c_double * max(n, 1))()
+            return "outder", raw.GetOutputDerivatives(c, vr, n, orders, out, n)
+        seed, sens = (c_double * max(n, 1))(), (c_double * max(n, 1))()
+        return which, getattr(raw, which)(c, vr, n, vr, n, seed, n, sens, n)
+
+    def call_discrete(self, c):
+        """updateDiscreteStates, intervals, clocks, binaries, set time."""
+        raw, rng = self.raw, self.rng
         which = rng.choice(["update", "interval", "clock", "binary", "time", "nstates"])
         vr, n = self.refs()
         if which == "update":
@@ -379,42 +287,6 @@ class Fuzzer3:
             return which, raw.SetTime(c, self.time())
         return which, raw.GetNumberOfContinuousStates(c, ctypes.byref(c_size_t()))
 
-    def sequence(self) -> str | None:
-        for _ in range(self.rng.randint(5, 40)):
-            name, status = self.call()
-            self.counts[name, status] += 1
-            if status is not None and status not in (0, 1, 2, 3, 4):
-                return f"{name} returned {status!r}"
-        if self.rng.random() < 0.7:
-            for c in self.live:
-                self.raw.FreeInstance(c)
-            self.freed += self.live
-            self.live, self.states = [], []
-        return None
-
-
-def main(argv: list[str]) -> int:
-    seed, count, fmus = int(argv[0]), int(argv[1]), argv[2:]
-    for fmu in fmus:
-        raw = Raw3(Path(fmu))
-        rng = random.Random(f"{seed}:fmi3:{Path(fmu).stem}")
-        fuzzer = Fuzzer3(raw, rng)
-        for i in range(count):
-            print(f"sequence {Path(fmu).stem} {i} {seed}", flush=True)
-            problem = fuzzer.sequence()
-            if problem:
-                print(f"FAILED {Path(fmu).stem} sequence {i} seed {seed}: {problem}", flush=True)
-                return 1
-            raw.messages.clear()
-        for c in fuzzer.live:
-            raw.FreeInstance(c)
-        ok_steps = fuzzer.counts["step", 0]
-        errors = sum(n for (_, st), n in fuzzer.counts.items() if st == 3)
-        print(f"{Path(fmu).stem}: {sum(fuzzer.counts.values())} calls, {ok_steps} steps OK, "
-              f"{errors} fmi3Error", flush=True)  # fmt: skip
-    print("done", flush=True)
-    return 0
-
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main(sys.argv[1:], Raw3, Fuzzer3, seed_tag="fmi3:"))
