@@ -15,25 +15,26 @@ import shlex
 import shutil
 import subprocess
 import sys
-import zipfile
 from pathlib import Path
 
-import fmpy
 import numpy as np
 import pytest
-from fmpy import read_model_description
+from c_host_helpers import (
+    GCC_FLAGS,
+    HEADERS,
+    RECORD,
+    STOP,
+    compile_host,
+    master_jacobi_run,
+    write_plan,
+)
 
 from glider_cosim.interop.hostenv import host_env, libpython
-from glider_cosim.master import CoSimulation
-from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
 
 pytestmark = pytest.mark.integration
-HOST_C = Path(__file__).parent / "c_host" / "host.c"
 EMPTY_ENV = {"PATH": "/usr/bin:/bin"}
-STOP = 10.0
-RECORD = ["plant.theta_g", "plant.V", "plant.delta", "observer.theta_g_hat", "controller.delta_cmd"]
 
 
 @pytest.fixture(scope="module")
@@ -41,17 +42,8 @@ def host(tmp_path_factory) -> Path:
     gcc = shutil.which("gcc")
     if gcc is None:
         pytest.fail("gcc is needed to compile the C host")
-    out = tmp_path_factory.mktemp("c_host") / "host"
-    headers = Path(fmpy.__file__).parent / "c-code"
-    assert (headers / "fmi2Functions.h").is_file()
-    p = subprocess.run(
-        [gcc, "-std=c99", "-D_DEFAULT_SOURCE", "-Wall", "-Wextra", "-Werror", "-O1",
-         f"-I{headers}", "-o", str(out), str(HOST_C), "-ldl", "-lm", "-lpthread"],
-        capture_output=True,
-        text=True,
-    )  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    return out
+    assert (HEADERS / "fmi2Functions.h").is_file()
+    return compile_host(gcc, tmp_path_factory.mktemp("c_host") / "host", GCC_FLAGS)
 
 
 @pytest.fixture(scope="module")
@@ -59,41 +51,12 @@ def loop(fmu_dir, tmp_path_factory):
     """The default scenario's system, its FMUs unzipped, and a plan for the C host."""
     sc = load_scenario("default")
     system = system_for(sc, fmu_dir)
-    root = tmp_path_factory.mktemp("loop")
-    lines, mds = [], {}
-    for inst, fmu in system.fmus.items():
-        folder = root / inst
-        with zipfile.ZipFile(fmu) as z:
-            z.extractall(folder)
-        md = mds[inst] = read_model_description(str(fmu))
-        lines.append(f"fmu {inst} {folder} {md.coSimulation.modelIdentifier} {md.guid}")
-    vars_ = {i: {v.name: v for v in md.modelVariables} for i, md in mds.items()}
-    for inst, params in system.parameters.items():
-        for name, value in params.items():
-            v = vars_[inst][name]
-            kind = {"Real": "real", "Integer": "integer"}[v.type]
-            lines.append(f"{kind} {inst} {v.valueReference} {float(value)!r}")
-    for src, dst in system.connections:
-        (si, sn), (di, dn) = src.split("."), dst.split(".")
-        sv, dv = vars_[si][sn].valueReference, vars_[di][dn].valueReference
-        lines.append(f"connect {si} {sv} {di} {dv}")
-    for ref in RECORD:
-        i, n = ref.split(".")
-        lines.append(f"record {i} {vars_[i][n].valueReference}")
-    lines.append(f"run {sc.step!r} {STOP!r}")
-    plan = root / "plan.txt"
-    plan.write_text("\n".join(lines) + "\n")
+    plan = write_plan(system, tmp_path_factory.mktemp("loop"), step=sc.step)
     return system, plan
 
 
 def master_jacobi(system) -> np.ndarray:
-    system.record = list(RECORD)
-    sim = CoSimulation(system, step=0.02, coupling="jacobi")
-    rec = ArrayRecorder()
-    try:
-        sim.run(STOP, rec)
-    finally:
-        sim.close()
+    rec = master_jacobi_run(system)
     assert rec.columns == ["time", *RECORD]
     return rec.array()
 

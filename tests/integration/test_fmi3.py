@@ -28,22 +28,22 @@ import zipfile
 import fmpy
 import numpy as np
 import pytest
-from fmpy.fmi3 import FMU3Slave
-from test_native import (
-    MINGW,
+from c_host_helpers import (
+    GCC_FLAGS,
     RECORD,
     STOP,
     compile_host,
-    hidden_run,
-    rows,
-    wine_env,
+    hidden_rows,
+    master_jacobi_run,
+    valgrind_run,
+    wine_rows,
     write_plan,
 )
+from fmpy.fmi3 import FMU3Slave
 
 from glider_cosim.fmus.folders import build_all, folder_flavor, folder_fmi
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner import simulate
-from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
 
@@ -217,39 +217,22 @@ def fmi3_system(fmi3_dirs):
 
 @pytest.fixture(scope="module")
 def fmi3_master_rows(fmi3_system, native_dir) -> np.ndarray:
-    def run(system):
-        system.record = list(RECORD)
-        sim = CoSimulation(system, step=0.02, coupling="jacobi")
-        rec = ArrayRecorder()
-        try:
-            sim.run(STOP, rec)
-        finally:
-            sim.close()
-        return rec.array()
-
-    got = run(fmi3_system)
-    assert np.array_equal(got, run(system_for(load_scenario("default"), native_dir)))
+    got = master_jacobi_run(fmi3_system).array()
+    fmi2 = system_for(load_scenario("default"), native_dir)
+    assert np.array_equal(got, master_jacobi_run(fmi2).array())
     return got
 
 
 def test_c_host_fmi3_with_no_python_reachable_equals_our_master(
     fmi3_system, fmi3_master_rows, tmp_path
 ):
-    host = compile_host(
-        "gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-ldl", "-lm", "-lpthread"]
-    )
-    plan = write_plan(fmi3_system, tmp_path)
-    p = hidden_run(host, plan, tmp_path)
-    assert p.returncode == 0, p.stderr[-2000:]
-    got = rows(p.stdout)
+    got = hidden_rows(fmi3_system, tmp_path, "host3", FMI3_HOST)
     assert got.shape == fmi3_master_rows.shape == (round(STOP / 0.02) + 1, 1 + len(RECORD))
     assert np.array_equal(got, fmi3_master_rows)  # bit for bit
 
 
 def test_c_host_fmi3_invalid_start_value_is_fmi3error_with_our_message(fmi3_system, tmp_path):
-    host = compile_host(
-        "gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-ldl", "-lm", "-lpthread"]
-    )
+    host = compile_host("gcc", tmp_path / "host3", [*FMI3_HOST, *GCC_FLAGS])
     system = dataclasses.replace(
         fmi3_system,
         parameters={**fmi3_system.parameters, "controller": {"K_c": -1.0}},
@@ -261,18 +244,7 @@ def test_c_host_fmi3_invalid_start_value_is_fmi3error_with_our_message(fmi3_syst
 
 
 def test_c_host_fmi3_win64_dlls_under_wine_equal_linux64(fmi3_system, fmi3_master_rows, tmp_path):
-    if shutil.which(MINGW) is None:
-        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
-    host = compile_host(MINGW, tmp_path / "host3.exe", list(FMI3_HOST))
-    plan = write_plan(fmi3_system, tmp_path, dir_of=lambda p: "Z:" + str(p))
-    env = wine_env(tmp_path)
-    try:
-        p = subprocess.run(["wine", str(host), "Z:" + str(plan)], capture_output=True,
-                           text=True, timeout=600, env=env)  # fmt: skip
-    finally:
-        subprocess.run(["wineserver", "-k"], env=env, capture_output=True, timeout=60)
-    assert p.returncode == 0, p.stderr[-2000:]
-    got = rows(p.stdout.replace("\r", ""))
+    got = wine_rows(fmi3_system, tmp_path, "host3.exe", FMI3_HOST)
     assert got.shape == fmi3_master_rows.shape
     diff = np.abs(got - fmi3_master_rows).max()
     print(f"FMI 3 win64 under wine vs linux64: max diff {diff:.3g}")
@@ -359,15 +331,7 @@ def test_python_shims_without_a_compiler_equal_the_c_ones(native_dir, fmi3_dirs,
 
 
 def test_c_host_fmi3_run_is_clean_under_valgrind(fmi3_system, tmp_path):
-    if shutil.which("valgrind") is None:
-        pytest.fail("valgrind is not installed (.ci/run installs it)")
-    host = compile_host("gcc", tmp_path / "host3", [*FMI3_HOST, "-D_DEFAULT_SOURCE", "-g", "-ldl",
-                                                    "-lm", "-lpthread"])  # fmt: skip
-    plan = write_plan(fmi3_system, tmp_path, threads=True)
-    p = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full",
-                        "--errors-for-leak-kinds=definite", "--track-origins=yes",
-                        str(host), str(plan)], capture_output=True, text=True,
-                       timeout=600)  # fmt: skip
+    p = valgrind_run(fmi3_system, tmp_path, "host3", FMI3_HOST)
     assert p.returncode == 0, p.stderr[-3000:]
     assert "ERROR SUMMARY: 0 errors" in p.stderr
     assert "definitely lost: 0 bytes" in p.stderr or "no leaks are possible" in p.stderr
