@@ -6,32 +6,19 @@ Usage: python bench/long_run.py [--hours 1] [--json]
 
 from __future__ import annotations
 
-import argparse
 import resource
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-from _common import emit
+from _common import emit, parse_args, rss_mib
 
 from glider_cosim.runner import simulate
 
 
-def rss_mib() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--hours", type=float, default=1.0)
-    ap.add_argument("--fmu-dir", default="fmus")
-    ap.add_argument("--json", action="store_true")
-    args = ap.parse_args()
+    args = parse_args(__doc__, ("--hours", {"type": float, "default": 1.0}))
     rss = []
     with tempfile.TemporaryDirectory() as tmp:
         # a short run first: memory after loading everything

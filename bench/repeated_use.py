@@ -6,24 +6,15 @@ Usage: python bench/repeated_use.py [--cycles 1000] [--json]
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
-from _common import emit
+from _common import emit, parse_args, rss_mib
 
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
-
-
-def rss_mib() -> float:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def cycle(fmu_dir: Path, sc) -> None:
@@ -42,11 +33,7 @@ def cycle(fmu_dir: Path, sc) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cycles", type=int, default=1000)
-    ap.add_argument("--fmu-dir", default="fmus")
-    ap.add_argument("--json", action="store_true")
-    args = ap.parse_args()
+    args = parse_args(__doc__, ("--cycles", {"type": int, "default": 1000}))
     fmu_dir = Path(args.fmu_dir)
     build_all(fmu_dir, only_stale=True)
     sc = load_scenario(None)
