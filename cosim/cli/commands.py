@@ -187,7 +187,8 @@ def _analyze(args: argparse.Namespace) -> int:
     return 0
 
 
-def _dispatch(args: argparse.Namespace) -> int:
+def dispatch(args: argparse.Namespace) -> int:
+    """Run the parsed subcommand; its exit code."""
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
     # asked; verify builds ours only for --write-references/--export
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):

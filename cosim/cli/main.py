@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from ..inputs.text import one_line
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
-from .commands import _dispatch
+from .commands import dispatch
 from .parser import build_parser
 
 
@@ -72,7 +72,7 @@ def _main(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C
     try:
-        code = _dispatch(args)
+        code = dispatch(args)
     except (ScenarioError, SystemSpecError, ValueError) as err:
         print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
         code = 2

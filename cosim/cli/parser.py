@@ -169,8 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
     from ..sweeps.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from ..verify.command import _tolerance
     from ..verify.command import add_arguments as add_verify_arguments
+    from ..verify.command import tolerance_arg
 
     v = sub.add_parser(
         "verify",
@@ -179,6 +179,6 @@ def build_parser() -> argparse.ArgumentParser:
         "an FMI 2.0 or 3.0 co-simulation FMU and compare with the references; exit 0 if\n"
         "every case passes, 1 if any fails, 2 on bad input.",
     )
-    add_verify_arguments(v, _tolerance)
+    add_verify_arguments(v, tolerance_arg)
     sub.add_parser("scenarios", help="list the shipped scenarios")
     return p

@@ -25,18 +25,21 @@ OSP_MD_NS = "urn:glider-cosim:osp-model-description"
 FMU_MIME = "application/x-fmu-sharedlibrary"
 
 
-_VALUE_TYPES = ("Real", "Integer", "Boolean")
+VALUE_TYPES = ("Real", "Integer", "Boolean")
 
 
-def _q(prefix: str, tag: str) -> str:
+def qname(prefix: str, tag: str) -> str:
+    """An SSP element or attribute name in ElementTree's ``{namespace}tag`` form."""
     return f"{{{NS[prefix]}}}{tag}"
 
 
-def _local(tag: str) -> str:
+def local_name(tag: str) -> str:
+    """A tag without its ``{namespace}``."""
     return tag.rsplit("}", 1)[-1]
 
 
-def _format_value(value: Any, type_: str) -> str:
+def format_value(value: Any, type_: str) -> str:
+    """A parameter value as SSP 1.0 text for its type (``Real``, ``Integer``, ``Boolean``)."""
     if type_ == "Real":
         return repr(float(value))
     if type_ == "Boolean":
@@ -44,7 +47,7 @@ def _format_value(value: Any, type_: str) -> str:
     return str(int(value))
 
 
-def _as_fmi2_types(md: Any) -> Any:
+def as_fmi2_types(md: Any) -> Any:
     """An FMI 3.0 model description's Float64/Int32 variables as SSP 1.0's Real/Integer
     (the types an FMI 2.0 one declares); an FMI 2.0 one as it is."""
     from ..master.fmi3 import TYPE_AS_FMI2

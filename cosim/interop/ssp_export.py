@@ -13,14 +13,14 @@ from ..inputs.ssp_files import SSD_NAME, SSPError
 if TYPE_CHECKING:
     from ..scenarios.scenario import Scenario
 from .ssp_common import (
-    _VALUE_TYPES,
     FMU_MIME,
     OSP_ANNOTATION_TYPE,
     OSP_MD_ANNOTATION_TYPE,
     OSP_MD_NS,
-    _as_fmi2_types,
-    _format_value,
-    _q,
+    VALUE_TYPES,
+    as_fmi2_types,
+    format_value,
+    qname,
 )
 
 
@@ -84,27 +84,27 @@ def export_ssp(
             ospmd[inst] = (f"resources/{Path(resources[inst]).stem}{osp.SUFFIX}", found[1])
 
     root = ET.Element(
-        _q("ssd", "SystemStructureDescription"),
+        qname("ssd", "SystemStructureDescription"),
         {"version": "1.0", "name": f"glider-cosim-{sc.name}"},
     )
-    system = ET.SubElement(root, _q("ssd", "System"), {"name": "glider"})
-    elements = ET.SubElement(system, _q("ssd", "Elements"))
+    system = ET.SubElement(root, qname("ssd", "System"), {"name": "glider"})
+    elements = ET.SubElement(system, qname("ssd", "Elements"))
     comps = {}
     for inst in insts:
-        md = _as_fmi2_types(read_model_description(str(fmus[inst])))
+        md = as_fmi2_types(read_model_description(str(fmus[inst])))
         variables = {v.name: v for v in md.modelVariables}
         comp = comps[inst] = ET.SubElement(
             elements,
-            _q("ssd", "Component"),
+            qname("ssd", "Component"),
             {"name": inst, "source": resources[inst], "type": FMU_MIME},
         )
-        connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
+        connectors = ET.SubElement(comp, qname("ssd", "Connectors"))
         for v in md.modelVariables:
-            if v.causality in ("input", "output") and v.type in _VALUE_TYPES:
+            if v.causality in ("input", "output") and v.type in VALUE_TYPES:
                 c = ET.SubElement(
-                    connectors, _q("ssd", "Connector"), {"name": v.name, "kind": v.causality}
+                    connectors, qname("ssd", "Connector"), {"name": v.name, "kind": v.causality}
                 )
-                ET.SubElement(c, _q("ssc", v.type))
+                ET.SubElement(c, qname("ssc", v.type))
         values = dict(
             with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc)).get(inst, {})
         )
@@ -113,13 +113,13 @@ def export_ssp(
                 values[ref.split(".", 1)[1]] = value
         if not values:
             continue
-        bindings = ET.SubElement(comp, _q("ssd", "ParameterBindings"))
-        binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
-        pvalues = ET.SubElement(binding, _q("ssd", "ParameterValues"))
+        bindings = ET.SubElement(comp, qname("ssd", "ParameterBindings"))
+        binding = ET.SubElement(bindings, qname("ssd", "ParameterBinding"))
+        pvalues = ET.SubElement(binding, qname("ssd", "ParameterValues"))
         pset = ET.SubElement(
-            pvalues, _q("ssv", "ParameterSet"), {"version": "1.0", "name": f"{inst}-parameters"}
+            pvalues, qname("ssv", "ParameterSet"), {"version": "1.0", "name": f"{inst}-parameters"}
         )
-        params = ET.SubElement(pset, _q("ssv", "Parameters"))
+        params = ET.SubElement(pset, qname("ssv", "Parameters"))
         for name, value in values.items():
             v = variables.get(name)
             if v is None or v.causality not in ("parameter", "input"):
@@ -127,38 +127,38 @@ def export_ssp(
                     f"{sc.source}: key '{inst}.{name}': {fmus[inst].name} has no parameter or "
                     f"input '{name}'"
                 )
-            if v.type not in _VALUE_TYPES:
+            if v.type not in VALUE_TYPES:
                 raise SSPError(f"{sc.source}: key '{inst}.{name}': type {v.type} is not supported")
-            p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": name})
-            ET.SubElement(p, _q("ssv", v.type), {"value": _format_value(value, v.type)})
+            p = ET.SubElement(params, qname("ssv", "Parameter"), {"name": name})
+            ET.SubElement(p, qname("ssv", v.type), {"value": format_value(value, v.type)})
     for inst, (path, _) in ospmd.items():  # Annotations come last in an ssd:Component
         annotation = ET.SubElement(
-            ET.SubElement(comps[inst], _q("ssd", "Annotations")),
-            _q("ssc", "Annotation"),
+            ET.SubElement(comps[inst], qname("ssd", "Annotations")),
+            qname("ssc", "Annotation"),
             {"type": OSP_MD_ANNOTATION_TYPE},
         )
         ET.SubElement(annotation, f"{{{OSP_MD_NS}}}OspModelDescription", {"source": path})
-    connections = ET.SubElement(system, _q("ssd", "Connections"))
+    connections = ET.SubElement(system, qname("ssd", "Connections"))
     for src, dst in conns:
         (se, sc_), (de, dc) = src.split(".", 1), dst.split(".", 1)
         ET.SubElement(
             connections,
-            _q("ssd", "Connection"),
+            qname("ssd", "Connection"),
             {"startElement": se, "startConnector": sc_, "endElement": de, "endConnector": dc},
         )
     experiment = ET.SubElement(
         root,
-        _q("ssd", "DefaultExperiment"),
+        qname("ssd", "DefaultExperiment"),
         {"startTime": "0.0", "stopTime": repr(float(sc.stop_time))},
     )
     annotation = ET.SubElement(
-        ET.SubElement(experiment, _q("ssd", "Annotations")),
-        _q("ssc", "Annotation"),
+        ET.SubElement(experiment, qname("ssd", "Annotations")),
+        qname("ssc", "Annotation"),
         {"type": OSP_ANNOTATION_TYPE},
     )
     ET.SubElement(
-        ET.SubElement(annotation, _q("osp", "Algorithm")),
-        _q("osp", "FixedStepAlgorithm"),
+        ET.SubElement(annotation, qname("osp", "Algorithm")),
+        qname("osp", "FixedStepAlgorithm"),
         {"baseStepSize": repr(float(sc.step))},
     )
     ET.indent(root)

@@ -13,14 +13,14 @@ from ..inputs.ssp_files import SSD_NAME, SSPError, locate, parse_value
 from ..inputs.text import quote
 from ..master.spec import System
 from .ssp_common import (
-    _VALUE_TYPES,
     FMU_MIME,
     NS,
     OSP_ANNOTATION_TYPE,
     OSP_MD_NS,
-    _as_fmi2_types,
-    _local,
-    _q,
+    VALUE_TYPES,
+    as_fmi2_types,
+    local_name,
+    qname,
 )
 
 for _prefix, _uri in NS.items():
@@ -65,7 +65,7 @@ def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
     if not fmu.exists():
         raise SSPError(f"{cwhere}: FMU {quote(source)} is missing")
     try:  # complete (binary, pythonfmu script) and readable; nothing loaded
-        md = _as_fmi2_types(read_fmu(fmu, cwhere))
+        md = as_fmi2_types(read_fmu(fmu, cwhere))
     except InputFileError as err:
         raise SSPError(str(err)) from None
     variables = {v.name: v for v in md.modelVariables}
@@ -79,7 +79,7 @@ def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
             raise SSPError(
                 f"{cwhere}: connector '{cname}' is declared {kind} but is {v.causality} in {source}"
             )
-        types = [_local(t.tag) for t in c if _local(t.tag) in (*_VALUE_TYPES, "String")]
+        types = [local_name(t.tag) for t in c if local_name(t.tag) in (*VALUE_TYPES, "String")]
         if types and types[0] != v.type:
             raise SSPError(
                 f"{cwhere}: connector '{cname}' is declared {types[0]} but is {v.type} in {source}"
@@ -113,7 +113,7 @@ def _read_parameters(
             pset = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
             if pset is None:
                 raise SSPError(f"{cwhere}: a ssd:ParameterBinding has no source nor values")
-        if pset.tag != _q("ssv", "ParameterSet"):
+        if pset.tag != qname("ssv", "ParameterSet"):
             raise SSPError(f"{cwhere}: parameter values are not an ssv:ParameterSet")
         for p in pset.iterfind("ssv:Parameters/ssv:Parameter", NS):
             name = prefix + (p.get("name") or "")
@@ -123,11 +123,11 @@ def _read_parameters(
                 raise SSPError(f"{pwhere} is not a variable of {comp.source}")
             if v.causality not in ("parameter", "input"):
                 raise SSPError(f"{pwhere} has causality {v.causality}: expected parameter or input")
-            typed = [t for t in p if _local(t.tag) != "Annotations"]
+            typed = [t for t in p if local_name(t.tag) != "Annotations"]
             if not typed:
                 raise SSPError(f"{pwhere} has no value")
-            tag = _local(typed[0].tag)
-            if tag not in _VALUE_TYPES:
+            tag = local_name(typed[0].tag)
+            if tag not in VALUE_TYPES:
                 raise SSPError(f"{pwhere}: ssv:{tag} values are not supported")
             if tag != v.type:
                 raise SSPError(f"{pwhere} is given as {tag} but is {v.type} in {comp.source}")
@@ -220,7 +220,7 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
         root = ET.parse(ssd).getroot()
     except ET.ParseError as err:
         raise SSPError(f"{where}: {ssd.name} is not valid XML ({err})") from None
-    if root.tag != _q("ssd", "SystemStructureDescription"):
+    if root.tag != qname("ssd", "SystemStructureDescription"):
         raise SSPError(
             f"{where}: the root element is not an SSP 1.0 ssd:SystemStructureDescription"
         )
@@ -274,7 +274,7 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
             ends.append(v)
         if ends[0].type != ends[1].type:
             raise SSPError(f"{cwhere}: type mismatch ({ends[0].type} -> {ends[1].type})")
-        if any(_local(t.tag) != "Annotations" for t in c):
+        if any(local_name(t.tag) != "Annotations" for t in c):
             raise SSPError(f"{cwhere}: transformations (ssc:...Transformation) are not supported")
         src, dst = f"{se}.{sc_}", f"{de}.{dc}"
         if dst in sources:

@@ -21,7 +21,8 @@ class ParquetFormatError(ValueError):
     """pyarrow, which writes Parquet, is not installed."""
 
 
-def _pyarrow() -> Any:
+def require_pyarrow() -> Any:
+    """pyarrow, or a one-line :class:`ParquetFormatError` naming the extra to install."""
     try:
         import pyarrow
         import pyarrow.parquet
@@ -40,7 +41,7 @@ class ParquetRecorder:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.n_rows = 0
-        self._pa = _pyarrow()
+        self._pa = require_pyarrow()
         self._writer: Any = None
         self._buf: np.ndarray | None = None
         self._pending = 0

@@ -193,9 +193,9 @@ def simulate(
             f"results_format {quote(results_format)} is invalid: expected 'csv' or 'parquet'"
         )
     if results_format == "parquet" and out is not None:
-        from .parquet import _pyarrow
+        from .parquet import require_pyarrow
 
-        _pyarrow()  # one line now, not after the run
+        require_pyarrow()  # one line now, not after the run
     for key, value in (("step", step), ("stop_time", stop_time)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
             raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")

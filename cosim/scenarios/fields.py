@@ -19,7 +19,7 @@ class ScenarioError(ValueError):
     """A scenario file is malformed; the message names the file and the key."""
 
 
-def _number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
+def parse_number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
     """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
 
     Types are kept (an int stays an int, a boolean a boolean): the variable's type and
@@ -61,7 +61,7 @@ def _our_unit(ref: str) -> str | None:
     return None if spec is None else spec.unit
 
 
-def _float(
+def parse_float(
     value: Any,
     where: str,
     positive: bool = False,
@@ -69,7 +69,7 @@ def _float(
     angle: bool = False,
 ) -> float:
     """A finite float (``angle``: ``"X deg"`` accepted, checked against the unit later)."""
-    v = _number(value, where)
+    v = parse_number(value, where)
     if isinstance(v, Degrees) and not angle:
         raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number without a unit")
     try:
@@ -94,7 +94,7 @@ def _choices(names: Any) -> str:
 LAW_CHOICES = f"one of {', '.join(repr(n) for n in LAWS)} (any case) or an integer 0..3"
 
 
-def _law(value: Any, where: str) -> Any:
+def parse_law(value: Any, where: str) -> Any:
     """``controller.law``: a name (any case) or an exact integer 0..3."""
     if isinstance(value, str):
         key = value.strip().lower()
@@ -107,7 +107,7 @@ def _law(value: Any, where: str) -> Any:
     raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
 
 
-def _choice(value: Any, choices: tuple[str, ...], where: str) -> str:
+def parse_choice(value: Any, choices: tuple[str, ...], where: str) -> str:
     """An enumerated string option (``coupling``, ``feedback``), any case."""
     if isinstance(value, str) and value.strip().lower() in choices:
         return value.strip().lower()
@@ -116,7 +116,8 @@ def _choice(value: Any, choices: tuple[str, ...], where: str) -> str:
     )
 
 
-def _table(value: Any, where: str) -> dict[str, Any]:
+def parse_table(value: Any, where: str) -> dict[str, Any]:
+    """A scenario value that must be a TOML table."""
     if not isinstance(value, dict):
         raise ScenarioError(f"{where}: expected a table, got {type(value).__name__}")
     return value

@@ -7,7 +7,7 @@ import re
 from typing import Any
 
 from ..inputs.text import quote
-from .fields import LAWS, ScenarioError, _law, _number
+from .fields import LAWS, ScenarioError, parse_law, parse_number
 from .scenario import INSTANCES, Scenario
 
 
@@ -43,7 +43,7 @@ def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int
             )
         text = text.strip()
         if inst == "controller" and name == "law":
-            out[key.strip()] = _law(text, where)
+            out[key.strip()] = parse_law(text, where)
             continue
         value: float | int | bool
         if text in ("true", "false"):
@@ -54,6 +54,6 @@ def parse_sets(items: list[str], source: str = "--set") -> dict[str, float | int
             try:
                 value = float(text)
             except ValueError:
-                value = _number(text, where, key.strip())
+                value = parse_number(text, where, key.strip())
         out[key.strip()] = value
     return out

@@ -34,7 +34,7 @@ from ..inputs.archives import InputFileError, regular_file
 from ..inputs.text import quote, shown_path
 from ..inputs.values import Degrees
 from ..master.spec import Disturbance, Event
-from .fields import ScenarioError, _choice, _float, _law, _number, _table
+from .fields import ScenarioError, parse_choice, parse_float, parse_law, parse_number, parse_table
 
 INSTANCES = ("plant", "observer", "controller")
 
@@ -105,13 +105,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     if "name" in data:
         check_name(sc.name, f"{source}: key 'name'")
     if "stop_time" in data:
-        sc.stop_time = _float(data["stop_time"], f"{source}: key 'stop_time'", positive=True)
+        sc.stop_time = parse_float(data["stop_time"], f"{source}: key 'stop_time'", positive=True)
     if "step" in data:
-        sc.step = _float(data["step"], f"{source}: key 'step'", positive=True)
+        sc.step = parse_float(data["step"], f"{source}: key 'step'", positive=True)
     if "coupling" in data:
-        sc.coupling = _choice(data["coupling"], COUPLINGS, f"{source}: key 'coupling'")
+        sc.coupling = parse_choice(data["coupling"], COUPLINGS, f"{source}: key 'coupling'")
     if "feedback" in data:
-        sc.feedback = _choice(data["feedback"], FEEDBACKS, f"{source}: key 'feedback'")
+        sc.feedback = parse_choice(data["feedback"], FEEDBACKS, f"{source}: key 'feedback'")
     if "with_observer" in data:
         if not isinstance(data["with_observer"], bool):
             raise ScenarioError(f"{source}: key 'with_observer': expected true or false")
@@ -133,13 +133,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     for inst in INSTANCES:
         if inst in data:
             params = {}
-            for k, v in _table(data[inst], f"{source}: key '{inst}'").items():
+            for k, v in parse_table(data[inst], f"{source}: key '{inst}'").items():
                 where = f"{source}: key {quote(f'{inst}.{k}')}"
                 if inst == "controller" and k == "law":
-                    v = _law(v, where)
-                params[k] = _number(v, where, f"{inst}.{k}")
+                    v = parse_law(v, where)
+                params[k] = parse_number(v, where, f"{inst}.{k}")
             sc.parameters[inst] = params
-    for k, v in _table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
+    for k, v in parse_table(data.get("fmus", {}), f"{source}: key 'fmus'").items():
         if k not in INSTANCES:
             raise ScenarioError(
                 f"{source}: key {quote(f'fmus.{k}')}: unknown instance: expected one of "
@@ -155,14 +155,14 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         except InputFileError as err:
             raise ScenarioError(str(err)) from None
         sc.fmus[k] = str(path)
-    for k, v in _table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
-        sc.inputs[k] = _float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
+    for k, v in parse_table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
+        sc.inputs[k] = parse_float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
     dist = data.get("disturbance", [])
     if not isinstance(dist, list):
         raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
     for i, d in enumerate(dist):
         where = f"{source}: key disturbance[{i}]"
-        d = _table(d, where)
+        d = parse_table(d, where)
         extra = set(d) - {"target", "kind", "time", "value", "duration"}
         if extra:
             raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
@@ -177,9 +177,9 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
             Disturbance(
                 target=d["target"],
                 kind=kind,
-                time=_float(d.get("time", 0.0), f"{where}.time", non_negative=True),
-                value=_float(d.get("value", 0.0), f"{where}.value"),
-                duration=_float(
+                time=parse_float(d.get("time", 0.0), f"{where}.time", non_negative=True),
+                value=parse_float(d.get("value", 0.0), f"{where}.value"),
+                duration=parse_float(
                     d.get("duration", 0.0), f"{where}.duration", positive=kind == "pulse"
                 ),
             )
@@ -189,7 +189,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         raise ScenarioError(f"{source}: key 'event': expected an array of tables")
     for i, e in enumerate(events):
         where = f"{source}: key event[{i}]"
-        e = _table(e, where)
+        e = parse_table(e, where)
         extra = set(e) - {"when", "delay", "set"}
         if extra:
             raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
@@ -201,16 +201,16 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
                 "'instance.variable >= X' (or <=)"
             )
         actions = {}
-        for target, v in _table(e.get("set", {}), f"{where}.set").items():
+        for target, v in parse_table(e.get("set", {}), f"{where}.set").items():
             if target == "controller.law":
-                v = _law(v, f"{where}.set.{target}")
-            actions[target] = _number(v, f"{where}.set.{quote(target)}", target)
+                v = parse_law(v, f"{where}.set.{target}")
+            actions[target] = parse_number(v, f"{where}.set.{quote(target)}", target)
         if not actions:
             raise ScenarioError(f"{where}.set: expected at least one 'instance.variable' = value")
         try:
             threshold = float(m.group(3))
         except ValueError:
-            threshold = _float(m.group(3), f"{where}.when", angle=True)
+            threshold = parse_float(m.group(3), f"{where}.when", angle=True)
         if not math.isfinite(threshold):
             raise ScenarioError(
                 f"{where}.when: threshold {quote(m.group(3))} is invalid: expected a finite number"
@@ -225,7 +225,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
                 op=m.group(2),
                 threshold=threshold,
                 actions=actions,
-                delay=_float(e.get("delay", 0.0), f"{where}.delay", non_negative=True),
+                delay=parse_float(e.get("delay", 0.0), f"{where}.delay", non_negative=True),
             )
         )
     return sc

@@ -91,7 +91,8 @@ FIGURES: tuple[Figure, ...] = (
 )  # fmt: skip
 
 
-def _fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
+def fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
+    """A number for the report's tables (scaled, fixed digits; ``n/a`` if missing)."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "n/a"
     return f"{v * scale:.{digits}f}"

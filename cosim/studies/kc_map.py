@@ -12,7 +12,7 @@ from ..runner.metrics import describe_outcome
 from ..runner.run import RunResult, simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
-from .figures import _fmt
+from .figures import fmt
 
 #: the K_c grid of the map where the observer-fed loop works (default scenario)
 KC_MAP = tuple(3.0 + 0.5 * i for i in range(19))  # 3 .. 12
@@ -35,7 +35,7 @@ def kc_map(fmu_dir: str | Path, ks: Sequence[float] = KC_MAP) -> list[dict[str, 
             row[fb] = {
                 "status": r.status,
                 "outcome": m.get("outcome"),
-                "text": _kc_cell(r),
+                "text": kc_cell(r),
                 "settling_time_s": m.get("settling_time_s"),
                 "rate_per_s": m.get("outcome_rate_per_s"),
                 "end_time_s": float(r.data[-1, 0]) if len(r.data) else 0.0,
@@ -45,12 +45,13 @@ def kc_map(fmu_dir: str | Path, ks: Sequence[float] = KC_MAP) -> list[dict[str, 
     return rows
 
 
-def _kc_cell(r: RunResult) -> str:
+def kc_cell(r: RunResult) -> str:
+    """One cell of the K_c map: how the run ends."""
     m = r.metrics
     if m.get("outcome") == "settled":
         return f"settled in {m['settling_time_s']:.2f} s"
     if r.status != "ok":
-        stall = _stall(r)
+        stall = stall_of(r)
         if stall:
             return f"stops at {stall[2]:.2f} s ({stall[0]} stalls)"
         return f"stops at {r.data[-1, 0]:.2f} s"
@@ -98,8 +99,8 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
         "| | smallest K_c that settles (every larger one does too) | linear limit "
         "(`glider-cosim analyze`, sampled at 50 Hz) |",
         "|---|---|---|",
-        f"| with the observer | {_fmt(k_obs, 1, 1)} | {limit(lo_obs)} |",
-        f"| full-state feedback | {_fmt(k_st, 1, 1)} | {limit(lo_st)} |",
+        f"| with the observer | {fmt(k_obs, 1, 1)} | {limit(lo_obs)} |",
+        f"| full-state feedback | {fmt(k_st, 1, 1)} | {limit(lo_st)} |",
         "",
     ]
     by_k = {row["K_c"]: row for row in rows}
@@ -139,7 +140,7 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
             )
     if reason:
         lines.append(
-            f"Why K_c = {_fmt(k_obs, 1, 1)} (observer) and {_fmt(k_st, 1, 1)} (full state) "
+            f"Why K_c = {fmt(k_obs, 1, 1)} (observer) and {fmt(k_st, 1, 1)} (full state) "
             f"rather than the linear {limit(lo_obs)} and {limit(lo_st)}: " + "; ".join(reason) + "."
         )
         lines.append("")
@@ -149,7 +150,7 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
 _STALL = re.compile(r"(\w+): (?:observer estimate )?glider stalled: V = ([-+0-9.eE]+) m/s")
 
 
-def _stall(r: RunResult) -> tuple[str, float, float] | None:
+def stall_of(r: RunResult) -> tuple[str, float, float] | None:
     """(variable, V, time) of the stall that stopped a run, from its message."""
     m = _STALL.search(r.message or "")
     if not m:

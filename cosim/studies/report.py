@@ -24,8 +24,8 @@ from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
 from .figures import FIGURES, Run
 from .kc_map import kc_map
-from .report_plots import _plot_figure, _plot_sec53, _plot_steps
-from .report_text import _markdown
+from .report_plots import plot_figure, plot_sec53, plot_steps
+from .report_text import report_markdown
 from .sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 
 
@@ -122,11 +122,11 @@ def build_report(
         roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
-    pngs = {fig.key: (_plot_sec53 if fig.key == "fig11-20" else _plot_figure)(
+    pngs = {fig.key: (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
         fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
-    pngs["steps"] = _plot_steps(study, out)
+    pngs["steps"] = plot_steps(study, out)
     pngs["fig8"] = plot_sec52(sec52, out)
-    text = _markdown(results, an, study, pngs,
+    text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     (out / "report.md").write_text(text)
     summary = {

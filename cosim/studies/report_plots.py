@@ -11,7 +11,7 @@ import numpy as np
 
 from ..runner.run import RunResult
 from .figures import DEG, Figure, Run
-from .kc_map import _kc_cell
+from .kc_map import kc_cell
 
 
 def _bounded(r: RunResult) -> bool:
@@ -19,7 +19,7 @@ def _bounded(r: RunResult) -> bool:
     return r.status == "ok" and r.metrics.get("outcome") != "diverging"
 
 
-def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
     """One panel per (column, group); y-limits of a row from the runs that stay bounded
     (shared by the row's panels); a run leaving them is clipped and marked (a triangle
     where it leaves, a cross where a stopped run ends, both in the legend)."""
@@ -113,7 +113,8 @@ def _plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Pat
     return path
 
 
-def _plot_steps(study: dict[str, Any], out: Path) -> Path:
+def plot_steps(study: dict[str, Any], out: Path) -> Path:
+    """The accuracy study's figure (50 Hz, 200 Hz and continuous time)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -153,7 +154,7 @@ SEC53_TAIL = 100.0
 SEC53_FROM = 20.0
 
 
-def _plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
     """Figs. 11-20 as small multiples: one row per law family, one column per run; per
     run the glide angle and pitch over the tail command, on the same fixed axes in every
     panel (angles -70..40 deg, clipped with a triangle where a run leaves them; the tail
@@ -187,7 +188,7 @@ def _plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
                 continue
             run, r = runs[j]
             t = r.data[:, 0]
-            end = _kc_cell(r)
+            end = kc_cell(r)
             top.set_title(f"{run.label}\n{_feedback(r)} feedback: {end}", fontsize=8.5)
             lo, hi = SEC53_ANGLES
             for col, label, lw in (("plant.theta_g", "glide angle", 1.3),

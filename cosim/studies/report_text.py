@@ -13,8 +13,8 @@ from ..runner.metrics import describe_outcome
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
-from .figures import DEG, FIGURES, Run, _fmt, estimation_error, passivity_gain
-from .kc_map import _stall, kc_map_markdown
+from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
+from .kc_map import kc_map_markdown, stall_of
 
 
 def _metrics_row(label: str, r: RunResult) -> str:
@@ -23,14 +23,15 @@ def _metrics_row(label: str, r: RunResult) -> str:
     est = "" if ee is None else f"{ee[0] * DEG:.2f} / {ee[1] * DEG:.2f}"
     return (
         f"| {label} | {r.status} | {describe_outcome(m, brief=True)} | "
-        f"{_fmt(m.get('rise_time_s'))} | "
-        f"{_fmt(m.get('overshoot_rad'), DEG)} | {_fmt(m.get('overshoot_pct'), 1, 0)} | "
-        f"{_fmt(m.get('settling_time_s'))} | {_fmt(m.get('control_effort'), 1, 3)} | "
-        f"{_fmt(m.get('max_abs_delta_cmd_rad'), DEG, 1)} | {est} |"
+        f"{fmt(m.get('rise_time_s'))} | "
+        f"{fmt(m.get('overshoot_rad'), DEG)} | {fmt(m.get('overshoot_pct'), 1, 0)} | "
+        f"{fmt(m.get('settling_time_s'))} | {fmt(m.get('control_effort'), 1, 3)} | "
+        f"{fmt(m.get('max_abs_delta_cmd_rad'), DEG, 1)} | {est} |"
     )
 
 
-def _markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> str:
+def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> str:
+    """The whole ``report.md`` from the runs, the analysis and the studies."""
     lines = [
         "# glider-cosim report",
         "",
@@ -110,7 +111,7 @@ def _analysis_section(an: dict[str, Any] | None) -> list[str]:
             lo, hi = rng[key]
             lines.append(
                 f"- stable K_c range, {label}: "
-                f"({_fmt(lo)}, {'unbounded' if hi is None else _fmt(hi)})"
+                f"({fmt(lo)}, {'unbounded' if hi is None else fmt(hi)})"
             )
     lines.append("")
     return lines
@@ -188,7 +189,7 @@ def _agreement_section(results, an, study) -> list[str]:
         f"({describe_outcome(k2.metrics)}, in glide angle, over the last third of the run); "
         f"with K_c = 10 it is {describe_outcome(fig2['K_c = 10'].metrics)}, open loop "
         f"{describe_outcome(fig2['open loop'].metrics)} (that run is longer: its slow mode has "
-        f"a period of {_fmt(fig2['open loop'].metrics.get('outcome_period_s'))} s and settling "
+        f"a period of {fmt(fig2['open loop'].metrics.get('outcome_period_s'))} s and settling "
         "needs three of them in the band)."
     )
     sweep = [(run, r) for run, r in results["fig3-4"] if r.metrics.get("outcome") == "settled"]
@@ -216,8 +217,8 @@ def _agreement_section(results, an, study) -> list[str]:
         agree = t_eff == "falls" and t_time == "grows"
         lines.append(
             f"- Figs. 3-4 trade-off among the K_c that settle ({labels}): the peak tail angle "
-            f"{t_eff} with K_c ({', '.join(_fmt(e, DEG, 1) for e in efforts)} deg) and the "
-            f"settling time {t_time} ({', '.join(_fmt(t) for t in times)} s): "
+            f"{t_eff} with K_c ({', '.join(fmt(e, DEG, 1) for e in efforts)} deg) and the "
+            f"settling time {t_time} ({', '.join(fmt(t) for t in times)} s): "
             f"{'agrees with' if agree else '**differs from**'} the paper's 'a smaller K_c "
             "converges faster but needs a larger control effort'"
             + ("" if agree else " (near the stability limit a small K_c rings and settles slowly)")
@@ -237,8 +238,8 @@ def _agreement_section(results, an, study) -> list[str]:
         best = min(rows, key=lambda kr: kr[1].get("settling_time_s") or 1e9)
         lines.append(
             f"- Sec. 5.3 protocol (2 deg hold instead of 60 deg, see below): the shortest "
-            f"settling time is {best[0]} ({_fmt(best[1].get('settling_time_s'))} s, peak tail "
-            f"{_fmt(best[1].get('max_abs_delta_cmd_rad'), DEG, 1)} deg). The paper reports the "
+            f"settling time is {best[0]} ({fmt(best[1].get('settling_time_s'))} s, peak tail "
+            f"{fmt(best[1].get('max_abs_delta_cmd_rad'), DEG, 1)} deg). The paper reports the "
             "passivity law as the better balance of speed and effort; compare the table."
         )
     paper = [(k, r) for k, r in s53.items() if "(ours)" not in k]
@@ -331,7 +332,7 @@ def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> s
             f"{where} the glide angle swings up to {np.max(np.abs(err)) * DEG:.1f} deg from "
             f"the equilibrium and the tail command up to {tail:.1f} deg{limit}"
         )
-    stall = _stall(r)
+    stall = stall_of(r)
     if stall:
         parts.append(f"{stall[0]} stalls at {stall[2]:.2f} s ({stall[0]} = {stall[1]:.2g} m/s)")
     elif r.status != "ok":

@@ -70,7 +70,8 @@ def run_command(args: argparse.Namespace) -> int:
     return 0 if report.passed else 1
 
 
-def _tolerance(text: str) -> float:
+def tolerance_arg(text: str) -> float:
+    """An ``--rtol``/``--atol`` argument as a float (argparse's type)."""
     try:
         value = check_tolerance(text, "")
     except VerifyInputError:

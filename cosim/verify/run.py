@@ -59,7 +59,7 @@ def _value(text: str, var: Any, where: str) -> float | int | bool:
     raise CaseFileError(f"{where}: {quote(text)} is not a valid {var.type} value")
 
 
-def _run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
+def run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
     """Run ``case`` on an FMI 2.0 or 3.0 co-simulation FMU with our master."""
     from ..master.cosimulation import CoSimulation
     from ..master.errors import FMUCallError, FMUStopped
@@ -109,8 +109,8 @@ def _run_case(fmu: Path, md: Any, case: Case, record: Sequence[str]) -> Run:
 
 #: FMI version of the model description -> runner (our master runs both)
 RUNNERS: dict[str, Callable[[Path, Any, Case, Sequence[str]], Run]] = {
-    "2.0": _run_case,
-    "3.0": _run_case,
+    "2.0": run_case,
+    "3.0": run_case,
 }
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..fmus.files import package_version
 from .cases import COMPONENTS, DEFAULT_CASE, case_names, kit_root, load_case
-from .run import _run_case, open_fmu
+from .run import open_fmu, run_case
 
 
 def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None) -> list[Path]:
@@ -38,7 +38,7 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
         outputs = [v.name for v in md.modelVariables if v.causality == "output"]
         for name in case_names(component, src):
             c = load_case(component, name, src, with_reference=False)
-            run = _run_case(fmus[model], md, c, outputs)
+            run = run_case(fmus[model], md, c, outputs)
             if run.stop is not None and run.stop[0] != "discard":
                 raise RuntimeError(f"{component} case {name}: {run.stop[2]}")
             ref = dest / component / f"{name}_ref.csv"

@@ -151,14 +151,14 @@ def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path
     import matplotlib.pyplot as plt
 
     from glider_cosim.runner import simulate
-    from glider_cosim.studies.report_plots import _plot_sec53
+    from glider_cosim.studies.report_plots import plot_sec53
 
     fig = FIGURES[3]
     results = [(run, simulate(apply_overrides(load_scenario(run.scenario), run.overrides), None,
                               fmu_dir=fmu_dir, build=False)) for run in fig.runs]  # fmt: skip
     kept = []
     monkeypatch.setattr(plt, "close", kept.append)
-    _plot_sec53(fig, results, tmp_path)
+    plot_sec53(fig, results, tmp_path)
     (f,) = kept
     tops = [ax for ax in f.get_axes() if ax.get_title()]
     assert len(tops) == len(fig.runs)  # one panel per run
