@@ -11,19 +11,15 @@ the same picture.
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-#: import package -> its folder
-ROOTS = {
-    "glider_plant": ROOT / "src" / "plant",
-    "glider_observer": ROOT / "src" / "observer",
-    "glider_controller": ROOT / "src" / "controller",
-    "glider_fmi": ROOT / "src" / "fmi",
-    "glider_cosim": ROOT / "cosim",
-}
+SETUPTOOLS = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+#: import package -> its folder, as ``pyproject.toml``'s ``package-dir`` maps them
+ROOTS = {name: ROOT / folder for name, folder in SETUPTOOLS["package-dir"].items()}
 #: the layers, bottom first: the FMUs' own packages, then the groups of ``glider_cosim``
 #: (its subpackages and top-level modules); README "Where things are" draws the same
 LAYERS = (

@@ -14,6 +14,8 @@ from glider_fmi import compile as runtime
 
 from . import osp
 from .files import fmu_flavor, package_version
+from .fmi3 import build_fmi3
+from .native import NATIVE_COMPONENTS, build_native, native_hash
 from .python import (
     COMPONENTS,
     DEFAULT_DIRS_FMI3,
@@ -59,8 +61,6 @@ def sources_key(flavor: str = "python") -> str:
     """A short hash over the sources of the flavor's three FMUs (each FMU's own hash,
     :func:`source_hash` or :func:`glider_cosim.fmus.native.native_hash`)."""
     if flavor == "native":
-        from .native import NATIVE_COMPONENTS, native_hash
-
         hashes = [native_hash(c) for c in NATIVE_COMPONENTS]
     else:
         hashes = [source_hash(c) for c in COMPONENTS]
@@ -160,14 +160,10 @@ def build_all(
     if fmi not in FMI_VERSIONS:
         raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
     if fmi == 3:
-        from .fmi3 import build_fmi3
-
         return build_fmi3(out, flavor, only_stale)
     if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
-        from .native import build_native
-
         return _with_osp(build_native(out, only_stale))
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}

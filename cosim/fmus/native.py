@@ -34,7 +34,7 @@ import glider_plant
 from glider_fmi import compile as runtime
 
 from . import osp
-from .files import FLAVOR_FILE, package_version
+from .files import FLAVOR_FILE, package_version, replacing
 
 log = logging.getLogger(__name__)
 
@@ -339,8 +339,6 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
                 raise NativeBuildError(f"{c.name} (win64): not warning-free: {printed[:300]}")
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{c.name}.fmu"
-        from .files import replacing
-
         linux, windows = BINARY_DIRS[fmi]
         md = model_description(c, c_names)
         if fmi == 3:

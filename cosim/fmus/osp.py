@@ -28,6 +28,8 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from .files import replacing
+
 #: namespace of OSP-IS 1.0.1 (1.0.0 plus the ``axis`` attribute of ``Variable``)
 NS = "https://open-simulation-platform.com/OspModelDescription/1.0.1"
 SUFFIX = "_OspModelDescription.xml"
@@ -223,8 +225,6 @@ def write_beside(fmu: Path) -> Path:
     target = fmu.with_name(name)
     if target.is_file() and target.read_bytes() == content:
         return target
-    from .files import replacing
-
     with replacing(target) as part:  # a name of its own: builds may run at once
         part.write_bytes(content)
     return target

@@ -14,7 +14,9 @@ import numpy as np
 
 from ..fmus.folders import build_all, fmu_folder
 from ..inputs.check import check_system_values
+from ..inputs.ssp_files import ssp_name
 from ..inputs.text import quote
+from ..interop.ssp_import import load_ssp
 from ..master.cosimulation import CoSimulation
 from ..master.errors import (
     FMUCallError,
@@ -201,9 +203,6 @@ def simulate(
             raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
     ssp_system = None
     if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
-        from ..inputs.ssp_files import ssp_name
-        from ..interop.ssp_import import load_ssp
-
         ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
         scenario = Scenario(name=ssp_name(scenario), source=str(scenario), step=ssp_step,
                             stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip

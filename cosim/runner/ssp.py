@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..inputs.ssp_files import SSD_NAME
-
-if TYPE_CHECKING:
-    from .run import RunResult
-from ..interop.ssp_import import load_ssp
+from .run import RunResult, simulate
 
 
 def run_ssp(
@@ -45,12 +41,10 @@ def run_ssp(
     Raises
     ------
     SSPError
-        The SSP is malformed (checked before any FMU is instantiated).
+        The SSP is malformed (``simulate`` reads it, every check before any FMU is
+        instantiated).
     """
-    from .run import simulate
-
     p = Path(path)
     if p.is_dir():
         p = p / SSD_NAME
-    load_ssp(p)  # every check before any FMU runs
     return simulate(p, out, coupling=coupling, stop_time=stop_time, plots=plots, build=False)

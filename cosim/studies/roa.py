@@ -28,6 +28,7 @@ from ..runner.outcome import (
     STOPPED,
     TUMBLING,
 )
+from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import Scenario, load_scenario
 
 DEG = 180.0 / math.pi
@@ -93,7 +94,6 @@ def parse_grid(text: str) -> tuple[int, int]:
 
 
 def _scenario(case: RoaCase) -> Scenario:
-    from ..scenarios.overrides import apply_overrides
 
     return apply_overrides(load_scenario(case.scenario), dict(case.overrides))
 
