@@ -177,7 +177,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the component verification kit on an FMU",
         description="Run the reference cases of a component (plant, observer, controller) on\n"
         "an FMI 2.0 or 3.0 co-simulation FMU and compare with the references; exit 0 if\n"
-        "every case passes, 1 if any fails, 2 on bad input.",
+        "at least one case ran and every case run passed, 1 if a case\n"
+        "failed, 2 on bad input, a missing core interface or no case that can run.",
     )
     add_verify_arguments(v, tolerance_arg)
     sub.add_parser("scenarios", help="list the shipped scenarios")

@@ -15,6 +15,7 @@ import glider_controller
 import glider_fmi
 import glider_observer
 import glider_plant
+from glider_fmi import bundle
 from glider_fmi import compile as runtime
 
 from . import osp
@@ -94,14 +95,20 @@ def is_current(fmu: Path, c: Component) -> bool:
         return False
 
 
-def _replace_binaries(fmu: Path, model_identifier: str, binary: Path) -> None:
-    """Swap pythonfmu's binaries in ``fmu`` for our runtime (linux64 only)."""
+def _finish(fmu: Path, model_identifier: str, binary: Path) -> None:
+    """Make pythonfmu's ``fmu`` ours: its binaries swapped for our runtime (linux64 only)
+    and its bundled imports made relative (:func:`glider_fmi.bundle.relativize_bundle`),
+    so that the FMU runs only the code in its own ``resources/``."""
     tmp = fmu.with_name(fmu.name + ".part")
     try:
         with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
-            for item in src.infolist():
-                if not item.filename.startswith("binaries/"):
-                    dst.writestr(item, src.read(item))
+            items = [i for i in src.infolist() if not i.filename.startswith("binaries/")]
+            data = {i.filename: src.read(i) for i in items}
+            res = {n.removeprefix("resources/"): d for n, d in data.items()
+                   if n.startswith("resources/") and not n.endswith("/")}  # fmt: skip
+            data.update({f"resources/{n}": d for n, d in bundle.relativize_bundle(res).items()})
+            for item in items:
+                dst.writestr(item, data[item.filename])
             dst.write(binary, f"{BINARY_DIR}/{model_identifier}.so")
         tmp.replace(fmu)
     finally:
@@ -147,7 +154,7 @@ def package_slave(
                 script, dest=Path(tmp), project_files=[*project_files, config], **options
             )
         )
-        _replace_binaries(staged, staged.stem, binary)
+        _finish(staged, staged.stem, binary)
         osp.add_to_fmu(staged)
         fmu = out / staged.name
         with replacing(fmu) as part:  # a process reading the FMU meanwhile sees old or new

@@ -131,6 +131,16 @@ def _is_pythonfmu(md: Any, names: set[str]) -> bool:
     )
 
 
+def binary_path(md: Any) -> str:
+    """The binary a host on this platform loads from a co-simulation FMU, as fmpy finds
+    it: ``binaries/<platform>/<model identifier><ext>`` (FMI 3: the platform tuple, such
+    as ``x86_64-linux``; FMI 2: ``linux64``, ``win64``, ``darwin64``)."""
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
+
+    folder = platform_tuple if md.fmiVersion == "3.0" else platform
+    return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{sharedLibraryExtension}"
+
+
 def read_fmu(path: str | Path, where: str) -> Any:
     """Check that ``path`` is a complete FMI 2.0 or 3.0 co-simulation FMU; return its
     model description (``fmpy.model_description.ModelDescription``).
@@ -147,7 +157,7 @@ def read_fmu(path: str | Path, where: str) -> Any:
     InputFileError
         What is missing or unreadable, after ``where``.
     """
-    from fmpy import platform, platform_tuple, read_model_description, sharedLibraryExtension
+    from fmpy import read_model_description
 
     p = regular_file(path, where, "FMU")
     name = quote(p.name)
@@ -170,9 +180,7 @@ def read_fmu(path: str | Path, where: str) -> Any:
                 raise InputFileError(
                     f"{where}: FMU {name} is not an FMI 2.0 or 3.0 co-simulation FMU"
                 )
-            mi = md.coSimulation.modelIdentifier
-            folder = platform_tuple if md.fmiVersion == "3.0" else platform
-            binary = f"binaries/{folder}/{mi}{sharedLibraryExtension}"
+            binary = binary_path(md)
             if binary not in infos:
                 raise InputFileError(
                     f"{where}: FMU {name} has no binary for this platform ({quote(binary)})"

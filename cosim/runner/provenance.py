@@ -13,6 +13,8 @@ import hashlib
 import json
 import math
 import platform
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -93,29 +95,45 @@ def scenario_sha256(scenario: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def fmu_flavor(inst: Any) -> tuple[str, str]:
-    """(flavor, version) of an instance's FMU, as the FMU says.
+def flavor_of(md: Any, read: Callable[[str], bytes | None]) -> tuple[str, str]:
+    """(flavor, version) of an FMU, as it says: ``read(name)`` gives the bytes of one of
+    its files (``None`` if it has none).
 
     The flavor is read from a resource (:data:`FLAVOR_RESOURCES`, one word) or from the
     model description's ``generationTool`` (``PythonFMU ...``: ``"python"``), else
     :data:`DEFAULT_FLAVOR`. The version is the model description's ``version``
     attribute, else the generation tool's.
     """
-    md = inst.md
     flavor = None
-    unzipdir = getattr(inst, "unzipdir", None)
-    for rel in FLAVOR_RESOURCES if unzipdir else ():
-        path = Path(unzipdir) / rel
-        if path.is_file():
-            word = path.read_text(errors="replace").strip().split()
-            if word:
-                flavor = word[0][:40]
-                break
+    for rel in FLAVOR_RESOURCES:
+        data = read(rel)
+        word = data.decode(errors="replace").strip().split() if data is not None else []
+        if word:
+            flavor = word[0][:40]
+            break
     tool = str(getattr(md, "generationTool", "") or "")
     if flavor is None and tool.lower().startswith("pythonfmu"):
         flavor = "python"
     version = str(getattr(md, "version", "") or "") or tool
     return flavor or DEFAULT_FLAVOR, version
+
+
+def fmu_flavor(inst: Any) -> tuple[str, str]:
+    """(flavor, version) of an instance's FMU (:func:`flavor_of`, from its unpacked folder)."""
+    unzipdir = getattr(inst, "unzipdir", None)
+
+    def read(rel: str) -> bytes | None:
+        path = Path(unzipdir) / rel if unzipdir else None
+        return path.read_bytes() if path is not None and path.is_file() else None
+
+    return flavor_of(inst.md, read)
+
+
+def zip_flavor(fmu: Path, md: Any) -> tuple[str, str]:
+    """(flavor, version) of an FMU file (:func:`flavor_of`, read from the archive)."""
+    with zipfile.ZipFile(fmu) as z:
+        names = set(z.namelist())
+        return flavor_of(md, lambda rel: z.read(rel)[:1000] if rel in names else None)
 
 
 def fmu_record(inst: Any) -> dict[str, Any]:

@@ -49,6 +49,20 @@ COMPONENTS = {
 }
 
 
+#: each component's core interface: the variables without which no case can run (every
+#: case of the component needs them; the cases named in CORE_CASES need nothing more)
+CORE: dict[str, dict[str, str]] = {
+    "plant": {"delta_cmd": "input", "theta_meas": "output", "V": "output", "theta_g": "output"},
+    "observer": {
+        "theta_meas": "input",
+        "delta_cmd": "input",
+        "V_hat": "output",
+        "theta_g_hat": "output",
+    },
+    "controller": {"V_hat": "input", "theta_g_hat": "input", "delta_cmd": "output"},
+}
+
+
 #: the case exported as the cross-check case of each model (it uses no parameters)
 DEFAULT_CASE = {"plant": "release", "observer": "filter_step", "controller": "passivity"}
 

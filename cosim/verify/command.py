@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import json
 from collections.abc import Callable
 
-from ..inputs.text import quote
+from ..inputs.text import one_line, quote
 from .cases import COMPONENTS, VerifyInputError, kit_root
 from .compare import check_tolerance, verify
 from .writing import export, write_references
@@ -34,6 +35,11 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
         help="absolute tolerance for every case, SI units (default: each case's)",
     )
     p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the whole result as one JSON object (for CI systems) instead of the table",
+    )
+    p.add_argument(
         "--write-references",
         action="store_true",
         help="rerun the cases on our FMUs and rewrite the shipped references",
@@ -53,7 +59,10 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """``glider-cosim verify``: 0 all cases pass, 1 any fails; VerifyInputError -> 2."""
+    """``glider-cosim verify``: 0 if at least one case ran and every case run passed, 1 if
+    a case failed; VerifyInputError (bad input, the core interface missing, no case could
+    run) -> 2. With ``--json`` a refusal is printed as ``{"error": ..., "exit_code": 2}``
+    too."""
     if args.write_references or args.export:
         if args.fmu is not None:
             raise VerifyInputError("verify: give an FMU or --write-references/--export, not both")
@@ -65,8 +74,14 @@ def run_command(args: argparse.Namespace) -> int:
         return 0
     if args.fmu is None:
         raise VerifyInputError("verify: expected an FMU (or --write-references, --export DIR)")
-    report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
-    print(report.table())
+    try:
+        report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
+    except VerifyInputError as err:
+        if args.json:
+            print(json.dumps({"fmu": args.fmu, "passed": False, "exit_code": 2,
+                              "error": one_line(err)}))  # fmt: skip
+        raise
+    print(json.dumps(report.as_dict(), indent=1) if args.json else report.table())
     return 0 if report.passed else 1
 
 

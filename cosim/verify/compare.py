@@ -7,7 +7,9 @@ The comparison is a plain max-error test at the communication points: a case pas
 
 from __future__ import annotations
 
+import hashlib
 import math
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,9 +17,12 @@ from typing import Any
 
 import numpy as np
 
+from ..inputs.archives import binary_path
 from ..inputs.text import one_line, quote, shown_path
+from ..runner.provenance import file_sha256, zip_flavor
 from .cases import (
     COMPONENTS,
+    CORE,
     Case,
     CaseFileError,
     VerifyInputError,
@@ -145,13 +150,15 @@ def _interface(component: str, cases: Sequence[str], root: Path | None) -> dict[
     return out
 
 
-def _missing(md: Any, needed: dict[str, str]) -> list[str]:
+def _missing(md: Any, needed: dict[str, str], causality_shown: bool = True) -> list[str]:
+    """The variables of ``needed`` (name -> causality) that the FMU lacks or has with
+    another causality, e.g. ``F_x (input)`` (``F_x`` if not ``causality_shown``)."""
     have = {v.name: v.causality for v in md.modelVariables}
     out = []
     for name, causality in needed.items():
         got = have.get(name)
         if got is None:
-            out.append(f"{name} ({causality})")
+            out.append(f"{name} ({causality})" if causality_shown else name)
         elif got != causality:
             out.append(f"{name} (is {got}, expected {causality})")
     return out
@@ -176,19 +183,38 @@ def detect_component(md: Any, root: Path | None = None) -> str:
 
 @dataclass
 class Report:
-    """The results of :func:`verify`."""
+    """The results of :func:`verify`: the FMU verified, the cases run and those skipped."""
 
     fmu: Path
     model_name: str
     component: str
     results: list[CaseResult] = field(default_factory=list)
+    #: cases that could not run: (case, the variables it needs that the FMU lacks)
+    skipped: list[tuple[str, list[str]]] = field(default_factory=list)
+    sha256: str = ""
+    flavor: str = ""
+    fmi_version: str = ""
+    #: the binary a host on this platform loads (path inside the FMU) and its SHA-256
+    binary: str = ""
+    binary_sha256: str = ""
 
     @property
     def passed(self) -> bool:
-        return all(r.passed for r in self.results)
+        """At least one case ran, and every case that ran passed (skipped ones never count)."""
+        return bool(self.results) and all(r.passed for r in self.results)
+
+    def header(self) -> str:
+        """What was verified: the FMU's file and SHA-256, model, flavor, FMI version, binary."""
+        return "\n".join((
+            f"FMU     {shown_path(self.fmu)} (sha256 {self.sha256})",
+            f"model   {self.model_name}: {self.component}, flavor {self.flavor}, "
+            f"FMI {self.fmi_version}",
+            f"binary  {self.binary} (sha256 {self.binary_sha256})",
+        ))  # fmt: skip
 
     def table(self) -> str:
-        """One row per case: pass/fail, worst variable, max error vs tolerance, time."""
+        """The header, then one row per case: pass/FAIL/skipped, worst variable, max error
+        vs tolerance, time; a closing count."""
         head = ("case", "result", "worst variable", "max error", "tolerance", "at t (s)",
                 "run (s)", "note")  # fmt: skip
         rows = [head]
@@ -198,15 +224,73 @@ class Report:
                 f"{r.max_error:.3g}", f"{r.tolerance:.3g}",
                 "-" if r.time is None else f"{r.time:.6g}", f"{r.seconds:.2f}", r.note,
             ))  # fmt: skip
+        for name, needs in self.skipped:
+            rows.append((name, "skipped", "-", "-", "-", "-", "-", f"needs {', '.join(needs)}"))
         widths = [max(len(row[i]) for row in rows) for i in range(len(head) - 1)]
-        lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths)) + "  " + row[-1]
-                 for row in rows]  # fmt: skip
+        lines = [self.header(), ""]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)) + "  " + row[-1]
+                  for row in rows]  # fmt: skip
         n_fail = sum(not r.passed for r in self.results)
+        skipped = f"; {len(self.skipped)} skipped" if self.skipped else ""
         lines.append(
             f"{self.component} ({self.model_name}, {shown_path(self.fmu)}): "
-            f"{len(self.results) - n_fail} of {len(self.results)} cases pass"
+            f"{len(self.results) - n_fail} of {len(self.results)} cases pass{skipped}"
         )
         return "\n".join(line.rstrip() for line in lines)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The whole result as plain data (``verify --json``)."""
+        cases: list[dict[str, Any]] = [
+            {
+                "case": r.case.name,
+                "result": "pass" if r.passed else "fail",
+                "worst_variable": r.variable,
+                "max_error": _finite(r.max_error),
+                "tolerance": _finite(r.tolerance),
+                "rtol": r.rtol,
+                "atol": r.atol,
+                "time": _finite(r.time),
+                "value": _finite(r.value),
+                "reference": _finite(r.ref_value),
+                "seconds": r.seconds,
+                "note": r.note,
+            }
+            for r in self.results
+        ]
+        cases += [{"case": n, "result": "skipped", "needs": needs} for n, needs in self.skipped]
+        n_pass = sum(r.passed for r in self.results)
+        return {
+            "fmu": str(self.fmu),
+            "sha256": self.sha256,
+            "model_name": self.model_name,
+            "component": self.component,
+            "flavor": self.flavor,
+            "fmi_version": self.fmi_version,
+            "binary": {"path": self.binary, "sha256": self.binary_sha256},
+            "passed": self.passed,
+            "exit_code": 0 if self.passed else 1,
+            "counts": {
+                "passed": n_pass,
+                "failed": len(self.results) - n_pass,
+                "skipped": len(self.skipped),
+            },
+            "cases": cases,
+        }
+
+
+def _finite(value: float | None) -> float | str | None:
+    """A number for JSON: non-finite ones as text (``"inf"``, ``"nan"``), which JSON lacks."""
+    return value if value is None or math.isfinite(value) else str(float(value))
+
+
+def _describe(path: Path, md: Any, component: str) -> Report:
+    """An empty report naming what is verified (file and binary hashes, flavor, version)."""
+    binary = binary_path(md)
+    with zipfile.ZipFile(path) as z:
+        binary_sha = hashlib.sha256(z.read(binary)).hexdigest()
+    flavor, _ = zip_flavor(path, md)
+    return Report(path, md.modelName, component, sha256=file_sha256(path), flavor=flavor,
+                  fmi_version=md.fmiVersion, binary=binary, binary_sha256=binary_sha)  # fmt: skip
 
 
 def verify(
@@ -219,11 +303,15 @@ def verify(
 ) -> Report:
     """Run the cases of a component on ``fmu`` and compare with the references.
 
+    An FMU with the component's core interface (:data:`~glider_cosim.verify.cases.CORE`)
+    runs every case whose inputs, outputs and parameters it has; the others are listed
+    in :attr:`Report.skipped` with what they need, and never count as passes.
+
     Parameters
     ----------
     fmu : path
-        Any FMI 2.0 co-simulation FMU with the component's interface (variables looked
-        up by name in its model description).
+        Any FMI 2.0 or 3.0 co-simulation FMU with at least the component's core
+        interface (variables looked up by name in its model description).
     component : str, optional
         ``plant``, ``observer`` or ``controller``; found from the variables if omitted.
     case : str, optional
@@ -236,8 +324,8 @@ def verify(
     Raises
     ------
     VerifyInputError
-        Not a usable FMU, unknown component or case, a bad tolerance, or variables of the
-        interface missing (all named, in one line).
+        Not a usable FMU, unknown component or case, a bad tolerance, the core interface
+        missing, or no case can run (what is missing named, in one line).
     """
     rtol = check_tolerance(rtol, "rtol")
     atol = check_tolerance(atol, "atol")
@@ -256,15 +344,28 @@ def verify(
                 f"{', '.join(names)}"
             )
         names = [case]
-    missing = _missing(md, _interface(component, names, root))
+    missing = _missing(md, CORE[component])
     if missing:
         raise VerifyInputError(
-            f"verify: FMU {quote(path.name)} ({md.modelName}) lacks the {component} interface: "
-            f"missing {', '.join(missing)}"
+            f"verify: FMU {quote(path.name)} ({md.modelName}) lacks the {component} core "
+            f"interface: missing {', '.join(missing)}"
         )
-    report = Report(path, md.modelName, component)
-    runner = RUNNERS[md.fmiVersion]
+    report = _describe(path, md, component)
+    runnable = []
     for name in names:
+        needs = _missing(md, _interface(component, [name], root), causality_shown=False)
+        if needs:
+            report.skipped.append((name, needs))
+        else:
+            runnable.append(name)
+    if not runnable:
+        needs = "; ".join(f"{n} needs {', '.join(m)}" for n, m in report.skipped)
+        raise VerifyInputError(
+            f"verify: FMU {quote(path.name)} ({md.modelName}) can run none of the "
+            f"{component} cases: {needs}"
+        )
+    runner = RUNNERS[md.fmiVersion]
+    for name in runnable:
         c = load_case(component, name, root)
         try:
             run = runner(path, md, c, c.ref_columns[1:])

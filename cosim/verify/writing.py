@@ -19,6 +19,10 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
     """Run every case on our FMUs (built if missing or stale) and write ``_ref.csv`` and the
     ``DiscardTime`` of ``_ref.opt``.
 
+    A case compares the outputs its ``_ref.csv`` names (its header line is kept: a new
+    case may ship the header alone, e.g. ``time,V_hat,theta_g_hat`` for a case of the
+    core interface); a case without one compares every output of our FMU.
+
     ``dest`` (default: the shipped kit) receives a complete copy of the kit with the new
     references; the shipped case definitions are read from the shipped kit.
     """
@@ -38,7 +42,7 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
         outputs = [v.name for v in md.modelVariables if v.causality == "output"]
         for name in case_names(component, src):
             c = load_case(component, name, src, with_reference=False)
-            run = run_case(fmus[model], md, c, outputs)
+            run = run_case(fmus[model], md, c, _compared(src / component, name) or outputs)
             if run.stop is not None and run.stop[0] != "discard":
                 raise RuntimeError(f"{component} case {name}: {run.stop[2]}")
             ref = dest / component / f"{name}_ref.csv"
@@ -50,6 +54,16 @@ def write_references(fmu_dir: str | Path | None = None, dest: Path | None = None
             opt.write_text("\n".join(lines) + "\n")
             written += [ref, opt]
     return written
+
+
+def _compared(folder: Path, name: str) -> list[str]:
+    """The outputs a case's ``_ref.csv`` names in its header ([] if it has none)."""
+    path = folder / f"{name}_ref.csv"
+    if not path.is_file():
+        return []
+    with open(path) as f:
+        head = f.readline().strip().split(",")
+    return head[1:] if head[0] == "time" else []
 
 
 def table_text(columns: Sequence[str], data: np.ndarray) -> str:

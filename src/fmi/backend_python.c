@@ -34,6 +34,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bundle_loader.h"
 #include "fmi_layer.h"
 #include "python_find.h"
 #include "python_threads.h"
@@ -49,8 +50,8 @@
     X(PyUnicode_FromString) X(PyUnicode_InternFromString) X(PyType_GetName)              \
     X(PyImport_ImportModule) X(PyObject_GetAttr) X(PyObject_GetAttrString)                \
     X(PyObject_Call) X(PyObject_CallFunctionObjArgs) X(PyList_New) X(PyList_SetItem)      \
-    X(PyList_Insert) X(PyList_SetSlice) X(PySequence_Size) X(PySequence_GetItem)          \
-    X(PySequence_Contains) X(PyLong_FromLong) X(PyLong_AsLong) X(PyFloat_FromDouble)      \
+    X(PyList_SetSlice) X(PySequence_Size) X(PySequence_GetItem)                           \
+    X(PyLong_FromLong) X(PyLong_AsLong) X(PyFloat_FromDouble)      \
     X(PyFloat_AsDouble) X(PyBool_FromLong) X(PyObject_IsTrue) X(PyBytes_FromStringAndSize) \
     X(PyBytes_AsStringAndSize) X(PyDict_New) X(PyDict_SetItemString) X(PyTuple_New) X(PyTuple_SetItem)        \
     X(PySys_GetObject) X(PySys_SetObject) X(PyObject_GetIter) X(PyIter_Next)
@@ -535,8 +536,34 @@ static void read_categories(Instance *inst) {
     glider_set_categories(inst, names, n);
 }
 
-/* The slave class: resources/slavemodule.txt names its module (imported once per
- * process, from resources/ put on sys.path), the model identifier names the class. */
+/* glider_load (bundle_loader.h), defined once per process with the GIL held; a
+ * reference kept for the process's life, as an imported module is. */
+static PyObject *g_loader;
+
+static PyObject *bundle_loader(void) {
+    if (g_loader) return g_loader;
+    PyObject *builtins = pPyImport_ImportModule("builtins");
+    PyObject *exec = builtins ? pPyObject_GetAttrString(builtins, "exec") : NULL;
+    PyObject *code = exec ? pPyUnicode_FromString(GLIDER_BUNDLE_LOADER) : NULL;
+    PyObject *ns = code ? pPyDict_New() : NULL;
+    PyObject *done = ns ? pPyObject_CallFunctionObjArgs(exec, code, ns, NULL) : NULL;
+    PyObject *get = done ? pPyObject_GetAttrString(ns, "get") : NULL;
+    PyObject *key = get ? pPyUnicode_FromString("glider_load") : NULL;
+    PyObject *loader = key ? pPyObject_CallFunctionObjArgs(get, key, NULL) : NULL;
+    XDECREF(key);
+    XDECREF(get);
+    XDECREF(done);
+    XDECREF(ns);
+    XDECREF(code);
+    XDECREF(exec);
+    XDECREF(builtins);
+    if (loader && !g_loader) g_loader = loader; /* else another thread was first */
+    else XDECREF(loader);
+    return g_loader;
+}
+
+/* The slave class: resources/slavemodule.txt names its module, the model identifier
+ * names the class; imported by glider_load from the FMU's own resources/ only. */
 static fmi2Status find_class(Ctx *x) {
     Instance *inst = x->inst;
     char path[1200], module[256] = "";
@@ -547,20 +574,21 @@ static fmi2Status find_class(Ctx *x) {
     fclose(f);
     trim(module);
     if (!module[0]) return FAIL(x, "%s is empty: expected the slave module's name", path);
-    PyObject *sys_path = pPySys_GetObject("path"); /* borrowed */
+    PyObject *load = bundle_loader();
+    if (!load) return py_error(x);
     PyObject *res = pPyUnicode_FromString(inst->resources);
-    int present = sys_path && res ? pPySequence_Contains(sys_path, res) : -1;
-    if (present == 0) present = pPyList_Insert(sys_path, 0, res) == 0 ? 1 : -1;
+    PyObject *mod = res ? pPyUnicode_FromString(module) : NULL;
+    PyObject *name = mod ? pPyUnicode_FromString(g_model) : NULL;
+    PyObject *cls = name ? pPyObject_CallFunctionObjArgs(load, res, mod, name, NULL) : NULL;
+    XDECREF(name);
+    XDECREF(mod);
     XDECREF(res);
-    if (present < 0) return py_error(x);
-    PyObject *mod = pPyImport_ImportModule(module);
-    if (!mod) return py_error(x);
-    PY(inst)->cls = pPyObject_GetAttrString(mod, g_model);
-    DECREF(mod);
-    if (!PY(inst)->cls) {
-        pPyErr_Clear();
+    if (!cls) return py_error(x);
+    if (cls == pNone) {
+        DECREF(cls);
         return FAIL(x, "module %s defines no class %s (the model identifier)", module, g_model);
     }
+    PY(inst)->cls = cls;
     return fmi2OK;
 }
 

@@ -32,7 +32,8 @@ PYTHON_BACKEND_SOURCES = tuple(
 )
 RUNTIME_SOURCES = LAYER_SOURCES + PYTHON_BACKEND_SOURCES
 RUNTIME_HEADERS = tuple(
-    Path(__file__).with_name(n) for n in ("fmi_layer.h", "python_find.h", "python_threads.h")
+    Path(__file__).with_name(n)
+    for n in ("fmi_layer.h", "python_find.h", "python_threads.h", "bundle_loader.h")
 )
 #: file in the FMU's resources/ naming the Python to start in a host without one
 PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"

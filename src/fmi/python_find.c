@@ -12,6 +12,8 @@
 #define _GNU_SOURCE
 #include "python_find.h"
 
+#include "bundle_loader.h"
+
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -102,7 +104,8 @@ static int load_candidate(FoundPython *c, char *why, size_t ws) {
     return 1;
 }
 
-/* What the probe runs: argv[1] = resources folder, argv[2] = module to import ("" none). */
+/* What the probe runs: argv[1] = resources folder, argv[2] = module to import ("" none),
+ * as the back end imports it (bundle_loader.h). */
 static const char PROBE[] =
     "import os, sys, sysconfig\n"
     "sys.dont_write_bytecode = True\n"
@@ -115,10 +118,10 @@ static const char PROBE[] =
     "    if p.endswith(('site-packages', 'dist-packages')) and os.path.isdir(p):\n"
     "        print('GLIDER_SITE ' + p)\n"
     "sys.stdout.flush()\n"
-    "sys.path.insert(0, sys.argv[1])\n"
+    GLIDER_BUNDLE_LOADER
     "try:\n"
     "    if sys.argv[2]:\n"
-    "        __import__(sys.argv[2])\n"
+    "        glider_load(sys.argv[1], sys.argv[2], '')\n"
     "except BaseException as e:\n"
     "    t = (str(e).splitlines() or [''])[0]\n"
     "    print('GLIDER_FAIL %s: %s' % (type(e).__name__, t))\n"

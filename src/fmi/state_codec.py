@@ -14,6 +14,12 @@ classes:
 Decoding only ever imports modules whose name starts with one of the allowed prefixes
 and never evaluates anything: a crafted byte string cannot run code, it can only be
 refused with :class:`StateCodecError`.
+
+Module names are written as the slave's packages name themselves outside an FMU
+(``glider_plant.params``): inside an FMU, where the bundle is a package of its own
+(``_glider_fmu_<hash>.glider_plant.params``, see :mod:`glider_fmi.bundle`), its name is
+left out when writing and put back when reading, so a state moves between FMUs and
+hosts with other bundles, and only the reading FMU's own modules are imported.
 """
 
 from __future__ import annotations
@@ -25,6 +31,9 @@ from collections.abc import Sequence
 from typing import Any
 
 FORMAT = "glider-fmi-state/1"
+
+#: the bundle's package and a dot inside an FMU ("_glider_fmu_<hash>."), else ""
+_BUNDLE = __name__.removesuffix("glider_fmi.state_codec")
 
 
 class StateCodecError(ValueError):
@@ -45,11 +54,12 @@ def _encode(value: Any, prefixes: tuple[str, ...], path: str) -> Any:
     if isinstance(value, random.Random):
         return {"r": _encode(value.getstate(), prefixes, f"{path}.state")}
     cls = type(value)
-    if cls.__module__.startswith(prefixes) and hasattr(value, "__dict__"):
+    module = cls.__module__.removeprefix(_BUNDLE) if _BUNDLE else cls.__module__
+    if module.startswith(prefixes) and hasattr(value, "__dict__"):
         attrs = {k: _encode(v, prefixes, f"{path}.{k}") for k, v in vars(value).items()}
-        return {"o": f"{cls.__module__}:{cls.__qualname__}", "a": attrs}
+        return {"o": f"{module}:{cls.__qualname__}", "a": attrs}
     raise StateCodecError(
-        f"{path}: {cls.__module__}.{cls.__qualname__} cannot be serialized: expected plain "
+        f"{path}: {module}.{cls.__qualname__} cannot be serialized: expected plain "
         f"data, random.Random or an object of {', '.join(prefixes)}*"
     )
 
@@ -80,7 +90,7 @@ def _decode(value: Any, prefixes: tuple[str, ...], path: str) -> Any:
                 f"{', '.join(prefixes)}*"
             )
         try:
-            cls: Any = importlib.import_module(module)
+            cls: Any = importlib.import_module(_BUNDLE + module)
             for part in qualname.split("."):
                 cls = getattr(cls, part)
         except (ImportError, AttributeError):

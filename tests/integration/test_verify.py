@@ -3,9 +3,12 @@ the drift of the shipped references and the cross-check export."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import shutil
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +18,7 @@ import glider_controller
 import glider_fmi
 import glider_plant
 from glider_cosim.cli import main
+from glider_cosim.runner.provenance import file_sha256
 from glider_cosim.testing import assert_matches_reference
 from glider_cosim.verify import (
     COMPONENTS,
@@ -115,6 +119,22 @@ class FlippedController(GliderController):
         return -u
 ''',
     ),
+    "CorePlant": (
+        (glider_plant, glider_fmi),
+        '''
+from glider_plant.slave import GliderPlant
+
+
+class CorePlant(GliderPlant):
+    """GliderPlant without its disturbance inputs and start parameters: the core interface
+    and a few outputs more; the disturbances are 0, the start values built in."""
+
+    VARIABLES = tuple(v for v in GliderPlant.VARIABLES
+                      if v.name not in ("F_x", "F_z", "M_y", "V_0", "theta_g_0", "alpha_0"))
+    F_x = F_z = M_y = 0.0
+    V_0, theta_g_0, alpha_0 = 0.2, -0.6108652381980153, 0.017453292519943295
+''',
+    ),
     "HalfPlant": (
         (),
         '''
@@ -174,7 +194,7 @@ def test_a_plant_without_servo_lag_fails_the_servo_cases(broken):
     report = verify(broken["BrokenServoPlant"])
     assert report.component == "plant"
     # tail at 0 (or held at 60 deg) in every other case: there the defect cannot show
-    assert _failing(report) == {"servo_jump", "tail_step"}
+    assert _failing(report) == {"core", "servo_jump", "tail_step"}  # core: a 1 deg tail step
     servo = next(r for r in report.results if r.case.name == "servo_jump")
     assert servo.variable == "delta" and servo.time == pytest.approx(0.52)
     assert servo.max_error > 1e4 * servo.tolerance
@@ -211,42 +231,90 @@ def test_cli_table_and_exit_codes(fmu_dir, broken, capsys):
     assert main(["verify", str(fmu_dir / "GliderPlant.fmu")]) == 0
     assert time.perf_counter() - t0 < 30
     out = capsys.readouterr().out.splitlines()
-    assert out[0].split() == ["case", "result", "worst", "variable", "max", "error",
+    # the header says what was verified: file and SHA-256, flavor, FMI version, binary
+    sha = file_sha256(fmu_dir / "GliderPlant.fmu")
+    assert out[0].startswith("FMU     ") and out[0].endswith(f"GliderPlant.fmu (sha256 {sha})")
+    assert out[1] == "model   GliderPlant: plant, flavor python, FMI 2.0"
+    with zipfile.ZipFile(fmu_dir / "GliderPlant.fmu") as z:
+        so = hashlib.sha256(z.read("binaries/linux64/GliderPlant.so")).hexdigest()
+    assert out[2] == f"binary  binaries/linux64/GliderPlant.so (sha256 {so})"
+    assert out[3] == ""
+    assert out[4].split() == ["case", "result", "worst", "variable", "max", "error",
                               "tolerance", "at", "t", "(s)", "run", "(s)", "note"]  # fmt: skip
-    assert [line.split()[0] for line in out[1:-1]] == case_names("plant")
-    assert all(line.split()[1] == "pass" for line in out[1:-1])
+    assert [line.split()[0] for line in out[5:-1]] == case_names("plant")
+    assert all(line.split()[1] == "pass" for line in out[5:-1])
     stall = next(line for line in out if line.startswith("stall "))
     assert stall.endswith("fmi2Discard at t = 11.1 s as expected")
-    assert out[-1].startswith("plant (GliderPlant, ") and out[-1].endswith("8 of 8 cases pass")
+    assert out[-1].startswith("plant (GliderPlant, ") and out[-1].endswith("9 of 9 cases pass")
     assert main(["verify", str(broken["BrokenServoPlant"]), "--case", "servo_jump"]) == 1
     out = capsys.readouterr().out.splitlines()
-    assert out[1].split()[:3] == ["servo_jump", "FAIL", "delta"]
+    assert out[5].split()[:3] == ["servo_jump", "FAIL", "delta"]
     # looser tolerances given on the command line apply to every case
     code = main(["verify", str(broken["BrokenServoPlant"]), "--case", "tail_step",
                  "--atol", "0.01"])  # fmt: skip
     assert code == 0, capsys.readouterr().out
 
 
+def test_a_partial_interface_runs_the_cases_it_can_and_lists_the_others(broken, capsys):
+    """The core interface and some outputs: the cases it has every variable of run, the
+    others are listed as skipped with what they need, and never count as passes."""
+    report = verify(broken["CorePlant"])
+    assert [r.case.name for r in report.results] == ["core"] and report.passed
+    skipped = dict(report.skipped)
+    assert sorted(skipped) == sorted(set(case_names("plant")) - {"core"})
+    assert skipped["release"] == ["F_x", "F_z", "M_y"]
+    assert skipped["tail_step"] == ["F_x", "F_z", "M_y", "V_0", "theta_g_0", "alpha_0"]
+    assert main(["verify", str(broken["CorePlant"])]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert next(line for line in out if line.startswith("release ")).split()[1:2] == ["skipped"]
+    assert next(line for line in out if line.startswith("release ")).endswith("needs F_x, F_z, M_y")
+    assert out[-1].endswith(": 1 of 1 cases pass; 8 skipped")
+    # one case asked for that it cannot run: nothing ran, exit 2 with what it needs
+    assert main(["verify", str(broken["CorePlant"]), "--case", "release"]) == 2
+    assert capsys.readouterr().err == (
+        "glider-cosim: error: verify: FMU 'CorePlant.fmu' (CorePlant) can run none of the "
+        "plant cases: release needs F_x, F_z, M_y\n"
+    )
+    assert_matches_reference(broken["CorePlant"], "plant")  # the core case passes
+
+
+def test_json_is_the_whole_result_in_one_object(fmu_dir, broken, capsys):
+    fmu = fmu_dir / "GliderController.fmu"
+    assert main(["verify", str(fmu), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sha256"] == file_sha256(fmu) and doc["flavor"] == "python"
+    assert doc["fmi_version"] == "2.0" and doc["component"] == "controller"
+    assert doc["binary"]["path"] == "binaries/linux64/GliderController.so"
+    assert doc["passed"] is True and doc["exit_code"] == 0
+    assert doc["counts"] == {"passed": 7, "failed": 0, "skipped": 0}
+    assert [c["case"] for c in doc["cases"]] == case_names("controller")
+    assert {c["result"] for c in doc["cases"]} == {"pass"}
+    assert main(["verify", str(broken["BrokenServoPlant"]), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["passed"] is False and doc["exit_code"] == 1
+    assert sorted(c["case"] for c in doc["cases"] if c["result"] == "fail") == [
+        "core", "servo_jump", "tail_step",
+    ]  # fmt: skip
+    assert main(["verify", str(broken["HalfPlant"]), "--json"]) == 2
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert doc["exit_code"] == 2 and "lacks the plant core interface" in doc["error"]
+    assert captured.err.startswith("glider-cosim: error: verify: FMU 'HalfPlant.fmu'")
+
+
 def test_missing_variables_are_named_in_one_line(fmu_dir, broken, capsys):
     assert main(["verify", str(broken["HalfPlant"])]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'HalfPlant.fmu' (HalfPlant) lacks the plant "
-        "interface: missing F_x (input), F_z (input), M_y (input), theta_meas (output), "
-        "theta (output), alpha (output), omega2 (output), delta (output), x (output), "
-        "z (output), V_0 (parameter), theta_g_0 (parameter), alpha_0 (parameter), "
-        "noise_std (parameter), noise_seed (parameter), delta_0 (parameter)\n"
+        "glider-cosim: error: verify: FMU 'HalfPlant.fmu' (HalfPlant) lacks the plant core "
+        "interface: missing theta_meas (output)\n"
     )
     assert main(["verify", str(broken["HalfPlant"]), "--case", "servo_jump"]) == 2
-    err = capsys.readouterr().err
-    assert "missing F_x (input), F_z (input), M_y (input), V_0 (parameter), " in err
+    assert "missing theta_meas (output)" in capsys.readouterr().err
     assert main(["verify", str(fmu_dir / "GliderPlant.fmu"), "--component", "observer"]) == 2
     assert capsys.readouterr().err == (
         "glider-cosim: error: verify: FMU 'GliderPlant.fmu' (GliderPlant) lacks the observer "
-        "interface: missing theta_meas (is output, expected input), theta_filt (output), "
-        "V_hat (output), theta_g_hat (output), alpha_hat (output), omega2_hat (output), "
-        "theta_hat (output), t_start (parameter), start_at_equilibrium (parameter), "
-        "V_hat_0 (parameter), theta_g_hat_0 (parameter), alpha_hat_0 (parameter), "
-        "omega2_hat_0 (parameter)\n"
+        "core interface: missing theta_meas (is output, expected input), V_hat (output), "
+        "theta_g_hat (output)\n"
     )
 
 
@@ -254,7 +322,7 @@ def test_an_unknown_case_is_one_line(fmu_dir, capsys):
     assert main(["verify", str(fmu_dir / "GliderObserver.fmu"), "--case", "nope"]) == 2
     assert capsys.readouterr().err == (
         "glider-cosim: error: case 'nope' is unknown for the observer: expected one of "
-        "filter_step, late_start, noisy_pitch, wrong_start\n"
+        "filter_step, core, late_start, noisy_pitch, wrong_start\n"
     )
     with pytest.raises(VerifyInputError, match="^case 'nope' is unknown for the observer"):
         assert_matches_reference(fmu_dir / "GliderObserver.fmu", case="nope")
