@@ -22,7 +22,7 @@ from glider_cosim.verify import (
     load_case,
     verify,
 )
-from glider_cosim.verify.cases import DEFAULT_CASE
+from glider_cosim.verify.cases import CORE, DEFAULT_CASE
 from glider_cosim.verify.compare import check_tolerance, compare
 from glider_cosim.verify.run import Run
 
@@ -37,9 +37,10 @@ INPUTS = {
 
 def test_every_case_the_issue_asks_for_is_there():
     assert set(case_names("plant")) == {"release", "tail_step", "servo_jump", "noise_seed",
-                                        "pulse_fx", "pulse_fz", "pulse_my", "stall"}  # fmt: skip
+                                        "pulse_fx", "pulse_fz", "pulse_my", "stall",
+                                        "core"}  # fmt: skip
     assert set(case_names("observer")) == {"filter_step", "wrong_start", "noisy_pitch",
-                                           "late_start"}  # fmt: skip
+                                           "late_start", "core"}  # fmt: skip
     assert set(case_names("controller")) == {"open_loop", "passivity", "p", "pi", "saturation",
                                              "anti_windup", "enable_time"}  # fmt: skip
     assert all(case_names(c)[0] == DEFAULT_CASE[c] for c in COMPONENTS)
@@ -49,7 +50,9 @@ def test_every_case_the_issue_asks_for_is_there():
 def test_case_files_parse_at_50_hz(component, name):
     case = load_case(component, name)
     assert case.step == 0.02 and case.start == 0.0
-    assert case.input_columns == ["time", *INPUTS[component]]
+    # every input of the component, or (a case of the core interface) the core's only
+    core = [n for n, c in CORE[component].items() if c == "input"]
+    assert case.input_columns in (["time", *INPUTS[component]], ["time", *core])
     n = round(case.stop / case.step)
     np.testing.assert_allclose(case.inputs[:, 0], np.arange(n + 1) * 0.02, atol=1e-9)
     ref_end = case.stop if case.discard_time is None else case.discard_time
@@ -208,3 +211,22 @@ def test_verify_needs_an_fmu_or_a_command(capsys):
     assert capsys.readouterr().err == (
         "glider-cosim: error: verify: expected an FMU (or --write-references, --export DIR)\n"
     )
+
+
+@pytest.mark.parametrize("component", COMPONENTS)
+def test_the_core_is_in_every_case_and_one_case_needs_only_the_core(component):
+    core = CORE[component].items()
+    cases = {n: load_case(component, n).variables.items() for n in case_names(component)}
+    assert [n for n, v in cases.items() if not core <= v] == []
+    assert [n for n, v in cases.items() if v <= core], f"no {component} case of the core only"
+
+
+def test_the_readme_lists_each_core_interface():
+    """README "Verification kit": one line per component, inputs -> outputs, as CORE."""
+    text = (ROOT / "README.md").read_text()
+    for component, core in CORE.items():
+        ins = ", ".join(f"`{n}`" for n, c in core.items() if c == "input")
+        outs = ", ".join(f"`{n}`" for n, c in core.items() if c == "output")
+        line = f"| {component} | {ins} | {outs} |"
+        assert line in text, line
+    assert re.search(r"\| component \| core inputs \| core outputs \|", text)
