@@ -26,10 +26,14 @@ def assert_matches_reference(
 ) -> None:
     """Run the verification kit's cases on ``fmu``; raise ``AssertionError`` on a failure.
 
+    Cases that need variables the FMU lacks are skipped (the FMU needs at least the
+    component's core interface, and one case must run); a pass says that the cases that
+    ran matched, no more.
+
     Parameters
     ----------
     fmu : path
-        An FMI 2.0 co-simulation FMU with the component's interface.
+        An FMI 2.0 or 3.0 co-simulation FMU with at least the component's core interface.
     component : str, optional
         ``plant``, ``observer`` or ``controller`` (default: found from the variables).
     case : str, optional
@@ -43,7 +47,8 @@ def assert_matches_reference(
         One line per failing case: the case, the worst variable, its value and the
         reference's at the time of the largest error, the error and the tolerance.
     glider_cosim.verify.VerifyInputError
-        Bad input (not an FMU, interface variables missing, unknown case, bad tolerance).
+        Bad input (not an FMU, the core interface missing, no case that can run, unknown
+        case, bad tolerance).
     """
     __tracebackhide__ = True
     report = verify(fmu, component, case, rtol, atol)
