@@ -12,6 +12,7 @@
  * may be called from any thread (one thread at a time per instance, as FMI requires).
  * C99, libc and libm only.
  */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
