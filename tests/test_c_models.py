@@ -117,7 +117,7 @@ def build(tmp_path_factory):
     if cc is None:
         pytest.skip("no C compiler (cc, gcc or clang) on PATH")
     out = tmp_path_factory.mktemp("cmodels") / "libglider_models.so"
-    inc = [f"-I{SRC / d}" for d in ("plant", "observer", "controller")]
+    inc = [f"-I{SRC / d}" for d in ("plant", "observer", "controller", "fmi")]
     cmd = [cc, *CFLAGS, "-fPIC", "-shared", *inc, *map(str, C_FILES), "-o", str(out), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

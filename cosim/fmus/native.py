@@ -57,7 +57,8 @@ MINGW = "x86_64-w64-mingw32-gcc"
 
 FMI_DIR = Path(glider_fmi.__file__).resolve().parent
 #: the layer and the native back end, in every native FMU
-LAYER_FILES = ("fmi_layer.h", "fmi_layer.c", "fmi2_layer.c", "native_model.h", "backend_native.c")
+LAYER_FILES = ("fmi_layer.h", "fmi_layer.c", "fmi2_layer.c", "native_model.h", "backend_native.c",
+               "glider_fp.h")  # fmt: skip
 
 
 def _pkg(module: Any) -> Path:
@@ -300,7 +301,9 @@ def build_description(c: NativeComponent, sources: list[str]) -> bytes:
     """``sources/buildDescription.xml`` (FMI 3.0 layout, allowed in FMI 2.0.4)."""
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
     config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=c.name)
-    files = ET.SubElement(config, "SourceFileSet", language="C99")
+    # contraction off (no fused multiply-add), as in the sources themselves (glider_fp.h)
+    files = ET.SubElement(config, "SourceFileSet", language="C99",
+                          compilerOptions="-ffp-contract=off")  # fmt: skip
     for name in sources:
         ET.SubElement(files, "SourceFile", name=name)
     ET.SubElement(config, "Library", name="m", description="libm (POSIX platforms)")

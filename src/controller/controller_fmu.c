@@ -4,6 +4,7 @@
  * the laws are controller_model.c's. delta_cmd has direct feedthrough: it is computed
  * from the inputs when it is read (update()).
  */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include "GliderController_vars.h"
 #include "controller_model.h"
 

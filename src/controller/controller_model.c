@@ -1,4 +1,5 @@
 /* Control laws in C99: the twin of glider_controller.laws (see controller_model.h). */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include "controller_model.h"
 
 #include <math.h>

@@ -12,6 +12,7 @@
  * may be called from any thread (one thread at a time per instance, as FMI requires).
  * C99, libc and libm only.
  */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -47,9 +48,9 @@ static int nat_start(const char *resources, char *err, size_t errsize) {
     return 1;
 }
 
-static fmi2Status nat_enter(Ctx *x) {
+static Status nat_enter(Ctx *x) {
     x->have_token = 1;
-    return fmi2OK;
+    return ST_OK;
 }
 
 static void nat_leave(Ctx *x) { (void)x; }
@@ -71,7 +72,7 @@ static void set_start_values(NativeInstance *ni) {
     }
 }
 
-static fmi2Status nat_create(Ctx *x) {
+static Status nat_create(Ctx *x) {
     Instance *inst = x->inst;
     glider_set_categories(inst, CATEGORIES, (int)(sizeof CATEGORIES / sizeof *CATEGORIES));
     if (!(inst->backend = malloc(BLOCK_SIZE))) return FAIL(x, "out of memory");
@@ -79,12 +80,12 @@ static fmi2Status nat_create(Ctx *x) {
     inst->nvars = M.nvars;
     inst->var_type = M.var_types;
     inst->var_names = M.var_names;
-    return fmi2OK;
+    return ST_OK;
 }
 
-static fmi2Status nat_reset(Ctx *x) {
+static Status nat_reset(Ctx *x) {
     set_start_values(NI(x->inst));
-    return fmi2OK;
+    return ST_OK;
 }
 
 static void nat_destroy(Instance *inst, int alive) {
@@ -93,11 +94,11 @@ static void nat_destroy(Instance *inst, int alive) {
     inst->backend = NULL;
 }
 
-static fmi2Status nat_setup(Ctx *x, int tolerance_defined, double tolerance, double start,
-                            int stop_defined, double stop) {
+static Status nat_setup(Ctx *x, int tolerance_defined, double tolerance, double start,
+                        int stop_defined, double stop) {
     (void)tolerance_defined, (void)tolerance, (void)stop_defined, (void)stop;
     NI(x->inst)->time = start;
-    return fmi2OK;
+    return ST_OK;
 }
 
 /* ------------------------------------------------------------------ value checks */
@@ -119,13 +120,13 @@ static double number(NativeInstance *ni, const NativeVar *v) {
     return v->type == T_REAL ? *(double *)value_at(ni, v) : (double)*(int *)value_at(ni, v);
 }
 
-static fmi2Status refuse_value(Ctx *x, const NativeVar *v, double value) {
+static Status refuse_value(Ctx *x, const NativeVar *v, double value) {
     char text[64];
     value_repr(v, value, text, sizeof text);
     return FAIL(x, "%s = %s is invalid: expected %s", v->name, text, v->expected);
 }
 
-static fmi2Status exit_initialization(Ctx *x) {
+static Status exit_initialization(Ctx *x) {
     NativeInstance *ni = NI(x->inst);
     char msg[1024] = "";
     size_t i;
@@ -136,16 +137,15 @@ static fmi2Status exit_initialization(Ctx *x) {
     }
     if (M.initialize(ni->model, msg, sizeof msg) != NATIVE_OK) return FAIL(x, "%s", msg);
     ni->initialized = 1;
-    return fmi2OK;
+    return ST_OK;
 }
 
-static fmi2Status nat_transition(Ctx *x, int call) {
-    return call == C_EXIT_INIT ? exit_initialization(x) : fmi2OK;
+static Status nat_transition(Ctx *x, int call) {
+    return call == C_EXIT_INIT ? exit_initialization(x) : ST_OK;
 }
 
 /* ------------------------------------------------------------------ value access */
-static fmi2Status nat_get(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr,
-                          void *out) {
+static Status nat_get(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *out) {
     NativeInstance *ni = NI(x->inst);
     size_t i;
     if (type == T_STRING) return FAIL(x, "the model has no String variables");
@@ -159,23 +159,22 @@ static fmi2Status nat_get(Ctx *x, char type, const fmi2ValueReference vr[], size
     }
     for (i = 0; i < nvr; ++i) {
         const void *p = value_at(ni, &M.vars[vr[i]]);
-        if (type == T_REAL) ((fmi2Real *)out)[i] = *(const double *)p;
-        else if (type == T_INTEGER) ((fmi2Integer *)out)[i] = *(const int *)p;
-        else ((fmi2Boolean *)out)[i] = *(const int *)p ? fmi2True : fmi2False;
+        if (type == T_REAL) ((double *)out)[i] = *(const double *)p;
+        else if (type == T_INTEGER) ((int *)out)[i] = *(const int *)p;
+        else ((int *)out)[i] = *(const int *)p ? 1 : 0;
     }
-    return fmi2OK;
+    return ST_OK;
 }
 
-static fmi2Status nat_set(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr,
-                          const void *values) {
+static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const void *values) {
     NativeInstance *ni = NI(x->inst);
     size_t i;
     if (type == T_STRING) return FAIL(x, "the model has no String variables");
     for (i = 0; i < nvr; ++i) {
         const NativeVar *v = &M.vars[vr[i]];
-        double value = type == T_REAL      ? ((const fmi2Real *)values)[i]
-                       : type == T_INTEGER ? (double)((const fmi2Integer *)values)[i]
-                                           : (double)(((const fmi2Boolean *)values)[i] != 0);
+        double value = type == T_REAL      ? ((const double *)values)[i]
+                       : type == T_INTEGER ? (double)((const int *)values)[i]
+                                           : (double)(((const int *)values)[i] != 0);
         if (v->causality == NV_OUTPUT) return FAIL(x, "%s is an output: it cannot be set", v->name);
         if (ni->initialized && v->causality == NV_PARAMETER) {
             if (!v->tunable)
@@ -184,14 +183,14 @@ static fmi2Status nat_set(Ctx *x, char type, const fmi2ValueReference vr[], size
             if (v->has_range && !in_range(v, value)) return refuse_value(x, v, value);
         }
         if (type == T_REAL) *(double *)value_at(ni, v) = value;
-        else if (type == T_INTEGER) *(int *)value_at(ni, v) = ((const fmi2Integer *)values)[i];
+        else if (type == T_INTEGER) *(int *)value_at(ni, v) = ((const int *)values)[i];
         else *(int *)value_at(ni, v) = value != 0.0;
     }
-    return fmi2OK;
+    return ST_OK;
 }
 
 /* ------------------------------------------------------------------ stepping */
-static fmi2Status nat_step(Ctx *x, double t, double h, int *go_on) {
+static Status nat_step(Ctx *x, double t, double h, int *go_on) {
     NativeInstance *ni = NI(x->inst);
     char msg[1024] = "", warning[1024] = "", a[64], b[64];
     size_t i;
@@ -211,29 +210,29 @@ static fmi2Status nat_step(Ctx *x, double t, double h, int *go_on) {
     }
     r = M.step(ni->model, t, ni->time, h, msg, sizeof msg, warning, sizeof warning);
     if (warning[0])
-        glider_add_msg(x, fmi2Warning, x->inst->cat_warning, "%s: %s", x->inst->name, warning);
+        glider_add_msg(x, ST_WARNING, x->inst->cat_warning, "%s: %s", x->inst->name, warning);
     if (r == NATIVE_REFUSED) return FAIL(x, "%s", msg);
     if (r == NATIVE_DISCARD) {
-        glider_add_msg(x, fmi2Discard, x->inst->cat_discard, "%s: %s", x->inst->name, msg);
+        glider_add_msg(x, ST_DISCARD, x->inst->cat_discard, "%s: %s", x->inst->name, msg);
         ni->discarded = 1;
         *go_on = 0;
-        return fmi2OK;
+        return ST_OK;
     }
     ni->time = t + h;
     *go_on = 1;
-    return fmi2OK;
+    return ST_OK;
 }
 
 /* ------------------------------------------------------------------ FMU state */
-static fmi2Status nat_state_get(Ctx *x, FmuState *s) {
+static Status nat_state_get(Ctx *x, FmuState *s) {
     if (!s->value && !(s->value = malloc(BLOCK_SIZE))) return FAIL(x, "out of memory");
     memcpy(s->value, x->inst->backend, BLOCK_SIZE);
-    return fmi2OK;
+    return ST_OK;
 }
 
-static fmi2Status nat_state_set(Ctx *x, const FmuState *s) {
+static Status nat_state_set(Ctx *x, const FmuState *s) {
     memcpy(x->inst->backend, s->value, BLOCK_SIZE);
-    return fmi2OK;
+    return ST_OK;
 }
 
 static void nat_state_release(FmuState *s, int alive) {
@@ -242,14 +241,14 @@ static void nat_state_release(FmuState *s, int alive) {
     s->value = NULL;
 }
 
-static fmi2Status nat_state_bytes(Ctx *x, FmuState *s, const char **data, size_t *n) {
+static Status nat_state_bytes(Ctx *x, FmuState *s, const char **data, size_t *n) {
     (void)x;
     *data = (const char *)s->value;
     *n = BLOCK_SIZE;
-    return fmi2OK;
+    return ST_OK;
 }
 
-static fmi2Status nat_state_from_bytes(Ctx *x, FmuState *s, const char *data, size_t n) {
+static Status nat_state_from_bytes(Ctx *x, FmuState *s, const char *data, size_t n) {
     NativeInstance *ni;
     size_t recorded;
     if (n != BLOCK_SIZE)
@@ -266,7 +265,7 @@ static fmi2Status nat_state_from_bytes(Ctx *x, FmuState *s, const char *data, si
         return FAIL(x, "the state is not a valid state of %s", M.identifier);
     }
     s->value = ni;
-    return fmi2OK;
+    return ST_OK;
 }
 
 const Backend GLIDER_BACKEND = {

@@ -39,6 +39,22 @@
 #include "python_find.h"
 #include "python_threads.h"
 
+/* This back end is compiled into the Python flavor's runtime only (never shipped as
+ * source) and is written with FMI 2.0's names: they stand for the layer's own. */
+typedef Status fmi2Status;
+typedef ValueRef fmi2ValueReference;
+typedef double fmi2Real;
+typedef int fmi2Integer;
+typedef int fmi2Boolean;
+typedef const char *fmi2String;
+#define fmi2OK ST_OK
+#define fmi2Warning ST_WARNING
+#define fmi2Discard ST_DISCARD
+#define fmi2Error ST_ERROR
+#define fmi2Fatal ST_FATAL
+#define fmi2True 1
+#define fmi2False 0
+
 /* ------------------------------------------------------------------ Python API table */
 /* Every Python function is called through a pointer of the exact type Python.h
  * declares: the binary has no undefined Python symbol (checked by the build). */

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "fmi2Functions.h"
 #include "fmi_layer.h"
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -30,7 +31,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     void *inst;
     (void)fmuGUID;
     if (functions) {
-        logger.log2 = functions->logger;
+        logger.log2 = (Fmi2Logger)functions->logger;
         logger.env = functions->componentEnvironment;
     }
     if (!instanceName || !instanceName[0]) {

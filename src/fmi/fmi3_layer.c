@@ -144,11 +144,11 @@ fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference vr[], s
                               (const void *)values, NULL));
 }
 
-/* fmi3Boolean is C's bool; the back ends hold Booleans as fmi2Boolean (int) */
+/* fmi3Boolean is C's bool; the layer holds Booleans as int */
 #define BOOL_BATCH 64
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                           fmi3Boolean values[], size_t nValues) {
-    fmi2Boolean buf[BOOL_BATCH];
+    int buf[BOOL_BATCH];
     size_t done = 0, i;
     int st = 0;
     if (!vr || !values || nvr != nValues || nvr == 0) /* the layer says what is wrong */
@@ -165,7 +165,7 @@ fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], 
 
 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                           const fmi3Boolean values[], size_t nValues) {
-    fmi2Boolean buf[BOOL_BATCH];
+    int buf[BOOL_BATCH];
     size_t done = 0, i;
     int st = 0;
     if (!vr || !values || nvr != nValues || nvr == 0)
@@ -173,7 +173,7 @@ fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], 
                                   values ? (const void *)buf : NULL, NULL));
     while (done < nvr && st <= fmi3Warning) {
         size_t k = nvr - done < BOOL_BATCH ? nvr - done : BOOL_BATCH;
-        for (i = 0; i < k; ++i) buf[i] = values[done + i] ? fmi2True : fmi2False;
+        for (i = 0; i < k; ++i) buf[i] = values[done + i] ? 1 : 0;
         st = glider_op_access(instance, C_SET_BOOLEAN, T_BOOLEAN, vr + done, k, k, buf, NULL);
         done += k;
     }

@@ -59,7 +59,7 @@ static const char *state_name(unsigned s) {
 /* ------------------------------------------------------------------ instances */
 static Instance *g_instances;
 
-static Instance *lookup(fmi2Component c) {
+static Instance *lookup(void *c) {
     Instance *found = NULL, *i;
     LOCK();
     for (i = g_instances; i; i = i->next) {
@@ -80,7 +80,7 @@ char *glider_dup_text(const char *s) {
     return d;
 }
 
-static void add_text(Ctx *x, fmi2Status status, int category, const char *text) {
+static void add_text(Ctx *x, Status status, int category, const char *text) {
     char *copy;
     if (x->nmsgs == x->cap) {
         size_t cap = x->cap ? 2 * x->cap : 4;
@@ -96,7 +96,7 @@ static void add_text(Ctx *x, fmi2Status status, int category, const char *text) 
     x->nmsgs++;
 }
 
-void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ...) {
+void glider_add_msg(Ctx *x, Status status, int category, const char *fmt, ...) {
     char buf[2048];
     va_list ap;
     va_start(ap, fmt);
@@ -105,18 +105,18 @@ void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ..
     add_text(x, status, category, buf);
 }
 
-fmi2Status glider_fail(Ctx *x, const char *fmt, ...) {
+Status glider_fail(Ctx *x, const char *fmt, ...) {
     char buf[1800];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
     if (x->inst) /* the instance named in every message: FMI 3's logger is not told it */
-        glider_add_msg(x, fmi2Error, x->inst->cat_error, "%s: %s: %s", x->inst->name,
+        glider_add_msg(x, ST_ERROR, x->inst->cat_error, "%s: %s: %s", x->inst->name,
                        glider_call_name(x), buf);
     else
-        glider_add_msg(x, fmi2Error, -1, "%s: %s", glider_call_name(x), buf);
-    return fmi2Error;
+        glider_add_msg(x, ST_ERROR, -1, "%s: %s", glider_call_name(x), buf);
+    return ST_ERROR;
 }
 
 const char *glider_call_name(const Ctx *x) {
@@ -153,12 +153,12 @@ static uint64_t all_categories(const Instance *inst) {
  * switched off (fmi2SetDebugLogging(false, [it]) or another list given with true). Debug
  * messages (fmi2OK) only with logging on and their category, or logAll, enabled;
  * logFmiCalls only when named. */
-static int should_log(const Instance *inst, fmi2Status status, int category) {
+static int should_log(const Instance *inst, Status status, int category) {
     uint64_t bit, all;
-    if (status >= fmi2Error) return 1;
+    if (status >= ST_ERROR) return 1;
     bit = category >= 0 ? (uint64_t)1 << category : 0;
     if (inst->cat_off & bit) return 0;
-    if (status == fmi2Warning || status == fmi2Discard) return 1;
+    if (status == ST_WARNING || status == ST_DISCARD) return 1;
     all = inst->cat_all >= 0 && category != inst->cat_calls ? (uint64_t)1 << inst->cat_all : 0;
     return inst->logging_on && (inst->cat_on & (bit | all)) != 0;
 }
@@ -182,23 +182,23 @@ static void emit(const HostLogger *logger, const char *name, int status, const c
         if (text[i] == '%') *o++ = '%';
     }
     *o = '\0';
-    logger->log2(logger->env, name, (fmi2Status)status, category, fmt);
+    logger->log2(logger->env, name, status, category, fmt);
     free(fmt);
 }
 
 /* ------------------------------------------------------------------ call framing */
-static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
+static Status begin(Ctx *x, void *c, int call) {
     Instance *inst;
-    fmi2Status st;
+    Status st;
     memset(x, 0, sizeof *x);
     x->call = call;
     x->inst = inst = lookup(c);
-    if (!inst) return fmi2Error; /* not an instance of this FMU: nobody to log to */
-    if ((st = B.enter(x)) != fmi2OK) return st;
+    if (!inst) return ST_ERROR; /* not an instance of this FMU: nobody to log to */
+    if ((st = B.enter(x)) != ST_OK) return st;
     if (inst->state == S_FATAL) {
-        glider_add_msg(x, fmi2Fatal, inst->cat_error, "%s: %s: the instance failed fatally earlier",
+        glider_add_msg(x, ST_FATAL, inst->cat_error, "%s: %s: the instance failed fatally earlier",
                        inst->name, glider_call_name(x));
-        return fmi2Fatal;
+        return ST_FATAL;
     }
     if (!(GLIDER_CALLS[call].allowed & inst->state)) {
         if (!GLIDER_CALLS[call].allowed) return FAIL(x, "not supported by this FMU");
@@ -208,16 +208,16 @@ static fmi2Status begin(Ctx *x, fmi2Component c, int call) {
         return FAIL(x, "not allowed in state '%s'", state_name(inst->state));
     }
     if (inst->cat_calls >= 0 && inst->logging_on && (inst->cat_on >> inst->cat_calls & 1))
-        glider_add_msg(x, fmi2OK, inst->cat_calls, "%s", glider_call_name(x));
-    return fmi2OK;
+        glider_add_msg(x, ST_OK, inst->cat_calls, "%s", glider_call_name(x));
+    return ST_OK;
 }
 
-static fmi2Status end(Ctx *x, fmi2Status status) {
+static Status end(Ctx *x, Status status) {
     Instance *inst = x->inst;
     size_t i;
     if (!inst) return status;
-    if (status == fmi2Fatal) inst->state = S_FATAL;
-    else if (status == fmi2Error && inst->state != S_FATAL) inst->state = S_ERROR;
+    if (status == ST_FATAL) inst->state = S_FATAL;
+    else if (status == ST_ERROR && inst->state != S_FATAL) inst->state = S_ERROR;
     for (i = 0; i < x->nmsgs; ++i) {
         if (!should_log(inst, x->msgs[i].status, x->msgs[i].category)) {
             free(x->msgs[i].text);
@@ -241,7 +241,7 @@ static fmi2Status end(Ctx *x, fmi2Status status) {
 }
 
 /* ------------------------------------------------------------------ FMU states */
-static FmuState *owned_state(Instance *inst, fmi2FMUstate s) {
+static FmuState *owned_state(Instance *inst, void *s) {
     FmuState *p;
     for (p = inst->states; p; p = p->next)
         if ((void *)p == s) return p->magic == STATE_MAGIC ? p : NULL;
@@ -314,14 +314,14 @@ int glider_op_set_debug_logging(void *c, int on, size_t n, const char *const cat
     Instance *inst;
     uint64_t bits = 0;
     size_t i;
-    fmi2Status st = begin(&x, c, C_SET_DEBUG_LOGGING);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_SET_DEBUG_LOGGING);
+    if (st != ST_OK) return end(&x, st);
     inst = x.inst;
     if (n == 0) {
         inst->logging_on = on != 0;
         inst->cat_on = inst->logging_on ? all_categories(inst) : 0;
         inst->cat_off = 0;
-        return end(&x, fmi2OK);
+        return end(&x, ST_OK);
     }
     if (!categories)
         return end(&x, FAIL(&x, "NULL categories with nCategories = %lu", (unsigned long)n));
@@ -347,13 +347,13 @@ int glider_op_set_debug_logging(void *c, int on, size_t n, const char *const cat
         inst->cat_on &= ~bits;
         inst->cat_off |= bits;
     }
-    return end(&x, fmi2OK);
+    return end(&x, ST_OK);
 }
 
 void glider_log_orphan(const HostLogger *logger, const char *name, int status, const char *text) {
     if (logger)
         emit(logger, name ? name : "?", status,
-             status == fmi2Fatal ? "logStatusFatal" : "logStatusError", text);
+             status == ST_FATAL ? "logStatusFatal" : "logStatusError", text);
 }
 
 void *glider_op_instantiate(const char *name, const char *resources, int visible,
@@ -362,10 +362,10 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
     char text[4400], err[4096] = "";
     Instance *inst;
     Ctx x;
-    fmi2Status st;
+    Status st;
     if (!B.start(resources, err, sizeof err)) {
         snprintf(text, sizeof text, "%s: %s: %s", name, call, err);
-        glider_log_orphan(logger, name, fmi2Fatal, text);
+        glider_log_orphan(logger, name, ST_FATAL, text);
         return NULL;
     }
     inst = calloc(1, sizeof *inst);
@@ -374,7 +374,7 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
         if (inst) free(inst->name);
         free(inst);
         snprintf(text, sizeof text, "%s: %s: out of memory", name, call);
-        glider_log_orphan(logger, name, fmi2Fatal, text);
+        glider_log_orphan(logger, name, ST_FATAL, text);
         return NULL;
     }
     inst->magic = INSTANCE_MAGIC;
@@ -388,9 +388,9 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
     x.call = C_INSTANTIATE;
     x.inst = inst;
     st = B.enter(&x);
-    if (st == fmi2OK) st = B.create(&x);
+    if (st == ST_OK) st = B.create(&x);
     inst->cat_on = inst->logging_on ? all_categories(inst) : 0;
-    if (st != fmi2OK) {
+    if (st != ST_OK) {
         inst->state = S_ERROR;
         B.destroy(inst, x.have_token);
         end(&x, st);
@@ -401,7 +401,8 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
         free(inst);
         return NULL;
     }
-    end(&x, fmi2OK);
+    inst->has_time = logger->fmi3 != 0;
+    end(&x, ST_OK);
     LOCK();
     inst->next = g_instances;
     g_instances = inst;
@@ -426,7 +427,7 @@ void glider_op_free(void *c) {
     memset(&x, 0, sizeof x);
     x.call = C_FREE;
     x.inst = inst;
-    if (B.alive() && B.enter(&x) == fmi2OK) {
+    if (B.alive() && B.enter(&x) == ST_OK) {
         free_instance(inst, 1);
         x.inst = NULL;
         B.leave(&x);
@@ -439,27 +440,27 @@ void glider_op_free(void *c) {
 int glider_op_setup(void *c, int call, int tolerance_defined, double tolerance, double start,
                     int stop_defined, double stop, int enter) {
     Ctx x;
-    fmi2Status st = begin(&x, c, call);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, call);
+    if (st != ST_OK) return end(&x, st);
     if (!isfinite(start))
         return end(&x, FAIL(&x, "startTime = %g is invalid: expected a finite time", start));
     st = B.setup(&x, tolerance_defined, tolerance, start, stop_defined, stop);
-    if (st == fmi2OK) x.inst->time = start;
-    if (st == fmi2OK && enter && (st = B.transition(&x, call)) == fmi2OK) x.inst->state = S_INIT;
+    if (st == ST_OK) x.inst->time = start;
+    if (st == ST_OK && enter && (st = B.transition(&x, call)) == ST_OK) x.inst->state = S_INIT;
     return end(&x, st);
 }
 
 int glider_op_transition(void *c, int call, unsigned next) {
     Ctx x;
-    fmi2Status st = begin(&x, c, call);
-    if (st == fmi2OK && (st = B.transition(&x, call)) == fmi2OK) x.inst->state = next;
+    Status st = begin(&x, c, call);
+    if (st == ST_OK && (st = B.transition(&x, call)) == ST_OK) x.inst->state = next;
     return end(&x, st);
 }
 
 int glider_op_reset(void *c) {
     Ctx x;
-    fmi2Status st = begin(&x, c, C_RESET);
-    if (st == fmi2OK && (st = B.reset(&x)) == fmi2OK) {
+    Status st = begin(&x, c, C_RESET);
+    if (st == ST_OK && (st = B.reset(&x)) == ST_OK) {
         x.inst->state = S_INSTANTIATED;
         x.inst->time = 0.0;
         x.inst->terminated = 0;
@@ -486,34 +487,69 @@ static const char *type_name(const Ctx *x, char t) {
     return "unknown";
 }
 
-static fmi2Status check_refs(Ctx *x, const unsigned vr[], size_t nvr, const void *values,
-                             char type) {
+static int is_time(const Instance *inst, unsigned vr) {
+    return inst->has_time && vr == inst->nvars;
+}
+
+static Status check_refs(Ctx *x, const unsigned vr[], size_t nvr, const void *values,
+                         char type, int set) {
     Instance *inst = x->inst;
     size_t i;
     if (!vr || !values)
         return FAIL(x, "NULL %s array with nvr = %lu", vr ? "value" : "vr", (unsigned long)nvr);
     for (i = 0; i < nvr; ++i) {
+        if (is_time(inst, vr[i])) {
+            if (type != T_REAL)
+                return FAIL(x, "value reference %u (time) is %s, not %s", vr[i],
+                            type_name(x, T_REAL), type_name(x, type));
+            if (set)
+                return FAIL(x, "value reference %u (time) is the independent variable: it "
+                               "cannot be set", vr[i]);
+            continue;
+        }
         if (vr[i] >= inst->nvars)
             return FAIL(x, "value reference %u does not exist: expected 0..%lu", vr[i],
-                        (unsigned long)(inst->nvars - 1));
+                        (unsigned long)(inst->nvars + (inst->has_time ? 1 : 0) - 1));
         if (inst->var_type[vr[i]] != type)
             return FAIL(x, "value reference %u (%s) is %s, not %s", vr[i],
                         inst->var_names[vr[i]], type_name(x, inst->var_type[vr[i]]),
                         type_name(x, type));
     }
-    return fmi2OK;
+    return ST_OK;
+}
+
+/* A get that names time: the model's variables from the back end, in runs between the
+ * references to time, and time from the instance (the request is of Float64, checked). */
+static Status get_with_time(Ctx *x, const unsigned vr[], size_t nvr, double out[]) {
+    size_t i = 0, j;
+    Status st = ST_OK, s;
+    while (i < nvr && st <= ST_WARNING) {
+        if (is_time(x->inst, vr[i])) {
+            out[i++] = x->inst->time;
+            continue;
+        }
+        for (j = i; j < nvr && !is_time(x->inst, vr[j]); ++j) continue;
+        if ((s = B.get(x, T_REAL, vr + i, j - i, out + i)) > st) st = s;
+        i = j;
+    }
+    return st;
 }
 
 int glider_op_access(void *c, int call, char type, const unsigned vr[], size_t nvr,
                      size_t nvalues, const void *in, void *out) {
     Ctx x;
-    fmi2Status st = begin(&x, c, call);
-    if (st != fmi2OK || nvr == 0) return end(&x, st);
+    size_t i;
+    Status st = begin(&x, c, call);
+    if (st != ST_OK || nvr == 0) return end(&x, st);
     if (nvalues != nvr)
         return end(&x, FAIL(&x, "nValues = %lu is invalid: expected %lu (every variable is a "
                                 "scalar)", (unsigned long)nvalues, (unsigned long)nvr));
-    if ((st = check_refs(&x, vr, nvr, out ? out : in, type)) != fmi2OK) return end(&x, st);
-    return end(&x, out ? B.get(&x, type, vr, nvr, out) : B.set(&x, type, vr, nvr, in));
+    if ((st = check_refs(&x, vr, nvr, out ? out : in, type, out == NULL)) != ST_OK)
+        return end(&x, st);
+    if (!out) return end(&x, B.set(&x, type, vr, nvr, in));
+    for (i = 0; i < nvr; ++i)
+        if (is_time(x.inst, vr[i])) return end(&x, get_with_time(&x, vr, nvr, out));
+    return end(&x, B.get(&x, type, vr, nvr, out));
 }
 
 /* ------------------------------------------------------------------ FMU state */
@@ -521,14 +557,14 @@ int glider_op_get_state(void *c, void **state) {
     Ctx x;
     Instance *inst;
     FmuState *s, *fresh = NULL;
-    fmi2Status st = begin(&x, c, C_GET_FMU_STATE);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_GET_FMU_STATE);
+    if (st != ST_OK) return end(&x, st);
     inst = x.inst;
     if (!state) return end(&x, FAIL(&x, "FMUstate is NULL"));
     s = *state ? owned_state(inst, *state) : NULL;
     if (*state && !s) return end(&x, FAIL(&x, "*FMUstate is not a state of this instance"));
     if (!s && !(s = fresh = new_state(inst))) return end(&x, FAIL(&x, "out of memory"));
-    if ((st = B.state_get(&x, s)) != fmi2OK) {
+    if ((st = B.state_get(&x, s)) != ST_OK) {
         if (fresh) {
             inst->states = fresh->next;
             drop_state(fresh, 1);
@@ -539,17 +575,17 @@ int glider_op_get_state(void *c, void **state) {
     s->time = inst->time;
     s->terminated = inst->terminated;
     *state = s;
-    return end(&x, fmi2OK);
+    return end(&x, ST_OK);
 }
 
 int glider_op_set_state(void *c, void *state) {
     Ctx x;
     FmuState *s;
-    fmi2Status st = begin(&x, c, C_SET_FMU_STATE);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_SET_FMU_STATE);
+    if (st != ST_OK) return end(&x, st);
     if (!(s = owned_state(x.inst, state)))
         return end(&x, FAIL(&x, "FMUstate is not a state of this instance"));
-    if ((st = B.state_set(&x, s)) == fmi2OK) {
+    if ((st = B.state_set(&x, s)) == ST_OK) {
         x.inst->state = s->machine;
         x.inst->time = s->time;
         x.inst->terminated = s->terminated;
@@ -560,15 +596,15 @@ int glider_op_set_state(void *c, void *state) {
 int glider_op_free_state(void *c, void **state) {
     Ctx x;
     FmuState **p;
-    fmi2Status st = begin(&x, c, C_FREE_FMU_STATE);
-    if (st != fmi2OK || !state || !*state) return end(&x, st);
+    Status st = begin(&x, c, C_FREE_FMU_STATE);
+    if (st != ST_OK || !state || !*state) return end(&x, st);
     for (p = &x.inst->states; *p; p = &(*p)->next) {
         if ((void *)*p == *state) {
             FmuState *s = *p;
             *p = s->next;
             drop_state(s, 1);
             *state = NULL;
-            return end(&x, fmi2OK);
+            return end(&x, ST_OK);
         }
     }
     return end(&x, FAIL(&x, "*FMUstate is not a state of this instance"));
@@ -584,12 +620,12 @@ int glider_op_state_size(void *c, void *state, size_t *size) {
     FmuState *s;
     const char *data;
     size_t n;
-    fmi2Status st = begin(&x, c, C_STATE_SIZE);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_STATE_SIZE);
+    if (st != ST_OK) return end(&x, st);
     s = owned_state(x.inst, state);
     if (!s || !size)
         return end(&x, FAIL(&x, s ? "size is NULL" : "FMUstate is not a state of this instance"));
-    if ((st = B.state_bytes(&x, s, &data, &n)) == fmi2OK) *size = SER_HEADER + n;
+    if ((st = B.state_bytes(&x, s, &data, &n)) == ST_OK) *size = SER_HEADER + n;
     return end(&x, st);
 }
 
@@ -599,12 +635,12 @@ int glider_op_serialize(void *c, void *state, char buffer[], size_t size) {
     const char *data, *model = B.model_identifier();
     size_t n;
     uint32_t machine, term;
-    fmi2Status st = begin(&x, c, C_SERIALIZE);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_SERIALIZE);
+    if (st != ST_OK) return end(&x, st);
     s = owned_state(x.inst, state);
     if (!s || !buffer)
         return end(&x, FAIL(&x, s ? "buffer is NULL" : "FMUstate is not a state of this instance"));
-    if ((st = B.state_bytes(&x, s, &data, &n)) != fmi2OK) return end(&x, st);
+    if ((st = B.state_bytes(&x, s, &data, &n)) != ST_OK) return end(&x, st);
     if (size < SER_HEADER + n)
         return end(&x, FAIL(&x, "size = %lu is too small: expected %lu bytes",
                             (unsigned long)size, (unsigned long)(SER_HEADER + n)));
@@ -617,7 +653,7 @@ int glider_op_serialize(void *c, void *state, char buffer[], size_t size) {
     memset(buffer + 24, 0, MODEL_ID_SIZE);
     memcpy(buffer + 24, model, strlen(model) < MODEL_ID_SIZE ? strlen(model) : MODEL_ID_SIZE - 1);
     memcpy(buffer + SER_HEADER, data, n);
-    return end(&x, fmi2OK);
+    return end(&x, ST_OK);
 }
 
 int glider_op_deserialize(void *c, const char data[], size_t size, void **state) {
@@ -626,8 +662,8 @@ int glider_op_deserialize(void *c, const char data[], size_t size, void **state)
     char model[MODEL_ID_SIZE + 1] = "";
     uint32_t machine, term;
     double time;
-    fmi2Status st = begin(&x, c, C_DESERIALIZE);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_DESERIALIZE);
+    if (st != ST_OK) return end(&x, st);
     if (!data || !state)
         return end(&x, FAIL(&x, "%s is NULL", state ? "serializedState" : "FMUstate"));
     if (size < SER_HEADER || memcmp(data, SER_MAGIC, 8))
@@ -644,7 +680,7 @@ int glider_op_deserialize(void *c, const char data[], size_t size, void **state)
         return end(&x, FAIL(&x, "the state records an invalid FMI state %u", machine));
     if (!(s = new_state(x.inst))) return end(&x, FAIL(&x, "out of memory"));
     st = B.state_from_bytes(&x, s, data + SER_HEADER, size - SER_HEADER);
-    if (st != fmi2OK) {
+    if (st != ST_OK) {
         x.inst->states = s->next;
         drop_state(s, 1);
         return end(&x, st);
@@ -653,7 +689,7 @@ int glider_op_deserialize(void *c, const char data[], size_t size, void **state)
     s->terminated = term != 0;
     s->time = time;
     *state = s;
-    return end(&x, fmi2OK);
+    return end(&x, ST_OK);
 }
 
 /* ------------------------------------------------------------------ the rest */
@@ -666,12 +702,12 @@ int glider_op_do_step(void *c, double t, double h, int *terminated, double *last
     Ctx x;
     Instance *inst;
     int go_on = 1;
-    fmi2Status st = begin(&x, c, C_DO_STEP);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, C_DO_STEP);
+    if (st != ST_OK) return end(&x, st);
     if (!(h > 0.0) || !isfinite(h) || !isfinite(t))
         return end(&x, FAIL(&x, "step of %g s at t = %g s is invalid: expected a finite step > 0",
                             h, t));
-    if ((st = B.step(&x, t, h, &go_on)) != fmi2OK) return end(&x, st);
+    if ((st = B.step(&x, t, h, &go_on)) != ST_OK) return end(&x, st);
     inst = x.inst;
     if (go_on) {
         inst->time = t + h;
@@ -679,22 +715,22 @@ int glider_op_do_step(void *c, double t, double h, int *terminated, double *last
         inst->state = S_STEP_FAILED;
         inst->terminated = 1;
         inst->time = t;
-        glider_add_msg(&x, fmi2Discard, inst->cat_discard,
+        glider_add_msg(&x, ST_DISCARD, inst->cat_discard,
                        "%s: %s: the model stopped the simulation at t = %.17g s", inst->name,
                        glider_call_name(&x), t);
     }
     if (terminated) *terminated = !go_on;
     if (last) *last = inst->time;
-    return end(&x, go_on ? fmi2OK : fmi2Discard);
+    return end(&x, go_on ? ST_OK : ST_DISCARD);
 }
 
 int glider_op_query(void *c, int call, int kind, int want,
                     void (*store)(const Instance *, void *), void *value) {
     Ctx x;
-    fmi2Status st = begin(&x, c, call);
-    if (st != fmi2OK) return end(&x, st);
+    Status st = begin(&x, c, call);
+    if (st != ST_OK) return end(&x, st);
     if (!value) return end(&x, FAIL(&x, "value is NULL"));
     if (kind != want || !store) return end(&x, FAIL(&x, "status kind %d is not provided", kind));
     store(x.inst, value);
-    return end(&x, fmi2OK);
+    return end(&x, ST_OK);
 }

@@ -11,7 +11,10 @@
  * back end defines (one per binary), the way the Reference-FMUs' shared code reaches a
  * model through model.h.
  *
- * C99; no Python here. Written from the FMI 2.0.4 standard and fmpy's FMI headers.
+ * C99; no Python and no FMI header here: the layer speaks its own names for what FMI 2.0
+ * and 3.0 share (below), so that an FMI 3.0 FMU's sources build with only the FMI 3.0
+ * headers and an FMI 2.0 FMU's with only the FMI 2.0 ones; each front end includes its
+ * version's header. Written from the FMI 2.0.4 and 3.0 standards and fmpy's FMI headers.
  */
 #ifndef GLIDER_FMI_LAYER_H
 #define GLIDER_FMI_LAYER_H
@@ -19,7 +22,14 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "fmi2Functions.h"
+/* ------------------------------------------------------------------ FMI's vocabulary
+ * Statuses have the same numbers in FMI 2.0 and 3.0 (fmi2OK .. fmi2Fatal, fmi3OK ..
+ * fmi3Fatal); the front ends cast them to their version's type. Value references are
+ * fmi2ValueReference (unsigned int) and fmi3ValueReference (uint32_t, the same type on
+ * every platform the FMUs are built for). Values: Real/Float64 double, Integer/Int32 int,
+ * Boolean int (0 or 1; FMI 3's bool is converted by its front end), String const char *. */
+typedef enum { ST_OK = 0, ST_WARNING = 1, ST_DISCARD = 2, ST_ERROR = 3, ST_FATAL = 4 } Status;
+typedef unsigned int ValueRef;
 
 /* ------------------------------------------------------------------ the state machine */
 enum {
@@ -104,11 +114,14 @@ typedef struct FmuState {
     int terminated;   /* the model had asked to stop */
 } FmuState;
 
-/* The host's logger: FMI 2's (printf-style, with the instance name) or FMI 3's. */
+/* The host's logger: FMI 2's (printf-style, with the instance name) or FMI 3's, each
+ * called with the layer's status (FMI's number). */
+typedef void (*Fmi2Logger)(void *env, const char *instance, int status, const char *category,
+                           const char *message, ...);
 typedef void (*Fmi3Logger)(void *env, int status, const char *category, const char *message);
 typedef struct {
     int fmi3; /* 0: FMI 2.0, 1: FMI 3.0 */
-    fmi2CallbackLogger log2;
+    Fmi2Logger log2;
     Fmi3Logger log3;
     void *env;
 } HostLogger;
@@ -131,13 +144,17 @@ typedef struct Instance {
     size_t nvars;
     const char *var_type;
     const char *const *var_names;
+    /* FMI 3.0 declares the independent variable, time (Float64, value reference nvars,
+     * after the model's: cosim/fmus/fmi3_description.py writes it there); a get of it
+     * returns the instance's current time, a set is refused. FMI 2.0 declares none. */
+    int has_time;
     FmuState *states;
     void *backend; /* the back end's per-instance data */
 } Instance;
 
 /* ------------------------------------------------------------------ a call */
 typedef struct {
-    fmi2Status status;
+    Status status;
     int category; /* index into the instance's categories, -1: none */
     char *text;
 } Msg;
@@ -156,9 +173,9 @@ const char *glider_call_name(const Ctx *x);
 
 /* A message of this call: kept, and passed to the host's logger when the call ends if
  * the logging rules let it through (errors always). */
-void glider_add_msg(Ctx *x, fmi2Status status, int category, const char *fmt, ...);
+void glider_add_msg(Ctx *x, Status status, int category, const char *fmt, ...);
 /* An error of this call: message "<call>: <what>"; returns fmi2Error. */
-fmi2Status glider_fail(Ctx *x, const char *fmt, ...);
+Status glider_fail(Ctx *x, const char *fmt, ...);
 int glider_category_index(const Instance *inst, const char *name);
 /* Register the log categories of a model (FMI's standard ones and logFmiCalls). */
 void glider_set_categories(Instance *inst, const char *const names[], int n);
@@ -207,33 +224,32 @@ typedef struct {
     int (*start)(const char *resources, char *err, size_t errsize);
     /* take and give back what a call needs (the GIL); enter fails with a message when
      * the back end cannot be called any more (Python finalizing) */
-    fmi2Status (*enter)(Ctx *x);
+    Status (*enter)(Ctx *x);
     void (*leave)(Ctx *x);
     /* instantiate: create the model, fill inst->nvars, var_type, var_names and the
      * categories; reset: a fresh model with start values */
-    fmi2Status (*create)(Ctx *x);
-    fmi2Status (*reset)(Ctx *x);
+    Status (*create)(Ctx *x);
+    Status (*reset)(Ctx *x);
     /* free the model and every state's value (inside enter/leave when possible: alive
      * says whether the back end can still be called) */
     void (*destroy)(Instance *inst, int alive);
     int (*alive)(void);
-    fmi2Status (*setup)(Ctx *x, int tolerance_defined, double tolerance, double start,
-                        int stop_defined, double stop);
+    Status (*setup)(Ctx *x, int tolerance_defined, double tolerance, double start,
+                    int stop_defined, double stop);
     /* fmi2EnterInitializationMode, fmi2ExitInitializationMode, fmi2Terminate */
-    fmi2Status (*transition)(Ctx *x, int call);
+    Status (*transition)(Ctx *x, int call);
     /* value access; references are checked against var_type by the layer */
-    fmi2Status (*get)(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr, void *out);
-    fmi2Status (*set)(Ctx *x, char type, const fmi2ValueReference vr[], size_t nvr,
-                      const void *values);
+    Status (*get)(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *out);
+    Status (*set)(Ctx *x, char type, const ValueRef vr[], size_t nvr, const void *values);
     /* one communication step; *go_on = 0: the model stopped cleanly (fmi2Discard) */
-    fmi2Status (*step)(Ctx *x, double t, double h, int *go_on);
+    Status (*step)(Ctx *x, double t, double h, int *go_on);
     /* FMU state: save into s->value (replacing what is there), restore, release value and
      * bytes, serialize (cached in s->bytes) and deserialize into s->value */
-    fmi2Status (*state_get)(Ctx *x, FmuState *s);
-    fmi2Status (*state_set)(Ctx *x, const FmuState *s);
+    Status (*state_get)(Ctx *x, FmuState *s);
+    Status (*state_set)(Ctx *x, const FmuState *s);
     void (*state_release)(FmuState *s, int alive);
-    fmi2Status (*state_bytes)(Ctx *x, FmuState *s, const char **data, size_t *n);
-    fmi2Status (*state_from_bytes)(Ctx *x, FmuState *s, const char *data, size_t n);
+    Status (*state_bytes)(Ctx *x, FmuState *s, const char **data, size_t *n);
+    Status (*state_from_bytes)(Ctx *x, FmuState *s, const char *data, size_t n);
 } Backend;
 
 /* defined once per binary by its back end */

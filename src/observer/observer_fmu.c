@@ -4,6 +4,7 @@
  * equations are observer_model.c's (Butterworth pre-filter, observer, Riccati gain) and
  * plant_model.c's (the glider model the observer runs).
  */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include <math.h>
 #include <stdio.h>
 

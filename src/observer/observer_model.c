@@ -1,4 +1,5 @@
 /* Observer equations in C99: the twin of glider_observer (see observer_model.h). */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include "observer_model.h"
 
 #include <math.h>

@@ -4,6 +4,7 @@
  * equations are plant_model.c's (the twins of glider_plant/model.py). The native back end
  * (backend_native.c) checks the parameters' ranges and the inputs before this is called.
  */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include <math.h>
 #include <stdio.h>
 

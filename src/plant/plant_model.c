@@ -1,4 +1,5 @@
 /* Glider plant equations in C99: the twin of glider_plant.model (see plant_model.h). */
+#include "glider_fp.h" /* first: no fused multiply-add (see there) */
 #include "plant_model.h"
 
 #include <float.h>
