@@ -158,20 +158,21 @@ def test_a_master_run_with_the_modified_controller_differs(pair, fmu_dir, tmp_pa
     ).read_bytes()
 
 
-def test_a_dask_worker_runs_the_modified_controller_after_the_original(pair, tmp_path):
-    import dask
-    from distributed import Client, LocalCluster
+def test_a_dask_worker_runs_the_modified_controller_after_the_original(pair):
+    """On the sweeps' own local cluster (one worker process, no dashboard)."""
+    from glider_cosim.sweeps.cluster import make_client
 
     original, modified = pair
-    with dask.config.set({"temporary-directory": str(tmp_path)}), LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
-        silence_logs=50, local_directory=str(tmp_path),
-    ) as cluster, Client(cluster) as client:  # fmt: skip
+    client = make_client(1)
+    try:
         pid1 = client.submit(os.getpid, pure=False).result()
         first = client.submit(verify, original, "controller", pure=False).result()
         second = client.submit(verify, modified, "controller", pure=False).result()
         third = client.submit(verify, original, "controller", pure=False).result()
         assert client.submit(os.getpid, pure=False).result() == pid1  # one worker process
+    finally:
+        client.close()
+        client.cluster.close()
     assert first.passed and third.passed
     assert not second.passed
     failed = sorted(r.case.name for r in second.results if not r.passed)
