@@ -243,12 +243,17 @@ def _finish(
 ) -> None:
     """Copy the container to ``out`` with units in its model description and the quiet
     forwarder as its binary (the container's own kept beside it)."""
-    from glider_fmi.compile import find_compiler, fmi_headers
+    from glider_fmi.compile import fmi_headers
+    from glider_fmi.toolchain import ToolchainError, host_command
 
     binary = f"binaries/linux64/{CONTAINER_NAME}.so"
     forwarder = work / "quiet.so"
-    cmd = [find_compiler(), "-O2", "-fPIC", "-shared", f"-I{fmi_headers()}", str(QUIET_SOURCE),
-           "-o", str(forwarder), "-ldl", "-lpthread"]  # fmt: skip
+    try:
+        start = host_command()
+    except ToolchainError as err:
+        raise OneFMUError(f"{out}: the container's forwarder cannot be compiled: {err}") from None
+    cmd = [*start, "-O2", f"-I{fmi_headers()}", str(QUIET_SOURCE), "-o", str(forwarder),
+           "-ldl", "-lpthread"]  # fmt: skip
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         last = (p.stderr.strip().splitlines() or [f"exit code {p.returncode}"])[-1]
