@@ -252,3 +252,27 @@ def test_every_build_and_the_quick_start_need_no_system_compiler(tmp_path):
     assert (tmp_path / "run" / "results.csv").is_file()
     assert "outcome: settled" in p.stdout
     assert list(cache.glob("*/fastloop-*/fastloop.so"))  # the master's C loop, in the cache
+
+
+# ---------------------------------------------------------------- the master's C loop
+def test_the_fast_loop_is_built_once_per_cache(tmp_path):
+    """Two processes on one cache: the first builds the helper, the second loads the same
+    file untouched; a deleted helper is built again."""
+    env = {**os.environ, "GLIDER_COSIM_CACHE": str(tmp_path / "cache")}
+    probe = ("import os; from glider_cosim.master import fastloop; p = fastloop.built_library(); "
+             "print(p, os.stat(p).st_mtime_ns, fastloop.library() is not None)")  # fmt: skip
+
+    def ask() -> list[str]:
+        p = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                           env=env, timeout=300)  # fmt: skip
+        assert p.returncode == 0, p.stderr
+        return p.stdout.split()
+
+    first, second = ask(), ask()
+    assert first == second and first[2] == "True"
+    lib = Path(first[0])
+    assert lib.parent.parent.parent == tmp_path / "cache"
+    assert [f.name for f in lib.parent.iterdir()] == ["fastloop.so"]  # no temporary left
+    lib.unlink()
+    third = ask()
+    assert third[0] == first[0] and third[1] != first[1]
