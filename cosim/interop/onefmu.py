@@ -47,9 +47,9 @@ container:
   ``[WARNING] Container use PARALLEL mode with MONO thread.`` (its ``logger()``
   forwards every warning and error to the host). The container's binary is kept as
   ``binaries/linux64/GliderLoop.container.so`` and ``GliderLoop.so`` is a small
-  forwarder (``onefmu_quiet.c``, compiled with the system C compiler) that drops exactly
-  these three lines, and only during ``fmi2Instantiate``; every other message reaches
-  the host unchanged.
+  forwarder (``onefmu_quiet.c``, compiled by the build's C toolchain, zig by default)
+  that drops exactly these three lines, and only during ``fmi2Instantiate``; every other
+  message reaches the host unchanged.
 
 pythonfmu FMUs need a Python interpreter in the host process: a C/C++ host of the
 container needs the environment of ``glider-cosim host-env``.
