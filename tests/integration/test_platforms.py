@@ -191,9 +191,18 @@ def compiler_files() -> list[str]:
     return sorted(f for f in found if Path(f).is_file())
 
 
+def python_includes() -> list[str]:
+    """The folders holding a ``Python.h``: this interpreter's and the system's."""
+    import sysconfig
+
+    found = {sysconfig.get_paths()["include"], *map(str, Path("/usr/include").glob("python3*"))}
+    return sorted(f for f in found if Path(f, "Python.h").is_file())
+
+
 def hidden_compilers(tmp_path: Path, commands: list[list[str]]) -> subprocess.CompletedProcess:
     """``commands`` in a shell with PATH only a folder of symlinks to python3 and sh, and
-    (where ``unshare -m`` is permitted) /dev/null mounted over every compiler's file;
+    (where ``unshare -m`` is permitted) /dev/null mounted over every compiler's file and a
+    tmpfs over every folder holding ``Python.h``;
     first checking that none of cc, gcc, clang, mingw can be started."""
     bin_ = tmp_path / "bin"
     bin_.mkdir()
@@ -204,6 +213,9 @@ def hidden_compilers(tmp_path: Path, commands: list[list[str]]) -> subprocess.Co
     namespace = subprocess.run(["unshare", "-m", "true"], capture_output=True).returncode == 0
     if namespace:
         script += "".join(f"mount --bind /dev/null '{f}'\n" for f in compiler_files())
+        for inc in python_includes():  # and no Python headers
+            script += f"mount -t tmpfs none '{inc}'\n"
+        script += "".join(f"test ! -e '{i}/Python.h' || exit 92\n" for i in python_includes())
     script += f"export PATH='{bin_}'\n"
     for cc in [*COMPILERS, "/usr/bin/gcc", "/usr/bin/cc", "/usr/bin/clang"]:
         if namespace or not cc.startswith("/"):
