@@ -355,3 +355,20 @@ def test_a_missing_compiler_is_one_line(tmp_path):
         "comes with 'pip install': python -m ziglang cc)\n"
     )
     assert not list(Path(tmp_path).glob("fmus/*.fmu"))
+
+
+def test_mingw_chosen_builds_win64_and_zig_the_rest(tmp_path):
+    """``--compiler x86_64-w64-mingw32-gcc``: the DLL is mingw's (msvcrt.dll, not the
+    UCRT), every other platform zig's."""
+    from glider_cosim.fmus import native
+
+    if shutil.which("x86_64-w64-mingw32-gcc") is None:
+        pytest.fail("mingw-w64 is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    native.build_native(tmp_path, compiler="x86_64-w64-mingw32-gcc")
+    d = unzip(tmp_path / "GliderPlant.fmu", tmp_path / "p")
+    bins = sorted(str(p.relative_to(d)) for p in (d / "binaries").rglob("*.*"))
+    assert [b.split("/")[1] for b in bins] == ["aarch64-linux", "darwin64", "linux64", "win64"]
+    dump = subprocess.run(["objdump", "-p", str(d / "binaries/win64/GliderPlant.dll")],
+                          capture_output=True, text=True, check=True).stdout  # fmt: skip
+    imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
+    assert imports == {"KERNEL32.dll", "msvcrt.dll"}
