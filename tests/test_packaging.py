@@ -3,6 +3,7 @@ listed in ``pyproject.toml``, and the cache's location and keys."""
 
 from __future__ import annotations
 
+import sys
 import tomllib
 from pathlib import Path
 
@@ -42,10 +43,10 @@ def test_the_cache_follows_xdg_then_the_platform(monkeypatch, tmp_path):
     assert build.cache_root() == tmp_path / "glider-cosim"
     monkeypatch.setenv("XDG_CACHE_HOME", "relative/ignored")  # the XDG spec: absolute only
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
-    monkeypatch.setattr(build.sys, "platform", "linux")
+    monkeypatch.setattr(sys, "platform", "linux")
     assert build.cache_root() == tmp_path / "home" / ".cache" / "glider-cosim"
     monkeypatch.delenv("XDG_CACHE_HOME")
-    monkeypatch.setattr(build.sys, "platform", "darwin")
+    monkeypatch.setattr(sys, "platform", "darwin")
     assert build.cache_root() == tmp_path / "home" / "Library" / "Caches" / "glider-cosim"
     monkeypatch.setenv(build.CACHE_ENV, str(tmp_path / "own"))
     assert build.cache_root() == tmp_path / "own"

@@ -205,8 +205,16 @@ def dispatch(args: argparse.Namespace) -> int:
 
         out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
         _check_out_dir(out, "build --out")
+        if args.compiler is not None:  # every build step and hash of this process uses it
+            from glider_fmi.toolchain import COMPILER_ENV
+
+            os.environ[COMPILER_ENV] = args.compiler
+        from glider_fmi.toolchain import ToolchainError
+
         try:
             built = build_all(out, flavor=args.flavor, fmi=args.fmi)
+        except ToolchainError as err:  # a compiler chosen is missing or failed
+            raise UsageError(str(err)) from None
         except OSError as err:
             raise _os_error(err, {"build --out": out}) from None
         for name, path in built.items():

@@ -77,6 +77,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument(
         "--fmi", type=int, choices=FMI_VERSIONS, default=2, help="FMI version: 2.0 or 3.0"
     )
+    b.add_argument(
+        "--compiler",
+        default=None,
+        metavar="CC[,CC...]",
+        help="C compilers: zig (default, from PyPI: every platform) or system ones, e.g. "
+        "gcc, clang, x86_64-w64-mingw32-gcc, each building the platform it targets, zig "
+        "the others (default: $GLIDER_COSIM_COMPILER, else zig)",
+    )
 
     r = sub.add_parser(
         "run",

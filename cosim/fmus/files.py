@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import importlib.metadata
 import os
+import sys
 import uuid
 import zipfile
 from collections.abc import Iterator
@@ -46,3 +47,27 @@ def replacing(target: Path) -> Iterator[Path]:
         part.replace(target)
     finally:
         part.unlink(missing_ok=True)
+
+
+#: environment variable naming the cache folder (default: :func:`cache_root`)
+CACHE_ENV = "GLIDER_COSIM_CACHE"
+
+
+def cache_root() -> Path:
+    """The per-user cache of built FMUs: ``$GLIDER_COSIM_CACHE`` if set, else
+    ``$XDG_CACHE_HOME/glider-cosim`` (an absolute ``XDG_CACHE_HOME``), else the
+    platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
+    ``%LOCALAPPDATA%`` on Windows."""
+    own = os.environ.get(CACHE_ENV)
+    if own:
+        return Path(own)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        base = Path(xdg)
+    elif sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path.home() / ".cache"
+    return base / "glider-cosim"

@@ -8,8 +8,9 @@ ranges, with FMI 3 types (``Float64``, ``Int32``, ``Boolean``), outputs and init
 unknowns by value reference. Event mode, clocks, early return and intermediate update
 are not provided, and the capability flags say so.
 
-Binaries: ``binaries/x86_64-linux/<id>.so`` (both flavors), ``binaries/x86_64-windows/
-<id>.dll`` (native, with mingw-w64), ``sources/`` with ``buildDescription.xml`` (native)."""
+Binaries: ``binaries/<platform tuple>/``: ``x86_64-linux`` and ``aarch64-linux`` (both
+flavors), ``x86_64-windows``, ``x86_64-darwin`` and ``aarch64-darwin`` (native);
+``sources/`` with ``buildDescription.xml`` (native)."""
 
 from __future__ import annotations
 
@@ -55,7 +56,7 @@ def is_current(fmu: Path, name: str) -> bool:
         return False
 
 
-def _repackage(fmu2: Path, out: Path, binary: Path) -> Path:
+def _repackage(fmu2: Path, out: Path, binary: dict[str, Path]) -> Path:
     """The Python flavor's FMI 2 FMU as FMI 3: the model description rewritten, the FMI 2
     runtime replaced by the FMI 3 one, resources kept."""
     name = fmu2.stem
@@ -72,7 +73,8 @@ def _repackage(fmu2: Path, out: Path, binary: Path) -> Path:
             else:
                 z.writestr(item, src.read(item))
         z.writestr(osp.extra_path(md), osp.generate(md))
-        z.write(binary, f"{LINUX}/{name}.so")
+        for platform, lib in binary.items():
+            z.write(lib, f"binaries/{platform}/{name}.so")
         z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")
     osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
@@ -89,9 +91,8 @@ def build_fmi3(out: Path | str, flavor: str = "python", only_stale: bool = False
         return result
     with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp:
         stage = Path(tmp)
-        so3, so2 = stage / "runtime3.so", stage / "runtime2.so"
-        runtime.compile_runtime(so3, fmi3=True)
-        runtime.compile_runtime(so2)
+        so3 = runtime.compile_runtimes(stage, fmi3=True)
+        so2 = runtime.compile_runtimes(stage)
         for c in todo:
             result[c.name] = _repackage(build_component(c, stage / "fmi2", so2), out, so3)
     return result

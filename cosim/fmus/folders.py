@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import os
-import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -13,7 +11,7 @@ from typing import Any
 from glider_fmi import compile as runtime
 
 from . import osp
-from .files import fmu_flavor, package_version
+from .files import CACHE_ENV, cache_root, fmu_flavor, package_version  # noqa: F401 (re-exported)
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
 from .python import (
@@ -31,30 +29,6 @@ FLAVORS = ("python", "native")
 #: where ``glider-cosim build`` writes each flavor unless ``--out`` is given (the
 #: project's export folder); runs use the per-user cache instead (:func:`cache_dir`)
 DEFAULT_DIRS = {"python": Path("fmus"), "native": Path("fmus") / "native"}
-
-
-#: environment variable naming the cache folder (default: :func:`cache_root`)
-CACHE_ENV = "GLIDER_COSIM_CACHE"
-
-
-def cache_root() -> Path:
-    """The per-user cache of built FMUs: ``$GLIDER_COSIM_CACHE`` if set, else
-    ``$XDG_CACHE_HOME/glider-cosim`` (an absolute ``XDG_CACHE_HOME``), else the
-    platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
-    ``%LOCALAPPDATA%`` on Windows."""
-    own = os.environ.get(CACHE_ENV)
-    if own:
-        return Path(own)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg and os.path.isabs(xdg):
-        base = Path(xdg)
-    elif sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Caches"
-    else:
-        base = Path.home() / ".cache"
-    return base / "glider-cosim"
 
 
 def sources_key(flavor: str = "python") -> str:
@@ -169,8 +143,7 @@ def build_all(
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     if todo:
         with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
-            binary = Path(tmp) / "glider_fmi_runtime.so"
-            runtime.compile_runtime(binary)
+            binary = runtime.compile_runtimes(tmp)
             for c in todo:
                 result[c.name] = build_component(c, out, binary)
     return _with_osp(result)

@@ -7,18 +7,20 @@ The same models in C99 (``src/*/<component>_model.c``) behind the same FMI layer
 their wording), and the model description is the Python slave's own, so both flavors
 declare the same variables.
 
-Each FMU carries ``binaries/linux64/<id>.so`` (system C compiler), ``binaries/win64/<id>.dll``
-(mingw-w64, when ``x86_64-w64-mingw32-gcc`` is installed) and ``sources/`` with every C
-file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can rebuild it.
+Each FMU carries a binary for each platform of :data:`glider_fmi.toolchain.PLATFORMS`
+(Linux x86_64 and aarch64 at glibc 2.17, Windows x86_64, macOS x86_64 and arm64), all
+built here by zig's C compiler from PyPI unless ``--compiler`` names others (see
+:data:`FMI2_DIRS` for FMI 2's folders; FMI 3 uses its platform tuples), and ``sources/``
+with every C file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can rebuild it.
 """
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import logging
 import math
-import shutil
-import subprocess
+import os
 import tempfile
 import uuid
 import zipfile
@@ -31,10 +33,11 @@ import glider_controller
 import glider_fmi
 import glider_observer
 import glider_plant
-from glider_fmi import compile as runtime
+from glider_fmi import toolchain
 
-from . import osp
+from . import osp, platforms
 from .files import FLAVOR_FILE, package_version, replacing
+from .platforms import binary_entries, compile_for, zip_member
 
 log = logging.getLogger(__name__)
 
@@ -108,7 +111,7 @@ NATIVE_COMPONENTS: tuple[NativeComponent, ...] = (
 )
 
 
-class NativeBuildError(OSError):
+class NativeBuildError(toolchain.ToolchainError):
     """A native FMU cannot be built here (no compiler, a compiler error)."""
 
 
@@ -201,11 +204,13 @@ def source_files(c: NativeComponent, fmi: int = 2) -> list[Path]:
     return layer + list(dict.fromkeys(c.files))
 
 
-def native_hash(c: NativeComponent, fmi: int = 2) -> str:
-    """SHA-256 over the C sources, the generated variables, the flags and the version."""
+def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | None = None) -> str:
+    """SHA-256 over the C sources, the generated variables, the flags, the compilers
+    (``chain``, default :func:`glider_fmi.toolchain.select`) and the version."""
     h = hashlib.sha256(vars_header(c).encode())
     h.update(f"fmi{fmi}".encode())
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
+    h.update(toolchain.fingerprint(chain).encode())
     h.update(package_version().encode())
     h.update(osp.fingerprint().encode())
     for f in source_files(c, fmi):
@@ -214,56 +219,23 @@ def native_hash(c: NativeComponent, fmi: int = 2) -> str:
     return h.hexdigest()
 
 
-def is_current(fmu: Path, c: NativeComponent, fmi: int = 2) -> bool:
-    """True if ``fmu`` is a native FMU of FMI ``fmi`` built from the current sources."""
+def is_current(
+    fmu: Path, c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | None = None
+) -> bool:
+    """True if ``fmu`` is a native FMU of FMI ``fmi`` built from the current sources (by
+    the compilers of ``chain``)."""
     try:
         with zipfile.ZipFile(fmu) as z:
-            return z.read(NATIVE_HASH_FILE).decode().strip() == native_hash(c, fmi)
+            return z.read(NATIVE_HASH_FILE).decode().strip() == native_hash(c, fmi, chain)
     except (OSError, KeyError, zipfile.BadZipFile):
         return False
 
 
 # ---------------------------------------------------------------- compiling
-def compile_binary(compiler: str, sources: list[Path], output: Path, flags: tuple[str, ...],
-                   libs: tuple[str, ...] = ()) -> str:  # fmt: skip
-    """Compile ``sources`` into the shared library ``output``; returns what the compiler
-    printed (empty when warning-free).
-
-    Raises
-    ------
-    NativeBuildError
-        The compiler failed (its first lines quoted).
-    """
-    cmd = [
-        compiler,
-        *CFLAGS,
-        *flags,
-        f"-I{runtime.fmi_headers()}",
-        f"-I{sources[0].parent}",
-        *(str(s) for s in sources if s.suffix == ".c"),
-        "-o",
-        str(output),
-        *libs,
-    ]
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
-    except (OSError, subprocess.TimeoutExpired) as err:
-        raise NativeBuildError(f"compiling {output.name} with {compiler} failed: {err}") from None
-    if proc.returncode != 0 or not output.is_file():
-        first = " ".join((proc.stderr or proc.stdout).strip().splitlines()[:3])
-        raise NativeBuildError(
-            f"compiling {output.name} with {compiler} failed (exit {proc.returncode}): {first}"
-        )
-    return (proc.stderr + proc.stdout).strip()
-
-
-def mingw() -> str | None:
-    """The mingw-w64 cross-compiler for win64, if installed."""
-    return shutil.which(MINGW)
-
-
 # ---------------------------------------------------------------- model description
-def model_description(c: NativeComponent, sources: list[str]) -> bytes:
+def model_description(
+    c: NativeComponent, sources: list[str], chain: toolchain.Toolchain | None = None
+) -> bytes:
     """The Python slave's model description, for a native FMU: same variables, units and
     structure; a new GUID, our generation tool, no execution tool, and ``<SourceFiles>``."""
     cls = c.slave_class()
@@ -280,7 +252,9 @@ def model_description(c: NativeComponent, sources: list[str]) -> bytes:
         )
     root.set(
         "guid",
-        "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + native_hash(c))) + "}",
+        "{"
+        + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + native_hash(c, 2, chain)))
+        + "}",
     )
     root.set("generationTool", f"glider-cosim {package_version()} (native C99)")
     root.set("version", package_version())
@@ -312,38 +286,42 @@ def build_description(c: NativeComponent, sources: list[str]) -> bytes:
 
 
 # ---------------------------------------------------------------- building
-#: where the binaries go, per FMI version
-BINARY_DIRS = {2: ("binaries/linux64", "binaries/win64"),
-               3: ("binaries/x86_64-linux", "binaries/x86_64-windows")}  # fmt: skip
-
-
-def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi: int = 2) -> Path:
-    """Build one native FMU of FMI ``fmi`` (2 or 3) into ``out`` (linux64 always, win64
-    with the ``win64`` compiler)."""
+def build_native_component(
+    c: NativeComponent, out: Path, chain: toolchain.Toolchain | None = None, fmi: int = 2
+) -> Path:
+    """Build one native FMU of FMI ``fmi`` (2 or 3) into ``out``: a binary for every
+    platform the toolchain ``chain`` builds (default: :func:`glider_fmi.toolchain.select`)."""
+    chain = chain or toolchain.select()
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_native_") as tmp:
         stage = Path(tmp)
-        src = stage / "sources"
-        src.mkdir()
-        for f in source_files(c, fmi):
-            shutil.copyfile(f, src / f.name)
-        (src / f"{c.name}_vars.h").write_text(vars_header(c))
-        files = sorted(p for p in src.iterdir() if p.suffix in (".c", ".h"))
+        src = staged_sources(fmi, chain, stage)
+        own = {f.name for f in source_files(c, fmi)} | {f"{c.name}_vars.h"}
+        files = sorted(src / n for n in own)
         c_names = [p.name for p in files if p.suffix == ".c"]
-        compiler = runtime.find_compiler()
-        so = stage / f"{c.name}.so"
-        printed = compile_binary(compiler, files, so, LINUX_FLAGS, ("-lm",))
-        if printed:
-            raise NativeBuildError(f"{c.name}: the C sources are not warning-free: {printed[:300]}")
-        dll = None
-        if win64:
-            dll = stage / f"{c.name}.dll"
-            printed = compile_binary(win64, files, dll, WIN64_FLAGS)
-            if printed:
-                raise NativeBuildError(f"{c.name} (win64): not warning-free: {printed[:300]}")
+        jobs, outputs = {}, {}
+        for key, platform in toolchain.PLATFORMS.items():
+            compiler = chain.for_platform(key)
+            if compiler is None:
+                continue
+            (stage / key).mkdir()  # zig writes .pdb/.lib beside a DLL: only the DLL is kept
+            jobs[key] = (compiler, platform)
+            outputs[key] = stage / key / f"{c.name}{platform.suffix}"
+        workers = max(1, min(len(jobs), os.cpu_count() or 1))
+        with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+            try:
+                texts = pool.map(lambda k: compile_for(*jobs[k], files, outputs[k], CFLAGS), jobs)
+                printed = dict(zip(jobs, texts))
+            except toolchain.ToolchainError as err:
+                raise NativeBuildError(str(err)) from None
+        for key, text in printed.items():
+            if text:
+                raise NativeBuildError(f"{c.name} ({key}): not warning-free: {text[:300]}")
+        built = outputs
+        if not built:
+            raise NativeBuildError(f"{c.name}: --compiler {chain.spec} builds no platform")
         out.mkdir(parents=True, exist_ok=True)
         fmu = out / f"{c.name}.fmu"
-        linux, windows = BINARY_DIRS[fmi]
-        md = model_description(c, c_names)
+        md = model_description(c, c_names, chain)
         if fmi == 3:
             from .fmi3_description import fmi3_model_description
 
@@ -351,35 +329,64 @@ def build_native_component(c: NativeComponent, out: Path, win64: str | None, fmi
         with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", md)
             z.writestr(osp.extra_path(md), osp.generate(md))
-            z.write(so, f"{linux}/{c.name}.so")
-            if dll is not None:
-                z.write(dll, f"{windows}/{c.name}.dll")
+            for entry, data in binary_entries(c.name, built, fmi).items():
+                z.writestr(zip_member(entry), data)
             for p in files:
                 z.write(p, f"sources/{p.name}")
             z.writestr("sources/buildDescription.xml", build_description(c, c_names))
             z.writestr(FLAVOR_FILE, "native\n")
-            z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi) + "\n")
+            z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi, chain) + "\n")
     osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
 
-def build_native(out: Path | str, only_stale: bool = False, fmi: int = 2) -> dict[str, Path]:
+def staged_sources(fmi: int, chain: toolchain.Toolchain, fallback: Path) -> Path:
+    """The sources of the three FMUs of FMI ``fmi``, staged once per content in the FMU
+    cache (:func:`glider_cosim.fmus.platforms.stage`; each FMU's ``sources/`` is its
+    part of them)."""
+    digest = hashlib.sha256(
+        "".join(native_hash(c, fmi, chain) for c in NATIVE_COMPONENTS).encode()
+    ).hexdigest()
+    files: dict[str, bytes] = {}
+    for c in NATIVE_COMPONENTS:
+        for f in source_files(c, fmi):
+            files[f.name] = f.read_bytes()
+        files[f"{c.name}_vars.h"] = vars_header(c).encode()
+    return platforms.stage(f"fmi{fmi}-{digest[:16]}", files, fallback)
+
+
+def missing_platforms(chain: toolchain.Toolchain) -> list[str]:
+    """The platforms of :data:`glider_fmi.toolchain.PLATFORMS` that ``chain`` cannot build."""
+    return [k for k in toolchain.PLATFORMS if chain.for_platform(k) is None]
+
+
+def build_native(
+    out: Path | str, only_stale: bool = False, fmi: int = 2, compiler: str | None = None
+) -> dict[str, Path]:
     """Build the three native FMUs of FMI ``fmi`` into ``out``; model identifier -> path.
 
-    Without mingw-w64 the FMUs carry linux64 only, and a one-line warning says so.
+    ``compiler`` is ``--compiler`` (None: ``$GLIDER_COSIM_COMPILER``, else zig). When the
+    compilers chosen cannot build some platforms (zig not installed), those are left out
+    and a one-line warning names them.
     """
     out = Path(out)
+    try:
+        chain = toolchain.select(compiler)
+    except toolchain.ToolchainError as err:
+        raise NativeBuildError(str(err)) from None
     result = {c.name: out / f"{c.name}.fmu" for c in NATIVE_COMPONENTS}
-    todo = [c for c in NATIVE_COMPONENTS if not (only_stale and is_current(result[c.name], c, fmi))]
+    todo = [c for c in NATIVE_COMPONENTS
+            if not (only_stale and is_current(result[c.name], c, fmi, chain))]  # fmt: skip
     if not todo:
         return result
-    win64 = mingw()
-    if win64 is None:
+    missing = missing_platforms(chain)
+    if missing:
         log.warning(
-            "no %s found: the native FMUs carry linux64 only (win64 left out; install "
-            "gcc-mingw-w64-x86-64)",
-            MINGW,
+            "--compiler %s builds no %s: the native FMUs leave those out (zig, the "
+            "default, builds every platform)",
+            chain.spec,
+            ", ".join(missing),
         )
     for c in todo:
-        result[c.name] = build_native_component(c, out, win64, fmi)
+        result[c.name] = build_native_component(c, out, chain, fmi)
     return result

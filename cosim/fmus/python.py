@@ -61,8 +61,15 @@ PACKAGE_NAMES = {
 }
 
 
-#: the FMU's binary for this platform (the only one it carries)
-BINARY_DIR = "binaries/linux64"
+#: the FMU's binary folder per platform of the runtime (FMI 2: ``linux64`` and, with no
+#: standard name, ``aarch64-linux``)
+BINARY_DIRS = {"x86_64-linux": "binaries/linux64", "aarch64-linux": "binaries/aarch64-linux"}
+BINARY_DIR = BINARY_DIRS["x86_64-linux"]
+
+
+def _binaries(binary: Path | dict[str, Path]) -> dict[str, Path]:
+    """Platform -> runtime library: one Path is the x86_64 Linux one."""
+    return binary if isinstance(binary, dict) else {"x86_64-linux": Path(binary)}
 
 
 def source_hash(c: Component) -> str:
@@ -95,10 +102,11 @@ def is_current(fmu: Path, c: Component) -> bool:
         return False
 
 
-def _finish(fmu: Path, model_identifier: str, binary: Path) -> None:
-    """Make pythonfmu's ``fmu`` ours: its binaries swapped for our runtime (linux64 only)
-    and its bundled imports made relative (:func:`glider_fmi.bundle.relativize_bundle`),
-    so that the FMU runs only the code in its own ``resources/``."""
+def _finish(fmu: Path, model_identifier: str, binary: Path | dict[str, Path]) -> None:
+    """Make pythonfmu's ``fmu`` ours: its binaries swapped for our runtime (one per
+    platform built) and its bundled imports made relative
+    (:func:`glider_fmi.bundle.relativize_bundle`), so that the FMU runs only the code in
+    its own ``resources/``."""
     tmp = fmu.with_name(fmu.name + ".part")
     try:
         with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
@@ -109,7 +117,8 @@ def _finish(fmu: Path, model_identifier: str, binary: Path) -> None:
             data.update({f"resources/{n}": d for n, d in bundle.relativize_bundle(res).items()})
             for item in items:
                 dst.writestr(item, data[item.filename])
-            dst.write(binary, f"{BINARY_DIR}/{model_identifier}.so")
+            for platform, lib in _binaries(binary).items():
+                dst.write(lib, f"{BINARY_DIRS[platform]}/{model_identifier}.so")
         tmp.replace(fmu)
     finally:
         tmp.unlink(missing_ok=True)
@@ -118,7 +127,7 @@ def _finish(fmu: Path, model_identifier: str, binary: Path) -> None:
 def package_slave(
     script: Path,
     out: Path,
-    binary: Path,
+    binary: Path | dict[str, Path],
     project_files: Sequence[Path] = (),
     **options: Any,
 ) -> Path:
@@ -131,8 +140,9 @@ def package_slave(
         identifier).
     out : Path
         Folder the ``.fmu`` is written to.
-    binary : Path
-        The compiled runtime (:func:`glider_fmi.compile.compile_runtime`).
+    binary : Path or dict
+        The compiled runtime (:func:`glider_fmi.compile.compile_runtime`), or one per
+        platform (:func:`glider_fmi.compile.compile_runtimes`).
     project_files : sequence of Path
         Further files and package folders for ``resources/``.
     **options
@@ -174,13 +184,13 @@ def build_slave_fmu(
         The ``.fmu`` in ``out``.
     """
     with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
-        binary = Path(tmp) / "glider_fmi_runtime.so"
-        runtime.compile_runtime(binary)
-        return package_slave(Path(script), Path(out), binary, project_files)
+        binaries = runtime.compile_runtimes(tmp)
+        return package_slave(Path(script), Path(out), binaries, project_files)
 
 
-def build_component(c: Component, out: Path, binary: Path) -> Path:
-    """Build one FMU into ``out`` with the compiled runtime ``binary``; return its path."""
+def build_component(c: Component, out: Path, binary: Path | dict[str, Path]) -> Path:
+    """Build one FMU into ``out`` with the compiled runtime ``binary`` (one per platform);
+    return its path."""
     with tempfile.TemporaryDirectory(prefix=f"{c.name}_") as tmp:
         stage = Path(tmp)
         # The FMU's script is a shim that imports the slave class; its name is the model

@@ -47,9 +47,9 @@ container:
   ``[WARNING] Container use PARALLEL mode with MONO thread.`` (its ``logger()``
   forwards every warning and error to the host). The container's binary is kept as
   ``binaries/linux64/GliderLoop.container.so`` and ``GliderLoop.so`` is a small
-  forwarder (``onefmu_quiet.c``, compiled with the system C compiler) that drops exactly
-  these three lines, and only during ``fmi2Instantiate``; every other message reaches
-  the host unchanged.
+  forwarder (``onefmu_quiet.c``, compiled by the build's C toolchain, zig by default)
+  that drops exactly these three lines, and only during ``fmi2Instantiate``; every other
+  message reaches the host unchanged.
 
 pythonfmu FMUs need a Python interpreter in the host process: a C/C++ host of the
 container needs the environment of ``glider-cosim host-env``.
@@ -243,12 +243,17 @@ def _finish(
 ) -> None:
     """Copy the container to ``out`` with units in its model description and the quiet
     forwarder as its binary (the container's own kept beside it)."""
-    from glider_fmi.compile import find_compiler, fmi_headers
+    from glider_fmi.compile import fmi_headers
+    from glider_fmi.toolchain import ToolchainError, host_command
 
     binary = f"binaries/linux64/{CONTAINER_NAME}.so"
     forwarder = work / "quiet.so"
-    cmd = [find_compiler(), "-O2", "-fPIC", "-shared", f"-I{fmi_headers()}", str(QUIET_SOURCE),
-           "-o", str(forwarder), "-ldl", "-lpthread"]  # fmt: skip
+    try:
+        start = host_command()
+    except ToolchainError as err:
+        raise OneFMUError(f"{out}: the container's forwarder cannot be compiled: {err}") from None
+    cmd = [*start, "-O2", f"-I{fmi_headers()}", str(QUIET_SOURCE), "-o", str(forwarder),
+           "-ldl", "-lpthread"]  # fmt: skip
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         last = (p.stderr.strip().splitlines() or [f"exit code {p.returncode}"])[-1]

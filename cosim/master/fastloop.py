@@ -3,8 +3,9 @@
 :class:`CoSimulation` plans its exchange as a list of batched Real gets and sets in a
 fixed order (see :mod:`glider_cosim.master.plan`). Run from Python, every one of them is a
 ctypes call (about 0.5 us each, 9 per macro step for the glider loop). Here the plan is
-handed to a small C function (``fastloop.c``, compiled once per process into its
-temporary folder with the system C compiler) that makes the same FMI calls, in the same
+handed to a small C function (``fastloop.c``, compiled once per FMU cache, into
+``<cache>/<version>/fastloop-<hash>/``, with the build's toolchain: zig's C compiler by
+default, see :mod:`glider_fmi.toolchain`) that makes the same FMI calls, in the same
 order, with the same arrays; a write's values are copied from the read arrays they come
 from. The results are bit for bit those of the Python loop (tested), which remains the
 path when the plan has non-Real groups, no compiler is found, or
@@ -14,14 +15,18 @@ path when the plan has non-Real groups, no compiler is found, or
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import subprocess
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 SOURCE = Path(__file__).with_name("fastloop.c")
 ENV = "GLIDER_COSIM_FASTLOOP"
+#: the helper's compile flags (after the toolchain's shared-library ones)
+FLAGS = ("-O2", "-ffp-contract=off")
 _LIB: dict[bool, ctypes.CDLL | None] = {}
 
 
@@ -68,23 +73,59 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         return _LIB[hold_gil]
     lib = None
     try:
-        from glider_fmi.compile import RuntimeBuildError, find_compiler
-
-        from ..inputs.tempdirs import new_temp_dir
-
-        out = new_temp_dir("fastloop_") / "fastloop.so"
-        cmd = [find_compiler(), "-O2", "-ffp-contract=off", "-fPIC", "-shared", str(SOURCE),
-               "-o", str(out)]  # fmt: skip
-        subprocess.run(cmd, check=True, capture_output=True, timeout=120)
+        out = built_library()
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
         lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
         for name in SHIMS.values():
             getattr(lib, name).restype = ctypes.c_int
-    except (OSError, subprocess.SubprocessError, RuntimeBuildError):
+    except (OSError, subprocess.SubprocessError):
         lib = None  # the Python loop runs instead
     _LIB[hold_gil] = lib
     return lib
+
+
+def built_library() -> Path:
+    """The compiled helper, built once per FMU cache (:func:`glider_cosim.fmus.folders.
+    cache_root`): ``<cache>/<version>/fastloop-<hash>/fastloop<suffix>``, the hash over
+    its source, flags and compiler. Built under a temporary name and renamed, so
+    concurrent processes never load a half-written file; in this process's temporary
+    folder when the cache cannot be written.
+
+    Raises
+    ------
+    OSError
+        No compiler for this machine, or it failed.
+    """
+    from glider_fmi import toolchain
+
+    from ..fmus.files import cache_root, package_version
+    from ..inputs.tempdirs import new_temp_dir
+
+    cmd = [*toolchain.host_command(), *FLAGS]
+    h = hashlib.sha256(SOURCE.read_bytes())
+    h.update(" ".join([*FLAGS, toolchain.fingerprint()]).encode())
+    suffix = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
+    folder = cache_root() / package_version() / f"fastloop-{h.hexdigest()[:16]}"
+    out = folder / f"fastloop{suffix}"
+    if out.is_file():
+        return out
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        part = folder / f".fastloop-{os.getpid()}{suffix}"
+    except OSError:
+        out = new_temp_dir("fastloop_") / f"fastloop{suffix}"
+        part = out
+    try:
+        toolchain.run([*cmd, str(SOURCE), "-o", str(part)], "the master's C loop", timeout=120)
+        if part != out:
+            os.replace(part, out)
+    finally:
+        if part != out:
+            part.unlink(missing_ok=True)
+            for extra in folder.glob(f".fastloop-{os.getpid()}.*"):  # zig's .pdb/.lib
+                extra.unlink(missing_ok=True)
+    return out
 
 
 class FastLoop:

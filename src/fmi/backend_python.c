@@ -21,8 +21,7 @@
  * "<call>: <message>" if its class has a true attribute fmi_message_only.
  */
 #define _GNU_SOURCE
-#define Py_LIMITED_API 0x030B0000
-#include <Python.h>
+#include "glider_python.h"
 
 #include <dlfcn.h>
 #include <limits.h>

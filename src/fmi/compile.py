@@ -1,12 +1,13 @@
 """Compile the FMI runtime and record the Python it starts in hosts without one.
 
 The runtime (the FMI layer ``fmi2_layer.c`` with the Python back end ``backend_python.c``,
-next to this module) is compiled with the system C compiler
-against this interpreter's ``Python.h`` in limited-API mode (``Py_LIMITED_API`` 3.11)
-and the FMI 2.0 headers fmpy ships. It links no libpython: every Python function is
-resolved when the first FMU is instantiated, so one binary serves hosts on Python 3.11
-and later, and hosts without Python, where it loads and starts the libpython recorded
-by :func:`python_config`.
+next to this module) is compiled with the build's toolchain (:mod:`glider_fmi.toolchain`:
+zig's C compiler from PyPI by default, for Linux x86_64 and aarch64 at glibc 2.17)
+against the FMI headers fmpy ships and ``glider_python.h``, our declaration of the
+stable-ABI (limited API 3.11) functions it calls: no Python headers. It links no
+libpython: every Python function is resolved when the first FMU is instantiated, so one
+binary serves hosts on Python 3.11 and later, and hosts without Python, where it loads
+and starts the libpython recorded by :func:`python_config`.
 """
 
 from __future__ import annotations
@@ -14,12 +15,12 @@ from __future__ import annotations
 import hashlib
 import importlib.metadata
 import importlib.util
-import os
-import shutil
-import subprocess
+import logging
 import sys
 import sysconfig
 from pathlib import Path
+
+from . import toolchain
 
 #: every C file of the runtime, compiled into one library: the FMI layer (one state
 #: machine, every FMU), the Python back end, finding a Python on the target, and the GIL
@@ -33,8 +34,17 @@ PYTHON_BACKEND_SOURCES = tuple(
 RUNTIME_SOURCES = LAYER_SOURCES + PYTHON_BACKEND_SOURCES
 RUNTIME_HEADERS = tuple(
     Path(__file__).with_name(n)
-    for n in ("fmi_layer.h", "python_find.h", "python_threads.h", "bundle_loader.h")
+    for n in (
+        "fmi_layer.h",
+        "python_find.h",
+        "python_threads.h",
+        "glider_python.h",
+        "bundle_loader.h",
+    )
 )
+#: the platforms the Python flavor's runtime is built for (its back end is POSIX and
+#: finds ``libpython3.X.so``: Linux)
+PYTHON_PLATFORMS = ("x86_64-linux", "aarch64-linux")
 #: file in the FMU's resources/ naming the Python to start in a host without one
 PYTHON_CONFIG_FILE = "glider_fmi_python.cfg"
 #: environment variable naming another such file (another Python installation)
@@ -48,27 +58,8 @@ LIBS = ("-ldl", "-lpthread", "-lm")
 PYTHON_PACKAGES = ("numpy", "scipy")
 
 
-class RuntimeBuildError(OSError):
-    """The runtime cannot be compiled here (no compiler, no Python.h, a compiler error)."""
-
-
-def find_compiler() -> str:
-    """The C compiler: ``$CC``, else ``cc``, ``gcc`` or ``clang`` on ``PATH``.
-
-    Raises
-    ------
-    RuntimeBuildError
-        None of them is installed.
-    """
-    candidates = [os.environ.get("CC", "").strip(), "cc", "gcc", "clang"]
-    for cc in filter(None, candidates):
-        found = shutil.which(cc.split()[0])
-        if found:
-            return found
-    raise RuntimeBuildError(
-        "no C compiler found (tried $CC, cc, gcc, clang): the FMUs' runtime is compiled at "
-        "build time; install one, e.g. 'apt-get install gcc'"
-    )
+class RuntimeBuildError(toolchain.ToolchainError):
+    """The runtime cannot be compiled here (no compiler for a platform, a compiler error)."""
 
 
 def fmi_headers() -> Path:
@@ -83,13 +74,7 @@ def fmi_headers() -> Path:
 
 
 def _include_dirs() -> list[str]:
-    py_include = sysconfig.get_paths()["include"]
-    if not (Path(py_include) / "Python.h").is_file():
-        raise RuntimeBuildError(
-            f"Python.h not found in {py_include}: install this Python's development "
-            "headers (e.g. 'apt-get install python3-dev')"
-        )
-    return [py_include, str(fmi_headers())]
+    return [str(fmi_headers())]
 
 
 def runtime_sources(fmi3: bool = False) -> tuple[Path, ...]:
@@ -99,26 +84,50 @@ def runtime_sources(fmi3: bool = False) -> tuple[Path, ...]:
     return tuple(FMI3_FRONT_END if p.name == "fmi2_layer.c" else p for p in RUNTIME_SOURCES)
 
 
-def compile_command(output: Path, fmi3: bool = False) -> list[str]:
-    """The compiler command line that builds the runtime into ``output``."""
-    includes = [f"-I{d}" for d in _include_dirs()]
+def _compiler(platform: str, chain: toolchain.Toolchain | None) -> toolchain.Compiler:
+    chain = chain or toolchain.select()
+    compiler = chain.for_platform(platform)
+    if compiler is None:
+        raise RuntimeBuildError(
+            f"no compiler for {platform} in --compiler {chain.spec} (add zig, the default)"
+        )
+    return compiler
+
+
+def compile_command(
+    output: Path,
+    fmi3: bool = False,
+    platform: str = "x86_64-linux",
+    chain: toolchain.Toolchain | None = None,
+) -> list[str]:
+    """The compiler command line that builds the runtime for ``platform`` into ``output``."""
+    compiler = _compiler(platform, chain)
+    includes = [f for d in _include_dirs() for f in ("-isystem", d)]  # the FMI headers
     sources = [str(p) for p in runtime_sources(fmi3)]
-    return [find_compiler(), *CFLAGS, *includes, *sources, "-o", str(output), *LIBS]
+    argv = compiler.argv(toolchain.PLATFORMS[platform])
+    return [*argv, *CFLAGS, *includes, *sources, "-o", str(output), *LIBS]
 
 
-def runtime_fingerprint(fmi3: bool = False) -> str:
-    """SHA-256 over the runtime's sources and its compile flags (FMU staleness)."""
+def runtime_fingerprint(fmi3: bool = False, chain: toolchain.Toolchain | None = None) -> str:
+    """SHA-256 over the runtime's sources, its compile flags and the compilers' versions
+    (FMU staleness)."""
     h = hashlib.sha256()
     for p in (*runtime_sources(fmi3), *RUNTIME_HEADERS):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     h.update(" ".join((*CFLAGS, *LIBS)).encode())
+    h.update(toolchain.fingerprint(chain).encode())
     return h.hexdigest()
 
 
-def compile_runtime(output: Path | str, fmi3: bool = False) -> str:
-    """Compile the runtime into ``output`` (a shared library; FMI 3.0's functions if
-    ``fmi3``, else FMI 2.0's).
+def compile_runtime(
+    output: Path | str,
+    fmi3: bool = False,
+    platform: str = "x86_64-linux",
+    chain: toolchain.Toolchain | None = None,
+) -> str:
+    """Compile the runtime for ``platform`` into ``output`` (a shared library; FMI 3.0's
+    functions if ``fmi3``, else FMI 2.0's).
 
     Returns
     -------
@@ -128,20 +137,49 @@ def compile_runtime(output: Path | str, fmi3: bool = False) -> str:
     Raises
     ------
     RuntimeBuildError
-        No compiler, no headers, or the compiler failed (its first lines quoted).
+        No compiler for the platform, or the compiler failed (its first lines quoted).
     """
     output = Path(output)
-    cmd = compile_command(output, fmi3)
+    cmd = compile_command(output, fmi3, platform, chain)
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
-    except (OSError, subprocess.TimeoutExpired) as err:
-        raise RuntimeBuildError(f"compiling the FMI runtime with {cmd[0]} failed: {err}") from None
-    if proc.returncode != 0 or not output.is_file():
-        first = " ".join((proc.stderr or proc.stdout).strip().splitlines()[:3])
+        printed = toolchain.run(cmd, f"the FMI runtime ({platform})")
+    except toolchain.ToolchainError as err:
+        raise RuntimeBuildError(str(err)) from None
+    if not output.is_file():
+        raise RuntimeBuildError(f"compiling the FMI runtime ({platform}) wrote no {output.name}")
+    return printed
+
+
+def compile_runtimes(
+    folder: Path | str, fmi3: bool = False, chain: toolchain.Toolchain | None = None
+) -> dict[str, Path]:
+    """The runtime for every platform of :data:`PYTHON_PLATFORMS` the toolchain builds,
+    warning-free, in ``folder``: platform -> library. Platforms no compiler chosen builds
+    (a system compiler without zig) are left out with a one-line warning."""
+    chain = chain or toolchain.select()
+    missing = [p for p in PYTHON_PLATFORMS if chain.for_platform(p) is None]
+    if len(missing) == len(PYTHON_PLATFORMS):
         raise RuntimeBuildError(
-            f"compiling the FMI runtime with {cmd[0]} failed (exit {proc.returncode}): {first}"
+            f"--compiler {chain.spec} builds none of {', '.join(PYTHON_PLATFORMS)} (add zig, "
+            "the default)"
         )
-    return (proc.stderr + proc.stdout).strip()
+    if missing:
+        logging.getLogger(__name__).warning(
+            "--compiler %s builds no %s: the Python FMUs leave it out", chain.spec,
+            ", ".join(missing),
+        )  # fmt: skip
+    built = {}
+    for platform in PYTHON_PLATFORMS:
+        if platform in missing:
+            continue
+        out = Path(folder) / f"runtime{3 if fmi3 else 2}-{platform}.so"
+        printed = compile_runtime(out, fmi3, platform, chain)
+        if printed:
+            raise RuntimeBuildError(
+                f"the FMI runtime ({platform}) is not warning-free: {printed[:300]}"
+            )
+        built[platform] = out
+    return built
 
 
 def libpython() -> Path:

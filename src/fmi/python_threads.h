@@ -2,8 +2,7 @@
 #ifndef GLIDER_PYTHON_THREADS_H
 #define GLIDER_PYTHON_THREADS_H
 
-#define Py_LIMITED_API 0x030B0000
-#include <Python.h>
+#include "glider_python.h"
 
 /* The stable-ABI functions used here, resolved by the runtime (its PY_FUNCTIONS). */
 typedef struct {

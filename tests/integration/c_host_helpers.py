@@ -38,8 +38,9 @@ def unzip(fmu: Path, where: Path) -> Path:
     return where
 
 
-def compile_host(compiler: str, out: Path, extra: list[str]) -> Path:
-    p = subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1",
+def compile_host(compiler: str | list[str], out: Path, extra: list[str]) -> Path:
+    start = [compiler] if isinstance(compiler, str) else list(compiler)
+    p = subprocess.run([*start, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1",
                         f"-I{HEADERS}", "-o", str(out), str(HOST_C), *extra],
                        capture_output=True, text=True)  # fmt: skip
     assert p.returncode == 0, p.stderr
@@ -168,6 +169,31 @@ def wine_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.nd
         subprocess.run(["wineserver", "-k"], env=env, capture_output=True, timeout=60)
     assert p.returncode == 0, p.stderr[-2000:]
     return rows(p.stdout.replace("\r", ""))
+
+
+#: qemu-user's aarch64 emulator and the sysroot of Debian's libc6-arm64-cross
+QEMU = "qemu-aarch64"
+AARCH64_SYSROOT = "/usr/aarch64-linux-gnu"
+
+
+def qemu_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.ndarray:
+    """The rows of the host built for aarch64 Linux by zig (``extra`` flags), run under
+    qemu-user on ``system``'s ``binaries/aarch64-linux`` libraries; the run must succeed."""
+    from glider_fmi import toolchain
+
+    if shutil.which(QEMU) is None or not Path(AARCH64_SYSROOT, "lib").is_dir():
+        pytest.fail(f"{QEMU} or {AARCH64_SYSROOT} missing (.ci/run installs qemu-user and "
+                    "libc6-arm64-cross)")  # fmt: skip
+    zig = [*toolchain.zig_command(), "-target", toolchain.PLATFORMS["aarch64-linux"].zig_target]
+    host = compile_host(zig, tmp_path / host_name, [*extra, *GCC_FLAGS])
+    machine = subprocess.run(["readelf", "-h", str(host)], capture_output=True, text=True,
+                             check=True).stdout  # fmt: skip
+    assert "AArch64" in machine  # really an aarch64 program
+    plan = write_plan(system, tmp_path)
+    p = subprocess.run([QEMU, "-L", AARCH64_SYSROOT, str(host), str(plan)], capture_output=True,
+                       text=True, timeout=600)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    return rows(p.stdout)
 
 
 def valgrind_run(system, tmp_path: Path, host_name: str, extra: list[str]):

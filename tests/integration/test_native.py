@@ -41,7 +41,7 @@ from fmpy.validation import validate_fmu
 from raw_fmi import RawFMU
 
 from glider_cosim.fmus.folders import folder_flavor
-from glider_cosim.fmus.native import MINGW, NATIVE_COMPONENTS
+from glider_cosim.fmus.native import NATIVE_COMPONENTS
 from glider_cosim.runner import simulate
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
@@ -62,12 +62,15 @@ def test_native_fmu_is_valid_and_self_contained(native_dir, tmp_path, name):
     libs = {line.split("[")[1].rstrip("]") for line in needed.splitlines() if "NEEDED" in line}
     assert libs == {"libc.so.6", "libm.so.6"}
     dll = d / "binaries" / "win64" / f"{name}.dll"
-    if shutil.which(MINGW) is None:
-        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
-    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(dll)], capture_output=True,
-                          text=True, check=True).stdout  # fmt: skip
+    dump = subprocess.run(["objdump", "-p", str(dll)], capture_output=True, text=True,
+                          check=True).stdout  # fmt: skip
     imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
-    assert imports == {"KERNEL32.dll", "msvcrt.dll"}
+    # zig links mingw-w64's runtime over the Universal C Runtime (in every Windows 10 and
+    # 11, Windows 7 and 8.1 by update; in wine), not the old msvcrt.dll
+    assert "KERNEL32.dll" in imports
+    assert imports - {"KERNEL32.dll"} and all(
+        i.startswith("api-ms-win-crt-") for i in imports - {"KERNEL32.dll"}
+    ), imports
     md = read_model_description(str(fmu))
     listed = [f.strip() for f in (d / "modelDescription.xml").read_text().split('File name="')[1:]]
     sources = sorted(p.name for p in (d / "sources").glob("*.c"))
@@ -313,16 +316,59 @@ def test_every_command_takes_the_native_flavor(native_dir, tmp_path):
     assert "K_c" in (tmp_path / "sw" / "sweep.csv").read_text().splitlines()[0]
 
 
-def test_build_without_mingw_says_so_in_one_line(tmp_path, monkeypatch, caplog):
+def test_a_system_compiler_builds_its_platform_bit_equal_and_says_what_is_left_out(
+    native_dir, tmp_path, monkeypatch, caplog
+):
+    """``--compiler gcc`` without zig: linux64 only, one warning line naming the others;
+    gcc's build runs the default scenario bit for bit like zig's."""
     from glider_cosim.fmus import native
+    from glider_fmi import toolchain
 
-    monkeypatch.setattr(native, "mingw", lambda: None)
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed")
+    monkeypatch.setattr(toolchain, "zig_available", lambda: False)
     with caplog.at_level("WARNING", logger="glider_cosim.fmus.native"):
-        native.build_native(tmp_path)
+        native.build_native(tmp_path, compiler="gcc")
     lines = [r.getMessage() for r in caplog.records if r.name == "glider_cosim.fmus.native"]
     assert lines == [
-        "no x86_64-w64-mingw32-gcc found: the native FMUs carry linux64 only (win64 left "
-        "out; install gcc-mingw-w64-x86-64)"
+        "--compiler gcc builds no aarch64-linux, x86_64-windows, x86_64-darwin, aarch64-darwin: "
+        "the native FMUs leave those out (zig, the default, builds every platform)"
     ]
     with zipfile.ZipFile(tmp_path / "GliderPlant.fmu") as z:
-        assert not any(n.startswith("binaries/win64") for n in z.namelist())
+        assert [n for n in z.namelist() if n.startswith("binaries/")] == [
+            "binaries/linux64/GliderPlant.so"
+        ]
+    monkeypatch.undo()
+    a = simulate("default", None, fmu_dir=native_dir, build=False)
+    b = simulate("default", None, fmu_dir=tmp_path, build=False)
+    assert a.status == b.status == "ok"
+    assert np.array_equal(a.data, b.data)
+
+
+def test_a_missing_compiler_is_one_line(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "build", "--flavor", "native",
+                        "--compiler", "no-such-cc", "--out", str(tmp_path / "fmus")],
+                       capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert p.returncode == 2
+    assert p.stderr == (
+        "glider-cosim: error: --compiler no-such-cc: not found on PATH (the default, zig, "
+        "comes with 'pip install': python -m ziglang cc)\n"
+    )
+    assert not list(Path(tmp_path).glob("fmus/*.fmu"))
+
+
+def test_mingw_chosen_builds_win64_and_zig_the_rest(tmp_path):
+    """``--compiler x86_64-w64-mingw32-gcc``: the DLL is mingw's (msvcrt.dll, not the
+    UCRT), every other platform zig's."""
+    from glider_cosim.fmus import native
+
+    if shutil.which("x86_64-w64-mingw32-gcc") is None:
+        pytest.fail("mingw-w64 is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    native.build_native(tmp_path, compiler="x86_64-w64-mingw32-gcc")
+    d = unzip(tmp_path / "GliderPlant.fmu", tmp_path / "p")
+    bins = sorted(str(p.relative_to(d)) for p in (d / "binaries").rglob("*.*"))
+    assert [b.split("/")[1] for b in bins] == ["aarch64-linux", "darwin64", "linux64", "win64"]
+    dump = subprocess.run(["objdump", "-p", str(d / "binaries/win64/GliderPlant.dll")],
+                          capture_output=True, text=True, check=True).stdout  # fmt: skip
+    imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
+    assert imports == {"KERNEL32.dll", "msvcrt.dll"}

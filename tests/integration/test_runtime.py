@@ -7,7 +7,7 @@ from __future__ import annotations
 import ctypes
 import gc
 import math
-import os
+import shutil
 import subprocess
 import sys
 import threading
@@ -438,20 +438,55 @@ def test_runtime_compiles_warning_free_and_links_no_python(tmp_path):
     assert all(n.startswith("fmi2") for n in names if not n.startswith("_"))
 
 
-def test_a_missing_compiler_is_one_line(tmp_path, monkeypatch):
-    monkeypatch.setenv("PATH", str(tmp_path))
-    monkeypatch.delenv("CC", raising=False)
-    with pytest.raises(runtime.RuntimeBuildError, match=r"^no C compiler found \(tried \$CC, "
-                       r"cc, gcc, clang\)"):  # fmt: skip
-        runtime.compile_runtime(tmp_path / "x.so")
-    env = {**os.environ, "PATH": str(tmp_path)}
-    env.pop("CC", None)
-    p = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "build", "--out",
-                        str(tmp_path / "fmus")], capture_output=True, text=True, env=env,
-                       timeout=120)  # fmt: skip
-    assert p.returncode == 2
-    assert p.stderr.count("\n") == 1 and "no C compiler found" in p.stderr
-    assert not list(Path(tmp_path).glob("fmus/*.fmu"))
+def test_our_python_declarations_are_pythons(tmp_path):
+    """glider_python.h after Python.h (limited API 3.11): any prototype that differs from
+    Python's is a "conflicting types" error. And the check can fail: one changed return
+    type is refused."""
+    import sysconfig
+
+    include = Path(sysconfig.get_paths()["include"])
+    if not (include / "Python.h").is_file() or shutil.which("gcc") is None:
+        pytest.skip("this Python's headers or gcc are not installed")
+    here = Path(runtime.__file__).parent
+    src = tmp_path / "check.c"
+    src.write_text('#define Py_LIMITED_API 0x030B0000\n#include <Python.h>\n'
+                   '#include "glider_python.h"\n')  # fmt: skip
+
+    def compile_with(folder: Path) -> subprocess.CompletedProcess:
+        return subprocess.run(["gcc", "-std=gnu11", "-Wall", "-Wextra", "-Werror", f"-I{include}",
+                               f"-I{folder}", "-c", str(src), "-o", str(tmp_path / "c.o")],
+                              capture_output=True, text=True)  # fmt: skip
+
+    assert compile_with(here).returncode == 0, compile_with(here).stderr
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    text = (here / "glider_python.h").read_text()
+    assert "long PyLong_AsLong(PyObject *);" in text
+    (bad / "glider_python.h").write_text(text.replace("long PyLong_AsLong", "int PyLong_AsLong"))
+    p = compile_with(bad)
+    assert p.returncode != 0 and "conflicting types" in p.stderr
+
+
+def test_the_runtime_needs_no_python_headers():
+    """No Python.h anywhere in the runtime's sources, and no Python include folder on its
+    command line."""
+    for f in (*runtime.runtime_sources(), *runtime.runtime_sources(True), *runtime.RUNTIME_HEADERS):
+        assert "Python.h" not in "".join(
+            line for line in f.read_text().splitlines() if line.startswith("#include")
+        ), f.name
+    import re
+    import sysconfig
+
+    here = Path(runtime.__file__).parent
+    backend = (here / "backend_python.c").read_text()
+    table = backend[backend.index("#define PY_FUNCTIONS") : backend.index("#define DECLARE")]
+    used = set(re.findall(r"X\((\w+)\)", table))
+    header = (here / "glider_python.h").read_text()
+    declared = set(re.findall(r"\b(Py\w+)\(", header))
+    assert len(used) == 50 and declared == used  # exactly what the back end resolves
+    cmd = runtime.compile_command(Path("x.so"))
+    assert sysconfig.get_paths()["include"] not in cmd
+    assert "x86_64-linux-gnu.2.17" in cmd  # zig, for glibc 2.17
 
 
 # ---------------------------------------------------------------- a plain fmpy user

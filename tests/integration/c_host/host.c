@@ -19,7 +19,9 @@
  *
  * usage: host PLAN.  Compiled against the FMI 2.0 headers fmpy ships, with gcc for linux64
  * (dlopen, pthreads) or with mingw-w64 for win64 (LoadLibrary, Win32 threads: no
- * libwinpthread, which wine lacks), where DIR is a Windows path such as Z:/tmp/x.
+ * libwinpthread, which wine lacks), where DIR is a Windows path such as Z:/tmp/x; built
+ * for aarch64 Linux (zig cc -target aarch64-linux-gnu.2.17, run under qemu-aarch64) it
+ * loads binaries/aarch64-linux/ in both FMI versions.
  * Exit codes: 0 ok, 2 usage or plan, 3 dlopen/dlsym, 4 instantiate, 5 initialisation,
  * 6 step, 7 get/set.
  *
@@ -82,6 +84,10 @@ static const char *library_error(void) {
 #else
 #define PLATFORM "linux64"
 #define URI_FORMAT "file://%s/resources"
+#endif
+#ifdef __aarch64__ /* FMI 3's tuple, and our FMI 2 FMUs' folder for aarch64 Linux */
+#undef PLATFORM
+#define PLATFORM "aarch64-linux"
 #endif
 #define SUFFIX ".so"
 typedef pthread_t thread_t;
