@@ -73,7 +73,6 @@ int PyBytes_AsStringAndSize(PyObject *, char **, Py_ssize_t *);
 /* list, tuple, dict, sequence */
 PyObject *PyList_New(Py_ssize_t);
 int PyList_SetItem(PyObject *, Py_ssize_t, PyObject *);
-int PyList_Insert(PyObject *, Py_ssize_t, PyObject *);
 int PyList_SetSlice(PyObject *, Py_ssize_t, Py_ssize_t, PyObject *);
 PyObject *PyTuple_New(Py_ssize_t);
 int PyTuple_SetItem(PyObject *, Py_ssize_t, PyObject *);
@@ -81,6 +80,5 @@ PyObject *PyDict_New(void);
 int PyDict_SetItemString(PyObject *, const char *, PyObject *);
 Py_ssize_t PySequence_Size(PyObject *);
 PyObject *PySequence_GetItem(PyObject *, Py_ssize_t);
-int PySequence_Contains(PyObject *, PyObject *);
 
 #endif
