@@ -10,7 +10,7 @@
 - the call-sequence fuzz on FMI 3 calls: test_fmi_fuzz.py (fmi3_fuzz.py);
 - ``build --fmi 3``, ``run --fmi 3``/``--fmu-dir``, ``export-ssp --fmi 3``; build_all keeps
   a folder's FMI version;
-- Ecos (when ecospy is installed) on the FMI 3 SSP, equal to our Jacobi master;
+- Ecos (ecospy, a test dependency) on the FMI 3 SSP, equal to our Jacobi master;
 - the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
   the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
   to our master, and runs clean under valgrind memcheck.
@@ -353,11 +353,10 @@ print(json.dumps(rows))
 
 
 def test_ecos_runs_the_fmi3_ssp_equal_to_our_jacobi_master(fmi3_dirs, tmp_path):
-    """Ecos (``pip install ecospy``, not a dependency: skipped without it) on the SSP of the
-    native FMI 3 FMUs, in a subprocess (it steps on its own thread pool)."""
+    """Ecos (ecospy, a test dependency; its library needs Debian's libtbb12, which
+    ``.ci/run`` installs) on the SSP of the native FMI 3 FMUs, in a subprocess (it steps
+    on its own thread pool)."""
     import json
-
-    pytest.importorskip("ecospy")
     from glider_cosim.interop.ssp_export import export_ssp
     from glider_cosim.runner import run_ssp
 
