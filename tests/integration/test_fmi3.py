@@ -357,6 +357,7 @@ def test_ecos_runs_the_fmi3_ssp_equal_to_our_jacobi_master(fmi3_dirs, tmp_path):
     ``.ci/run`` installs) on the SSP of the native FMI 3 FMUs, in a subprocess (it steps
     on its own thread pool)."""
     import json
+
     from glider_cosim.interop.ssp_export import export_ssp
     from glider_cosim.runner import run_ssp
 
