@@ -82,7 +82,7 @@ def run_command(args: argparse.Namespace) -> int:
                               "error": one_line(err)}))  # fmt: skip
         raise
     print(json.dumps(report.as_dict(), indent=1) if args.json else report.table())
-    return 0 if report.passed else 1
+    return report.exit_code
 
 
 def tolerance_arg(text: str) -> float:

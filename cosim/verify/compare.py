@@ -203,6 +203,11 @@ class Report:
         """At least one case ran, and every case that ran passed (skipped ones never count)."""
         return bool(self.results) and all(r.passed for r in self.results)
 
+    @property
+    def exit_code(self) -> int:
+        """``verify``'s exit code for this report: 0 passed, 1 a case failed."""
+        return 0 if self.passed else 1
+
     def header(self) -> str:
         """What was verified: the FMU's file and SHA-256, model, flavor, FMI version, binary."""
         return "\n".join((
@@ -268,7 +273,7 @@ class Report:
             "fmi_version": self.fmi_version,
             "binary": {"path": self.binary, "sha256": self.binary_sha256},
             "passed": self.passed,
-            "exit_code": 0 if self.passed else 1,
+            "exit_code": self.exit_code,
             "counts": {
                 "passed": n_pass,
                 "failed": len(self.results) - n_pass,
