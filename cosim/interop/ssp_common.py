@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from typing import Any
+from xml.etree import ElementTree as ET
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -20,6 +21,12 @@ OSP_MD_ANNOTATION_TYPE = "org.glider-cosim.osp-model-description"
 
 
 OSP_MD_NS = "urn:glider-cosim:osp-model-description"
+
+
+# the prefixes ElementTree writes (ssd:, ssc:, ...; gcosp: for ours) instead of ns0:,
+# registered where both the export and the import take their names from
+for _prefix, _uri in (*NS.items(), ("gcosp", OSP_MD_NS)):
+    ET.register_namespace(_prefix, _uri)
 
 
 FMU_MIME = "application/x-fmu-sharedlibrary"

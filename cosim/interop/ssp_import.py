@@ -16,18 +16,11 @@ from .ssp_common import (
     FMU_MIME,
     NS,
     OSP_ANNOTATION_TYPE,
-    OSP_MD_NS,
     VALUE_TYPES,
     as_fmi2_types,
     local_name,
     qname,
 )
-
-for _prefix, _uri in NS.items():
-    ET.register_namespace(_prefix, _uri)
-
-
-ET.register_namespace("gcosp", OSP_MD_NS)
 
 
 # --------------------------------------------------------------------------- import
