@@ -141,6 +141,36 @@ def build_parser() -> argparse.ArgumentParser:
         default=256,
         help="most MiB one FMU or SSP archive may unpack to",
     )
+    r.add_argument(
+        "--real-time",
+        action="store_true",
+        help="pace the communication points to the wall clock (docs/how-to/real-time.md)",
+    )
+    r.add_argument(
+        "--rtf",
+        type=_positive,
+        default=None,
+        help="with --real-time: real-time factor, 1 real time (default), 0.5 half, 2 twice",
+    )
+    r.add_argument(
+        "--max-lateness-ms",
+        type=_positive,
+        default=None,
+        help="with --real-time: stop the run when a point starts later than this, ms",
+    )
+    r.add_argument(
+        "--external",
+        action="append",
+        default=[],
+        metavar="COMPONENT=udp://HOST:PORT",
+        help="that component is an endpoint outside the process (repeatable)",
+    )
+    r.add_argument(
+        "--external-timeout",
+        type=_positive,
+        default=None,
+        help="seconds an external endpoint may stay silent before the run stops (default 5)",
+    )
 
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
     e.add_argument("out", help="output .ssp file")
