@@ -198,6 +198,29 @@ def _externals(args: argparse.Namespace, scenario) -> dict:
     }
 
 
+def _serve(args: argparse.Namespace) -> int:
+    from ..fmus.folders import prepare_fmus
+    from ..realtime.serve import serve
+
+    if args.fmu is not None:
+        fmu, what = Path(args.fmu), shown_path(args.fmu)
+    else:
+        name = {"plant": "GliderPlant", "observer": "GliderObserver"}.get(
+            args.component, "GliderController"
+        )
+        fmu = prepare_fmus(None, args.flavor) / f"{name}.fmu"
+        what = f"{fmu.name}, {args.flavor}"
+
+    def ready(addr: tuple[str, int]) -> None:
+        print(f"serving {args.component} ({what}) on udp://{addr[0]}:{addr[1]}", flush=True)
+
+    try:
+        serve(fmu, args.listen, once=args.once, ready=ready)
+    except KeyboardInterrupt:
+        return 130
+    return 0
+
+
 def _report(args: argparse.Namespace) -> int:
     from ..studies.report import build_report
 
@@ -262,6 +285,13 @@ def dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command == "run":
         return _run(args)
+    if args.command == "serve":
+        return _serve(args)
+    if args.command == "build-onboard":
+        from ..realtime.onboard import build_onboard
+
+        print(f"wrote {build_onboard(Path(args.out), args.target)}")
+        return 0
     if args.command in ("export-fmu", "export-ssp"):
         out = Path(args.out)
         _check_out_file(out, f"{args.command} OUT")

@@ -89,8 +89,6 @@ class Pacer:
         self.last_ns = 0
         self.lateness_ns: list[int] = []
         self.overruns = 0
-        #: external endpoints' counters, merged into :meth:`summary` (name -> dict)
-        self.extras: dict[str, Any] = {}
 
     def deadline(self, k: int) -> int:
         """When point ``k`` is due, ns on the monotonic clock."""
@@ -139,7 +137,6 @@ class Pacer:
             "max_lateness_ms": self.real_time.max_lateness_ms,
             "overrun_policy": "keep simulated time; catch up without sleeping; count",
         }
-        out.update(self.extras)
         return out
 
 

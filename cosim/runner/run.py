@@ -318,8 +318,11 @@ def simulate(
     if options is None:
         options = {k: v for k, v in (("coupling", coupling), ("step", step),
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
+    if ext:
+        metrics["external"] = ext
     if pacer is not None:
-        metrics["real_time"] = pacer.summary()
+        metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
     metrics["run"] = run_record(scenario, sim, options)
     metrics["events"] = marked_events(sim, status, failure)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
