@@ -7,7 +7,9 @@ or a step sends them (``INPUTS`` at the point's time, :mod:`.protocol`) and wait
 outputs; a step with inputs the endpoint does not hold yet sends them first. A component
 whose outputs depend on its inputs (our controller) thus costs one round trip per step.
 
-Lockstep (no pacer): each reply is awaited, up to ``timeout`` s. Real time (a pacer):
+Lockstep (no pacer): each reply is awaited, up to ``timeout`` s, the request sent again
+(same sequence number; the endpoint answers a repeat as the first time) every
+:data:`RESEND_S` s, so a lost datagram costs time, not the result. Real time (a pacer):
 each reply is awaited until the next point's deadline; a late or missing one keeps the
 last outputs and is counted (``late_replies``). Either way an endpoint silent for longer
 than ``timeout`` stops the run (:class:`EndpointError`). Datagrams from another address,
@@ -30,6 +32,8 @@ log = logging.getLogger(__name__)
 
 #: seconds an endpoint may stay silent before the run stops (``--external-timeout``)
 DEFAULT_TIMEOUT = 5.0
+#: lockstep: seconds without a reply before the request is sent again (same number)
+RESEND_S = 0.05
 
 
 class EndpointError(MasterError, RuntimeError):
@@ -87,7 +91,7 @@ class ExternalSlave:
         self.seq, self.k, self.t0, self.h = 0, 0, 0.0, 0.0
         self.dirty = self.stale_out = True
         self.counts = dict.fromkeys(
-            ("round_trips", "late_replies", "stale", "malformed", "foreign"), 0
+            ("round_trips", "late_replies", "resent", "stale", "malformed", "foreign"), 0
         )
         self.rtt_ns: list[int] = []
         self.last_heard = 0.0
@@ -185,19 +189,28 @@ class ExternalSlave:
         sent = time.monotonic_ns()
         if not self.last_heard:
             self.last_heard = time.monotonic()
-        self.sock.sendto(p.encode(kind, seq, t, values), self.peer)
+        packet = p.encode(kind, seq, t, values)
+        self.sock.sendto(packet, self.peer)
         # real time: the reply is due half a period after the point's deadline
         until = None if lockstep else (self.pacer.deadline(self.k) + self.pacer.period_ns / 2) / 1e9
+        resend = time.monotonic() + RESEND_S
         while True:
             now = time.monotonic()
+            if until is None and now >= resend:
+                self.sock.sendto(packet, self.peer)
+                self.counts["resent"] += 1
+                resend = now + RESEND_S
             silent_until = self.last_heard + self.endpoint.timeout
-            wait = silent_until - now if until is None else min(until, silent_until) - now
+            due = min(silent_until, resend) if until is None else min(until, silent_until)
+            wait = due - now
             if now >= silent_until:
                 raise EndpointError(
                     f"{self.where}: no reply for {self.endpoint.timeout:g} s "
                     "(--external-timeout): the run stops"
                 )
             if wait <= 0:
+                if until is None:
+                    continue  # lockstep: time to send again
                 self.counts["late_replies"] += 1
                 return None
             self.sock.settimeout(wait)
