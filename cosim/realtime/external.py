@@ -240,11 +240,12 @@ class ExternalSlave:
             return msg
 
     def summary(self) -> dict[str, Any]:
-        """Counters and the round trip (median and max, ms) for ``metrics.json``."""
+        """Counters and the round trip (p50, p99, max, ms) for ``metrics.json``."""
         rtt = sorted(self.rtt_ns)
         out: dict[str, Any] = {"endpoint": self.endpoint.url, **self.counts}
         out["rtt_ms"] = {
             "p50": rtt[len(rtt) // 2] / 1e6 if rtt else None,
+            "p99": rtt[min(len(rtt) - 1, len(rtt) * 99 // 100)] / 1e6 if rtt else None,
             "max": rtt[-1] / 1e6 if rtt else None,
         }
         return out

@@ -1,0 +1,80 @@
+"""Benchmark: paced runs at 50 Hz (lateness), an external controller on loopback (round
+trip per step, the highest real-time factor lockstep sustains).
+
+Usage: python bench/realtime.py [--json] [--stop-time S] [--endpoint serve|onboard]
+Default scenario, native FMUs, real time (rtf 1): ``--stop-time`` s of wall clock per
+paced run (default 60, the scenario's), two paced runs (in process, then with the
+controller outside). The last line with --json is one JSON object.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _common import emit, parse_args
+
+from glider_cosim.fmus.folders import prepare_fmus
+from glider_cosim.realtime.external import Endpoint
+from glider_cosim.realtime.onboard import build_onboard
+from glider_cosim.realtime.pacing import RealTime
+from glider_cosim.runner import simulate
+
+CLI = "import sys; from glider_cosim.cli.main import console_main; console_main()"
+
+
+def endpoint(kind: str, fmus: Path, tmp: Path) -> subprocess.Popen:
+    """The controller served on 127.0.0.1 (port 0): ``glider-cosim serve`` or the
+    onboard program."""
+    if kind == "onboard":
+        cmd = [str(build_onboard(tmp))]
+    else:
+        cmd = [sys.executable, "-c", CLI, "serve", "controller", "--fmu",
+               str(fmus / "GliderController.fmu")]  # fmt: skip
+    return subprocess.Popen([*cmd, "--listen", "udp://127.0.0.1:0"], stdout=subprocess.PIPE,
+                            text=True)  # fmt: skip
+
+
+def lateness(result) -> dict:
+    rt = result.metrics["real_time"]
+    return {**{k: round(v, 4) for k, v in rt["lateness_ms"].items()},
+            "overruns": rt["overruns"], "rtf_achieved": round(rt["rtf_achieved"], 5)}  # fmt: skip
+
+
+def main() -> None:
+    args = parse_args(
+        __doc__,
+        ("--stop-time", {"type": float, "default": 60.0}),
+        ("--endpoint", {"choices": ("serve", "onboard"), "default": "onboard"}),
+    )
+    fmus = prepare_fmus(None, "native")
+    run = {"fmu_dir": fmus, "build": False, "plots": False}
+    out: dict = {"stop_time_s": args.stop_time, "step_s": 0.02, "endpoint": args.endpoint}
+    paced = simulate("default", None, stop_time=args.stop_time, real_time=RealTime(1.0), **run)
+    out["in_process_lateness_ms"] = lateness(paced)
+    with tempfile.TemporaryDirectory(prefix="glider-bench-rt-") as tmp:
+        srv = endpoint(args.endpoint, fmus, Path(tmp))
+        try:
+            url = srv.stdout.readline().split()[-1]
+            ext = {"controller": Endpoint(url)}
+            t = time.perf_counter()
+            lock = simulate("default", None, external=ext, **run)
+            wall = time.perf_counter() - t
+            c = lock.metrics["external"]["controller"]
+            out["lockstep_round_trip_ms"] = {k: round(v, 4) for k, v in c["rtt_ms"].items()}
+            out["lockstep_max_rtf"] = round(lock.metrics["end_time_s"] / wall, 1)
+            paced = simulate("default", None, stop_time=args.stop_time,
+                             real_time=RealTime(1.0), external=ext, **run)  # fmt: skip
+            out["external_lateness_ms"] = lateness(paced)
+            out["external_late_replies"] = paced.metrics["external"]["controller"]["late_replies"]
+        finally:
+            srv.kill()
+            srv.wait(10)
+    emit(out, args.json)
+
+
+if __name__ == "__main__":
+    main()
