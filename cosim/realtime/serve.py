@@ -107,7 +107,8 @@ class _Session:
 def _fmu_error(inst: Instance, err: FMICallException) -> str:
     """The FMU's own reason for a failed call (its last error message), else fmpy's."""
     errors = [m for m in inst.log if m.startswith(("[fmi2Error]", "[fmi2Discard]", "[fmi3"))]
-    return " ".join((errors[-1] if errors else str(err)).split())
+    text = " ".join((errors[-1] if errors else str(err)).split())
+    return text.partition("] ")[2].removeprefix("served: ") if text.startswith("[") else text
 
 
 def serve(

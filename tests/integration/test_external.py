@@ -68,7 +68,8 @@ def test_the_endpoint_refuses_a_bad_parameter_by_name(native_dir):
         s.sendto(p.encode(p.START, 2, 0.0, [0.02, 99999.0, 1.0]), srv.addr)
         m2 = p.decode(s.recv(p.MAX_SIZE))
         s.close()
-    assert m.type == p.ERROR and m.seq == 1 and "refused" in m.text and "K_c" in m.text
+    assert m.type == p.ERROR and m.seq == 1
+    assert m.text.startswith("refused: fmi2") and ": K_c = -1.0 is invalid: expected " in m.text
     assert m2.type == p.ERROR and "value reference 99999: no parameter" in m2.text
 
 
@@ -105,3 +106,18 @@ def test_cli_external_option_and_scenario_table(native_dir, tmp_path):
     c = subprocess.run(base + [str(bad), "--out", str(tmp_path / "c")], capture_output=True,
                        text=True, timeout=60)  # fmt: skip
     assert c.returncode == 2 and "key 'external.pilot': expected an instance of" in c.stderr
+
+
+def test_a_refused_start_stops_the_run_with_the_endpoints_reason(native_dir):
+    from glider_cosim.scenarios.scenario import load_scenario
+
+    sc = load_scenario("default")
+    sc.parameters.setdefault("controller", {})["K_c"] = -1.0  # past the CLI's own check
+    with Served(native_dir / "GliderController.fmu") as srv:
+        r = simulate(sc, None, fmu_dir=native_dir, build=False, stop_time=1.0,
+                     external={"controller": srv.url})  # fmt: skip
+    assert r.status == "error" and len(r.data) == 0
+    assert r.message == (
+        f"controller ({srv.url}): refused: fmi2ExitInitializationMode: K_c = -1.0 is invalid: "
+        "expected a finite value in (0, inf)"
+    )
