@@ -4,7 +4,9 @@ trip per step, the highest real-time factor lockstep sustains).
 Usage: python bench/realtime.py [--json] [--stop-time S] [--endpoint serve|onboard]
 Default scenario, native FMUs, real time (rtf 1): ``--stop-time`` s of wall clock per
 paced run (default 60, the scenario's), two paced runs (in process, then with the
-controller outside). The last line with --json is one JSON object.
+controller outside), then libcosim's real-time mode on the SSP of the same system (when
+libcosimpy is installed: the real-time factor it achieves). The last line
+with --json is one JSON object.
 """
 
 from __future__ import annotations
@@ -44,6 +46,29 @@ def lateness(result) -> dict:
             "overruns": rt["overruns"], "rtf_achieved": round(rt["rtf_achieved"], 5)}  # fmt: skip
 
 
+def libcosim_real_time(fmus: Path, tmp: Path, seconds: float) -> dict | None:
+    """libcosim's real-time mode (libcosimpy, rtf 1) on the SSP of the same system: the
+    factor it achieves over ``seconds`` (its per-step lateness is not visible from
+    libcosimpy); None without libcosimpy."""
+    try:
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    except ImportError:
+        return None
+    ssp = tmp / "default.ssp"
+    subprocess.run([sys.executable, "-c", CLI, "export-ssp", str(ssp), "--fmu-dir", str(fmus)],
+                   check=True, capture_output=True, timeout=600)  # fmt: skip
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(ssp))
+    ex.real_time_simulation_enabled(True)
+    ex.real_time_factor_target(1.0)
+    n = round(seconds / 0.02)
+    t0 = time.monotonic()
+    ok = ex.step(n)  # step(1) at a time is not paced: libcosim paces within one call
+    wall = time.monotonic() - t0
+    return {"ok": bool(ok), "rtf_achieved": round(seconds / wall, 5), "wall_s": round(wall, 3)}
+
+
 def main() -> None:
     args = parse_args(
         __doc__,
@@ -73,6 +98,7 @@ def main() -> None:
         finally:
             srv.kill()
             srv.wait(10)
+        out["libcosim_real_time"] = libcosim_real_time(fmus, Path(tmp), args.stop_time)
     emit(out, args.json)
 
 
