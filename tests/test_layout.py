@@ -30,7 +30,7 @@ LAYERS = (
     ("fmus",),
     ("master",),
     ("scenarios",),
-    ("interop",),
+    ("interop", "realtime"),
     ("runner",),
     ("sweeps", "verify"),
     ("studies",),

@@ -114,9 +114,16 @@ def _run(args: argparse.Namespace) -> int:
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
             ("--max-extract-mb", args.max_extract_mb, 256),
             ("--format", args.format, "csv"),
+            ("--real-time", args.real_time, False),
+            ("--rtf", args.rtf, None),
+            ("--max-lateness-ms", args.max_lateness_ms, None),
+            ("--external", args.external, []),
+            ("--external-timeout", args.external_timeout, None),
         )
         if value != default
     }
+    real_time = _real_time(args)
+    external = _externals(args, scenario)
     try:
         result = simulate(
             scenario,
@@ -129,6 +136,8 @@ def _run(args: argparse.Namespace) -> int:
             max_steps=args.max_steps,
             options=options,
             results_format=args.format,
+            real_time=real_time,
+            external=external,
         )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
@@ -151,10 +160,64 @@ def _run(args: argparse.Namespace) -> int:
         f"{fmt('max_abs_delta_cmd_rad', deg, ' deg')}"
     )
     print(f"  outcome: {describe_outcome(m)}")
+    if "real_time" in m:
+        from ..realtime.pacing import describe
+
+        print(f"  {describe(m['real_time'])}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
         print(f"glider-cosim: run {result.status}: {one_line(result.message)}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _real_time(args: argparse.Namespace):
+    """``--real-time``'s pacing, or None; refuses --rtf and --max-lateness-ms without it."""
+    from ..realtime.pacing import RealTime
+
+    if not args.real_time:
+        for opt, value in (("--rtf", args.rtf), ("--max-lateness-ms", args.max_lateness_ms)):
+            if value is not None:
+                raise UsageError(f"{opt} needs --real-time")
+        return None
+    return RealTime(args.rtf or 1.0, args.max_lateness_ms)
+
+
+def _externals(args: argparse.Namespace, scenario) -> dict:
+    """``--external`` over the scenario's ``[external]``: component -> endpoint."""
+    given = dict(getattr(scenario, "external", None) or {})
+    if not given and not args.external:
+        return {}
+    from ..realtime.external import Endpoint, parse_external
+
+    given.update(parse_external(args.external))
+    timeout = args.external_timeout
+    return {
+        name: Endpoint(url, timeout=timeout) if timeout else Endpoint(url)
+        for name, url in given.items()
+    }
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from ..fmus.folders import prepare_fmus
+    from ..realtime.serve import serve
+
+    if args.fmu is not None:
+        fmu, what = Path(args.fmu), shown_path(args.fmu)
+    else:
+        name = {"plant": "GliderPlant", "observer": "GliderObserver"}.get(
+            args.component, "GliderController"
+        )
+        fmu = prepare_fmus(None, args.flavor) / f"{name}.fmu"
+        what = f"{fmu.name}, {args.flavor}"
+
+    def ready(addr: tuple[str, int]) -> None:
+        print(f"serving {args.component} ({what}) on udp://{addr[0]}:{addr[1]}", flush=True)
+
+    try:
+        serve(fmu, args.listen, once=args.once, ready=ready)
+    except KeyboardInterrupt:
+        return 130
     return 0
 
 
@@ -222,6 +285,13 @@ def dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command == "run":
         return _run(args)
+    if args.command == "serve":
+        return _serve(args)
+    if args.command == "build-onboard":
+        from ..realtime.onboard import build_onboard
+
+        print(f"wrote {build_onboard(Path(args.out), args.target)}")
+        return 0
     if args.command in ("export-fmu", "export-ssp"):
         out = Path(args.out)
         _check_out_file(out, f"{args.command} OUT")

@@ -141,6 +141,56 @@ def build_parser() -> argparse.ArgumentParser:
         default=256,
         help="most MiB one FMU or SSP archive may unpack to",
     )
+    r.add_argument(
+        "--real-time",
+        action="store_true",
+        help="pace the communication points to the wall clock (docs/how-to/real-time.md)",
+    )
+    r.add_argument(
+        "--rtf",
+        type=_positive,
+        default=None,
+        help="with --real-time: real-time factor, 1 real time (default), 0.5 half, 2 twice",
+    )
+    r.add_argument(
+        "--max-lateness-ms",
+        type=_positive,
+        default=None,
+        help="with --real-time: stop the run when a point starts later than this, ms",
+    )
+    r.add_argument(
+        "--external",
+        action="append",
+        default=[],
+        metavar="COMPONENT=udp://HOST:PORT",
+        help="that component is an endpoint outside the process (repeatable)",
+    )
+    r.add_argument(
+        "--external-timeout",
+        type=_positive,
+        default=None,
+        help="seconds an external endpoint may stay silent before the run stops (default 5)",
+    )
+
+    sv = sub.add_parser(
+        "serve",
+        help="serve a component's FMU as a UDP endpoint (docs/how-to/real-time.md)",
+    )
+    sv.add_argument("component", choices=("plant", "observer", "controller"))
+    sv.add_argument("--listen", default="udp://127.0.0.1:9870", help="udp://HOST:PORT")
+    sv.add_argument("--fmu", default=None, help="the FMU to serve (default: ours)")
+    sv.add_argument(
+        "--flavor", choices=("native", "python"), default="native", help="our FMU's flavor"
+    )
+    sv.add_argument("--once", action="store_true", help="exit after the first session")
+
+    ob = sub.add_parser(
+        "build-onboard",
+        help="build the native controller as a standalone endpoint program (no Python, no FMI)",
+    )
+    ob.add_argument("component", choices=("controller",))
+    ob.add_argument("--target", default=None, help="zig target, e.g. aarch64-linux-musl")
+    ob.add_argument("--out", required=True, help="output folder")
 
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
     e.add_argument("out", help="output .ssp file")

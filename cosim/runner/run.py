@@ -26,6 +26,7 @@ from ..master.errors import (
     SystemSpecError,
 )
 from ..master.spec import DEFAULT_MAX_STEPS, count_steps
+from ..realtime.pacing import Pacer, RealTime, TooLate, paced_run
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, system_for
@@ -135,6 +136,8 @@ def simulate(
     max_steps: int = DEFAULT_MAX_STEPS,
     options: dict[str, Any] | None = None,
     results_format: str = "csv",
+    real_time: RealTime | None = None,
+    external: dict[str, Any] | None = None,
 ) -> RunResult:
     """Run a scenario and return its results.
 
@@ -159,6 +162,13 @@ def simulate(
     results_format : {"csv", "parquet"}
         ``results.csv`` (text, 17 significant digits) or ``results.parquet`` (float64 as
         they are; pandas and polars read it; needs pyarrow; about 4 us a row faster here).
+    real_time : RealTime, optional
+        Pace the communication points to the wall clock
+        (:mod:`glider_cosim.realtime.pacing`); ``metrics.json`` gains ``real_time``.
+    external : dict, optional
+        Instances served by an endpoint outside the process: name -> ``udp://HOST:PORT``
+        or an :class:`~glider_cosim.realtime.external.Endpoint`
+        (:mod:`glider_cosim.realtime.external`).
     options : dict, optional
         The options to record in ``metrics.json`` (``run.options``; the CLI passes the
         ones given on its command line). Default: the ``coupling``, ``step`` and
@@ -229,8 +239,13 @@ def simulate(
     origin = origin_of(scenario, ssp_system is not None)
 
     notes: list[str] = []
+    pacer = None if real_time is None else Pacer(h, real_time, sim.t0)
 
     def before_checks(s: CoSimulation) -> None:
+        if external:
+            from ..realtime.external import attach
+
+            attach(s, external, pacer)
         if ssp_system is None:
             notes.extend(skip_optional(s, scenario))
         check_system_values(s, origin)
@@ -264,8 +279,11 @@ def simulate(
     interrupt: Interrupted | None = None
     failure: Exception | None = None
     try:
-        sim.run(stop, recorder)
-    except FMUStopped as err:
+        if pacer is not None:
+            paced_run(sim, stop, recorder, pacer)
+        else:
+            sim.run(stop, recorder)
+    except (FMUStopped, TooLate) as err:  # a discard, or later than --max-lateness-ms
         status, message, failure = "stopped", str(err), err
     except FMUCallError as err:
         status, message, failure = "error", str(err), err
@@ -300,6 +318,11 @@ def simulate(
     if options is None:
         options = {k: v for k, v in (("coupling", coupling), ("step", step),
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
+    if ext:
+        metrics["external"] = ext
+    if pacer is not None:
+        metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
     metrics["run"] = run_record(scenario, sim, options)
     metrics["events"] = marked_events(sim, status, failure)
     result = RunResult(scenario, columns, data, metrics, status, message, files)

@@ -15,6 +15,7 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
     [plant] [observer] [controller]   parameters of each instance
                               (controller.law may be "open-loop", "passivity", "p", "pi")
     [fmus]                    instance = "path/to/other.fmu" (swap a component)
+    [external]                instance = "udp://127.0.0.1:9870" (an endpoint outside)
     [inputs]                  "plant.F_x" = 0.0: constant values of driven inputs
     [[disturbance]]           target, kind ("step"|"pulse"), time, value, duration
     [[event]]                 when = "plant.z >= 1.0" | "time >= 5", delay, set = {...}"""
@@ -48,7 +49,7 @@ FEEDBACKS = ("observer", "state")
 _TOP = {
     "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
     "record",
-    "fmus", "inputs", "disturbance", "event", *INSTANCES,
+    "fmus", "external", "inputs", "disturbance", "event", *INSTANCES,
 }  # fmt: skip
 
 
@@ -78,6 +79,8 @@ class Scenario:
     record: list[str] | None = None
     parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
     fmus: dict[str, str] = field(default_factory=dict)
+    #: instance -> ``udp://HOST:PORT`` of the endpoint that serves it (``[external]``)
+    external: dict[str, str] = field(default_factory=dict)
     inputs: dict[str, float] = field(default_factory=dict)
     disturbances: list[Disturbance] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
@@ -155,6 +158,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         except InputFileError as err:
             raise ScenarioError(str(err)) from None
         sc.fmus[k] = str(path)
+    for k, v in parse_table(data.get("external", {}), f"{source}: key 'external'").items():
+        if k not in INSTANCES or not isinstance(v, str) or not v.startswith("udp://"):
+            raise ScenarioError(
+                f"{source}: key {quote(f'external.{k}')}: expected an instance of "
+                f"{', '.join(INSTANCES)} = 'udp://HOST:PORT'"
+            )
+        sc.external[k] = v
     for k, v in parse_table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
         sc.inputs[k] = parse_float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
     dist = data.get("disturbance", [])

@@ -1,0 +1,106 @@
+"""Benchmark: paced runs at 50 Hz (lateness), an external controller on loopback (round
+trip per step, the highest real-time factor lockstep sustains).
+
+Usage: python bench/realtime.py [--json] [--stop-time S] [--endpoint serve|onboard]
+Default scenario, native FMUs, real time (rtf 1): ``--stop-time`` s of wall clock per
+paced run (default 60, the scenario's), two paced runs (in process, then with the
+controller outside), then libcosim's real-time mode on the SSP of the same system (when
+libcosimpy is installed: the real-time factor it achieves). The last line
+with --json is one JSON object.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _common import emit, parse_args
+
+from glider_cosim.fmus.folders import prepare_fmus
+from glider_cosim.realtime.external import Endpoint
+from glider_cosim.realtime.onboard import build_onboard
+from glider_cosim.realtime.pacing import RealTime
+from glider_cosim.runner import simulate
+
+CLI = "import sys; from glider_cosim.cli.main import console_main; console_main()"
+
+
+def endpoint(kind: str, fmus: Path, tmp: Path) -> subprocess.Popen:
+    """The controller served on 127.0.0.1 (port 0): ``glider-cosim serve`` or the
+    onboard program."""
+    if kind == "onboard":
+        cmd = [str(build_onboard(tmp))]
+    else:
+        cmd = [sys.executable, "-c", CLI, "serve", "controller", "--fmu",
+               str(fmus / "GliderController.fmu")]  # fmt: skip
+    return subprocess.Popen([*cmd, "--listen", "udp://127.0.0.1:0"], stdout=subprocess.PIPE,
+                            text=True)  # fmt: skip
+
+
+def lateness(result) -> dict:
+    rt = result.metrics["real_time"]
+    return {**{k: round(v, 4) for k, v in rt["lateness_ms"].items()},
+            "overruns": rt["overruns"], "rtf_achieved": round(rt["rtf_achieved"], 5)}  # fmt: skip
+
+
+def libcosim_real_time(fmus: Path, tmp: Path, seconds: float) -> dict | None:
+    """libcosim's real-time mode (libcosimpy, rtf 1) on the SSP of the same system: the
+    factor it achieves over ``seconds`` (its per-step lateness is not visible from
+    libcosimpy); None without libcosimpy."""
+    try:
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    except ImportError:
+        return None
+    ssp = tmp / "default.ssp"
+    subprocess.run([sys.executable, "-c", CLI, "export-ssp", str(ssp), "--fmu-dir", str(fmus)],
+                   check=True, capture_output=True, timeout=600)  # fmt: skip
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_ssp_file(str(ssp))
+    ex.real_time_simulation_enabled(True)
+    ex.real_time_factor_target(1.0)
+    n = round(seconds / 0.02)
+    t0 = time.monotonic()
+    ok = ex.step(n)  # step(1) at a time is not paced: libcosim paces within one call
+    wall = time.monotonic() - t0
+    return {"ok": bool(ok), "rtf_achieved": round(seconds / wall, 5), "wall_s": round(wall, 3)}
+
+
+def main() -> None:
+    args = parse_args(
+        __doc__,
+        ("--stop-time", {"type": float, "default": 60.0}),
+        ("--endpoint", {"choices": ("serve", "onboard"), "default": "onboard"}),
+    )
+    fmus = prepare_fmus(None, "native")
+    run = {"fmu_dir": fmus, "build": False, "plots": False}
+    out: dict = {"stop_time_s": args.stop_time, "step_s": 0.02, "endpoint": args.endpoint}
+    paced = simulate("default", None, stop_time=args.stop_time, real_time=RealTime(1.0), **run)
+    out["in_process_lateness_ms"] = lateness(paced)
+    with tempfile.TemporaryDirectory(prefix="glider-bench-rt-") as tmp:
+        srv = endpoint(args.endpoint, fmus, Path(tmp))
+        try:
+            url = srv.stdout.readline().split()[-1]
+            ext = {"controller": Endpoint(url)}
+            t = time.perf_counter()
+            lock = simulate("default", None, external=ext, **run)
+            wall = time.perf_counter() - t
+            c = lock.metrics["external"]["controller"]
+            out["lockstep_round_trip_ms"] = {k: round(v, 4) for k, v in c["rtt_ms"].items()}
+            out["lockstep_max_rtf"] = round(lock.metrics["end_time_s"] / wall, 1)
+            paced = simulate("default", None, stop_time=args.stop_time,
+                             real_time=RealTime(1.0), external=ext, **run)  # fmt: skip
+            out["external_lateness_ms"] = lateness(paced)
+            out["external_late_replies"] = paced.metrics["external"]["controller"]["late_replies"]
+        finally:
+            srv.kill()
+            srv.wait(10)
+        out["libcosim_real_time"] = libcosim_real_time(fmus, Path(tmp), args.stop_time)
+    emit(out, args.json)
+
+
+if __name__ == "__main__":
+    main()
