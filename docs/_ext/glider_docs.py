@@ -70,8 +70,8 @@ class CliDirective(SphinxDirective):
             for action in sub._actions:
                 if isinstance(action, argparse._HelpAction):
                     continue
-                item = nodes.definition_list_item(ids=[option_id(name, action)])
-                term = nodes.term()
+                item = nodes.definition_list_item()
+                term = nodes.term(ids=[option_id(name, action)])
                 names = action.option_strings or [action.metavar or action.dest]
                 for i, opt in enumerate(names):
                     if i:
@@ -103,14 +103,21 @@ class CliDirective(SphinxDirective):
         return out
 
 
-def check_fmu_interfaces(app: Sphinx) -> None:
-    """Warn when the FMU interface page differs from the FMUs' model descriptions."""
+def stale_interface_page(srcdir: Path) -> Path | None:
+    """The FMU interface page under ``srcdir`` if it differs from the FMUs' model
+    descriptions (the Python flavor, built into the per-user cache if missing), else None."""
     from glider_cosim.fmus.docs import interface_markdown
     from glider_cosim.fmus.folders import build_all, fmu_folder
 
-    page = Path(app.srcdir) / "reference" / "fmu-interfaces.md"
+    page = Path(srcdir) / "reference" / "fmu-interfaces.md"
     text = interface_markdown(build_all(fmu_folder(None), only_stale=True))
-    if not page.exists() or page.read_text() != text:
+    return None if page.is_file() and page.read_text() == text else page
+
+
+def check_fmu_interfaces(app: Sphinx) -> None:
+    """Warn when the FMU interface page differs from the FMUs' model descriptions."""
+    page = stale_interface_page(Path(app.srcdir))
+    if page is not None:
         LOG.warning(
             "%s is stale: it differs from the FMUs' model descriptions; "
             "run python -m glider_cosim.fmus.docs",
