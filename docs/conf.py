@@ -22,6 +22,8 @@ source_suffix = {".md": "myst-nb"}
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
 suppress_warnings = ["myst.header"]
+# "--fmi" stays two hyphens (no en dash) and quotes stay straight, as typed in a shell
+smartquotes = False
 
 # the tutorials run at every build: their output cannot drift from the code
 nb_execution_mode = "force"

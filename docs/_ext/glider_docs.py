@@ -65,7 +65,9 @@ class CliDirective(SphinxDirective):
             if summary:
                 sec += nodes.paragraph(text=summary)
             usage = sub.format_usage().removeprefix("usage: ").strip()
-            sec += nodes.literal_block(usage, usage)
+            block = nodes.literal_block(usage, usage)
+            block["language"] = "text"
+            sec += block
             table = nodes.definition_list(classes=["cli-options"])
             for action in sub._actions:
                 if isinstance(action, argparse._HelpAction):
@@ -85,6 +87,8 @@ class CliDirective(SphinxDirective):
                 item += term
                 body = nodes.definition()
                 text = _plain(action.help or "").replace("%(default)s", str(action.default))
+                if text and text[-1] not in ".)":
+                    text += "."
                 para = nodes.paragraph(text=text)
                 if action.choices and not isinstance(action.choices, dict):
                     para += nodes.Text(" Choices: ")
@@ -114,6 +118,27 @@ def stale_interface_page(srcdir: Path) -> Path | None:
     return None if page.is_file() and page.read_text() == text else page
 
 
+class CliSummaryDirective(SphinxDirective):
+    """One line per subcommand: its name (a link to its section) and its help."""
+
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        from glider_cosim.cli import build_parser
+        from glider_cosim.cli.parser import _plain
+
+        top = build_parser()
+        items = nodes.bullet_list()
+        for name in _subcommands(top):
+            para = nodes.paragraph()
+            ref = nodes.reference("", "", refid=nodes.make_id(f"cli-{name}"))
+            ref += nodes.literal(text=f"glider-cosim {name}")
+            para += ref
+            para += nodes.Text(f": {_plain(_help_of(top, name))}")
+            items += nodes.list_item("", para)
+        return [items]
+
+
 def check_fmu_interfaces(app: Sphinx) -> None:
     """Warn when the FMU interface page differs from the FMUs' model descriptions."""
     page = stale_interface_page(Path(app.srcdir))
@@ -127,5 +152,6 @@ def check_fmu_interfaces(app: Sphinx) -> None:
 
 def setup(app: Sphinx) -> dict[str, object]:
     app.add_directive("glider-cli", CliDirective)
+    app.add_directive("glider-cli-summary", CliSummaryDirective)
     app.connect("builder-inited", check_fmu_interfaces)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
