@@ -38,7 +38,8 @@ napoleon_google_docstring = False
 
 html_theme = "alabaster"
 html_title = "glider-cosim"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["glider.css"]
 html_theme_options = {
     "description": "Underwater-glider glide stabilisation as FMI co-simulation FMUs",
     "page_width": "1100px",
