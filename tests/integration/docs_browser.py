@@ -86,7 +86,9 @@ class Browser:
         raw, self._buf = self._buf.split(b"\0", 1)
         return json.loads(raw)
 
-    def visit(self, url: str, width: int = 1280, height: int = 1000) -> PageVisit:
+    def visit(
+        self, url: str, width: int = 1280, height: int = 1000, settle: float = 0.3
+    ) -> PageVisit:
         """Load ``url`` in a new tab, wait for its load event, screenshot and console errors."""
         target = self._send("Target.createTarget", {"url": "about:blank"})["targetId"]
         s = self._send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
@@ -102,7 +104,7 @@ class Browser:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"{url}: no load event")
             self._events.append(self._read())
-        time.sleep(0.3)  # late console messages of scripts run at load
+        time.sleep(settle)  # late console messages of scripts run at load (s)
         self._send("Runtime.evaluate", {"expression": "1"}, session=s)  # drains the pipe
         png = base64.b64decode(self._send("Page.captureScreenshot", {"format": "png"},
                                           session=s)["data"])  # fmt: skip

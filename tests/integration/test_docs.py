@@ -204,3 +204,14 @@ def test_the_chromium_check_sees_errors_and_blank_pages(browser, tmp_path):
     assert any("undefined_function" in e for e in visit.errors), visit.errors
     assert any("missing.png" in e or "ERR_FILE_NOT_FOUND" in e for e in visit.errors), visit.errors
     assert pixel_spread(visit.png) < 0.01
+
+
+def test_chromium_finds_no_console_error_on_any_page(site, browser):
+    pages = sorted(site.rglob("*.html"))
+    assert len(pages) >= 25
+    errors = {}
+    for page in pages:
+        visit = browser.visit(page.as_uri(), settle=0.05)
+        if visit.errors:
+            errors[str(page.relative_to(site))] = visit.errors
+    assert errors == {}
