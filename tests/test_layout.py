@@ -1,10 +1,10 @@
 """The package's layout: one direction of imports, no circle, a docstring per module,
-no module over 400 lines, and the README's diagram of it.
+no module over 400 lines, and the diagram of it in docs/explanation/code-layout.md.
 
 Every import is counted, at module level, inside functions and under ``TYPE_CHECKING``
 alike: an import deferred into a function is still a dependency. The layers, from the
 bottom, are :data:`LAYERS`; a module may import its own subpackage and the layers below
-it, never a layer above or a sibling on its own layer. README "Where things are" shows
+it, never a layer above or a sibling on its own layer. docs "Where things are" shows
 the same picture.
 """
 
@@ -21,7 +21,7 @@ SETUPTOOLS = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setup
 #: import package -> its folder, as ``pyproject.toml``'s ``package-dir`` maps them
 ROOTS = {name: ROOT / folder for name, folder in SETUPTOOLS["package-dir"].items()}
 #: the layers, bottom first: the FMUs' own packages, then the groups of ``glider_cosim``
-#: (its subpackages and top-level modules); README "Where things are" draws the same
+#: (its subpackages and top-level modules); docs "Where things are" draws the same
 LAYERS = (
     ("glider_fmi",),
     ("glider_plant",),
@@ -134,7 +134,9 @@ def upward_imports(graph: dict[str, set[str]]) -> list[str]:
 
 def test_every_group_is_on_a_layer():
     groups = {group(n) for n in GRAPH if group(n)}
-    assert groups - set(LEVEL) == set(), "place the new subpackage in LAYERS (and the README)"
+    assert groups - set(LEVEL) == set(), (
+        "place the new subpackage in LAYERS (and docs/explanation/code-layout.md)"
+    )
     assert set(LEVEL) - groups == set()
 
 
@@ -180,9 +182,9 @@ def test_every_module_says_what_it_is_for(name):
 
 
 def readme_diagram() -> dict[str, tuple[int, set[str]]]:
-    """README "Where things are": package -> (layer, modules named)."""
-    text = (ROOT / "README.md").read_text()
-    section = text[text.index("## Where things are") :]
+    """docs "Where things are": package -> (layer, modules named)."""
+    text = (ROOT / "docs" / "explanation" / "code-layout.md").read_text()
+    section = text[text.index("# Where things are") :]
     start = section.index("```\nlayer") + 4
     block = section[start : section.index("\n```", start)]
     rows: dict[str, tuple[int, set[str]]] = {}

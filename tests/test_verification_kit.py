@@ -222,8 +222,8 @@ def test_the_core_is_in_every_case_and_one_case_needs_only_the_core(component):
 
 
 def test_the_readme_lists_each_core_interface():
-    """README "Verification kit": one line per component, inputs -> outputs, as CORE."""
-    text = (ROOT / "README.md").read_text()
+    """docs "Verify a component": one line per component, inputs -> outputs, as CORE."""
+    text = (ROOT / "docs" / "how-to" / "verify-a-component.md").read_text()
     for component, core in CORE.items():
         ins = ", ".join(f"`{n}`" for n, c in core.items() if c == "input")
         outs = ", ".join(f"`{n}`" for n, c in core.items() if c == "output")

@@ -61,6 +61,7 @@ def _count(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``glider-cosim`` parser: every subcommand, its options and their defaults."""
     p = _Parser(prog="glider-cosim", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 

@@ -242,5 +242,5 @@ def test_interface_docs_are_generated_from_the_fmus(fmu_dir):
     from glider_cosim.fmus.docs import interface_markdown
 
     text = interface_markdown({n: fmu_dir / f"{n}.fmu" for n in NAMES})
-    doc = Path(__file__).resolve().parents[2] / "docs" / "interfaces.md"
+    doc = Path(__file__).resolve().parents[2] / "docs" / "reference" / "fmu-interfaces.md"
     assert doc.read_text() == text, "run: python -m glider_cosim.fmus.docs"

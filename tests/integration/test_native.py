@@ -255,7 +255,7 @@ def test_run_with_native_fmu_dir_runs_them_as_they_are(native_dir, tmp_path):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_fmpy_simulate_fmu_runs_each_native_fmu(native_dir, fmu_dir, name):
-    """The README's fmpy recipe: each FMU alone with its start values, as a user would."""
+    """The fmpy recipe (docs/how-to/use-the-fmus.md): each FMU alone with its start values."""
     a = fmpy.simulate_fmu(str(native_dir / f"{name}.fmu"), stop_time=5.0, output_interval=0.02)
     b = fmpy.simulate_fmu(str(fmu_dir / f"{name}.fmu"), stop_time=5.0, output_interval=0.02)
     assert len(a) == len(b) == 251

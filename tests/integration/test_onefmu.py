@@ -129,7 +129,7 @@ def test_messages_other_than_the_start_lines_reach_the_host(loop_fmu, tmp_path):
     # an error of an embedded FMU is not swallowed by the forwarder; unpacked here, since
     # fmpy leaves its own unpacked copy behind when the run fails. In a subprocess: a
     # logger= given to simulate_fmu stays in fmpy's process-global proxy after the call
-    # and would crash this process at the next FMU message (docs/toolchains.md).
+    # and would crash this process at the next FMU message (docs/how-to/toolchains.md).
     unpacked = extract(str(loop_fmu), unzipdir=str(tmp_path / "loop"))
     p = subprocess.run([sys.executable, "-c", MESSAGES, unpacked], capture_output=True,
                        text=True, timeout=300)  # fmt: skip

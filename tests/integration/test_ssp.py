@@ -207,7 +207,7 @@ def test_cli_refuses_a_malformed_ssp_with_one_line_and_exit_2(ssp, tmp_path):
     strict=True,
     reason="libcosim propagates connected values in initialization mode, our jacobi does "
     "not: an input's own start value reaches a feedthrough output at t0 (patch to "
-    "master._setup_instances in docs/toolchains.md)",
+    "master._setup_instances in docs/how-to/toolchains.md)",
 )
 def test_libcosim_initial_propagation(ssp, tmp_path):
     # the controller's connected input theta_g_hat starts at -0.5 rad, not at the
