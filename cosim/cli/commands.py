@@ -234,7 +234,8 @@ def _report(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: expected a number >= 1")
     path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
-                        roa_grid=grid, workers=args.workers, scheduler=args.scheduler)  # fmt: skip
+                        roa_grid=grid, workers=args.workers, scheduler=args.scheduler,
+                        page=not args.no_plots)  # fmt: skip
     print(f"wrote {path}")
     return 0
 

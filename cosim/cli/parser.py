@@ -118,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--stop-time", type=_positive, default=None, help="stop time, s (default: the scenario's)"
     )
-    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots and plots.html")
     r.add_argument(
         "--format",
         choices=("csv", "parquet"),
@@ -216,6 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default="out/report", help="report folder")
     add_fmu_options(rep)
     rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--no-plots", action="store_true",
+                     help="skip report.html (the PNGs stay: report.md shows them)")  # fmt: skip
     rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
                      help="region-of-attraction grid: N glide angles x M speeds (default "
                      "7x5; none: skip the map)")  # fmt: skip

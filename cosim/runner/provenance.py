@@ -30,6 +30,7 @@ OWNED = (
     "tail_angle.png",
     "speed.png",
     "depth.png",
+    "plots.html",
 )
 #: a resource inside an FMU that names its flavor (the runtime behind the slave)
 FLAVOR_RESOURCES = ("resources/glider_cosim_flavor.txt",)
@@ -146,6 +147,7 @@ def fmu_record(inst: Any) -> dict[str, Any]:
         "generation_tool": inst.md.generationTool,
         "flavor": flavor,
         "version": version,
+        "fmi_version": str(getattr(inst.md, "fmiVersion", "") or ""),
     }
 
 

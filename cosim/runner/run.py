@@ -330,9 +330,12 @@ def simulate(
         files["metrics"] = out / "metrics.json"
         files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
         if plots and len(data) > 1:
+            from .pages import write_run_page
             from .plots import write_plots
 
-            files.update(write_plots(result, out))
+            figures: list = []  # the PNGs' figures, drawn again as plots.html
+            files.update(write_plots(result, out, keep=figures))
+            files.update(write_run_page(result, out, figures))
     if interrupt is not None:
         raise interrupt
     return result

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
+from ..runner.pages import keep_figures, run_settings, write_report_page
 from ..runner.progress import Progress
 from ..runner.progress import wanted as progress_wanted
 from ..runner.run import RunResult, simulate
@@ -61,6 +62,12 @@ def _step_study(fmu_dir: Path) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def report_settings(results: dict[str, list[tuple[Run, RunResult]]]) -> dict[str, Any]:
+    """What report.html records: each figure run's settings, as its metrics.json would."""
+    return {f"{key}: {run.label}": run_settings(r.metrics) for key, runs in results.items()
+            for run, r in runs}  # fmt: skip
+
+
 def build_report(
     out: str | Path = "out/report",
     fmu_dir: str | Path | None = None,
@@ -69,12 +76,14 @@ def build_report(
     roa_grid: tuple[int, int] | None = (7, 5),
     workers: int = 2,
     scheduler: str | None = None,
+    page: bool = True,
 ) -> Path:
     """Run everything and write ``report.md`` (returns its path).
 
     ``roa_grid``: glide angles x speeds of the region-of-attraction map, run as a Dask
     sweep on ``workers`` local processes (or the cluster at ``scheduler``); None skips it.
     ``fmu_dir``: our FMUs (default: the per-user cache), built there if missing or stale.
+    ``page``: also write ``report.html``, the figures interactive (zoom, hover, legend).
     """
     from ..fmus.folders import build_all, fmu_folder
 
@@ -122,10 +131,13 @@ def build_report(
         roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
-    pngs = {fig.key: (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
-        fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
-    pngs["steps"] = plot_steps(study, out)
-    pngs["fig8"] = plot_sec52(sec52, out)
+    with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
+        pngs = {fig.key: (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
+            fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
+        pngs["steps"] = plot_steps(study, out)
+        pngs["fig8"] = plot_sec52(sec52, out)
+        if page:
+            write_report_page(out, figures, report_settings(results))
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     (out / "report.md").write_text(text)

@@ -173,3 +173,23 @@ def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path
         stops = [ln for ln in ax.get_lines() if ln.get_gid() == "event:stop"]
         assert len(stops) == (r.status != "ok")
         assert ("settled in" in title) == (r.metrics["outcome"] == "settled")
+
+
+def test_report_html_renders_every_figure(report):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from chromium_page import chromium, load
+
+    _, _, out = report
+    page = out / "report.html"
+    text = page.read_text()
+    assert not re.search(r"<script[^>]+src=", text)
+    if chromium() is None:
+        pytest.skip("needs Debian's chromium (.ci/run installs it)")
+    found = load(page)
+    assert found["errors"] == [] and found["console"] == [] and found["fetched"] == []
+    # every figure of report.md but the region-of-attraction map
+    assert len(found["figures"]) == len(FIGURES) + 2 and all(n >= 1 for n in found["figures"])
+    assert "fig2-closed-loop: " in text or FIGURES[0].key in text
