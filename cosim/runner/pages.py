@@ -27,7 +27,7 @@ _DASH = {"-": "solid", "--": "dashed", "-.": "dashdot", ":": "dotted", "None": "
 
 #: matplotlib markers -> bokeh's
 _MARKERS = {"o": "circle", "D": "diamond", "X": "x", "x": "x", "^": "triangle",
-            "v": "inverted_triangle", "s": "square"}  # fmt: skip
+            "v": "inverted_triangle", "s": "square", "*": "star"}  # fmt: skip
 
 
 class PageError(ValueError):
@@ -72,6 +72,7 @@ def _line(ax: Any, line: Any) -> dict[str, Any] | None:
         "lines": ls not in ("None", "none", ""),
         "marker": marker if marker not in ("None", "none", "", " ") else "",
         "size": float(line.get_markersize()),
+        "edge": _hex(line.get_markeredgecolor())[0],
         "step": str(line.get_drawstyle()).startswith("steps"),
     }
 
@@ -83,7 +84,12 @@ def _image(im: Any) -> dict[str, Any]:
     if im.origin == "upper":
         rgba, arr = rgba[::-1], arr[::-1]
         y0, y1 = y1, y0
-    return {"rgba": rgba, "value": arr.filled(np.nan), "x": min(x0, x1), "y": min(y0, y1),
+    value: Any = arr.filled(np.nan)
+    names = getattr(im, "value_names", None)  # a categorical image: hover shows the name
+    if names is not None:
+        value = np.array([[names[int(v)] if np.isfinite(v) and 0 <= v < len(names) else ""
+                           for v in row] for row in value], dtype=object)  # fmt: skip
+    return {"rgba": rgba, "value": value, "x": min(x0, x1), "y": min(y0, y1),
             "dw": abs(x1 - x0), "dh": abs(y1 - y0)}  # fmt: skip
 
 
@@ -124,7 +130,8 @@ def figure_spec(fig: Any, title: str = "") -> dict[str, Any]:
     for leg in list(fig.legends) + [ax.get_legend() for ax in axes if ax.get_legend()]:
         for handle, text in zip(leg.legend_handles, leg.get_texts(), strict=False):
             if not isinstance(handle, Line2D) and text.get_text():
-                notes.append(text.get_text())
+                face = getattr(handle, "get_facecolor", None)
+                notes.append({"text": text.get_text(), "color": _hex(face())[0] if face else ""})
     first = next((p["title"] for p in panels if p["title"]), "")
     return {"title": title or "\n".join(t for t in supt if t) or first, "notes": notes,
             "panels": panels}  # fmt: skip
@@ -184,8 +191,10 @@ def _panel(spec: dict[str, Any], x_range: Any, label_width: int) -> Any:
                                 **extra, **common))  # fmt: skip
         if ln["marker"]:
             shape = _MARKERS.get(ln["marker"], "circle")
+            marks = {**common, "fill_color": ln["color"], "line_color": ln["edge"]}
+            del marks["color"]
             hovered.append(p.scatter("x", "y", marker=shape, size=max(ln["size"] * 1.5, 2.5),
-                                     **common))  # fmt: skip
+                                     **marks))  # fmt: skip
     if hovered:
         p.add_tools(HoverTool(renderers=hovered, tooltips=[("", "$name"),
                                                            (xl, "@x{0.[000]}"),
@@ -250,6 +259,7 @@ def _settings_html(settings: dict[str, Any]) -> str:
 _CSS = """body{font-family:sans-serif;margin:1em 2em;color:#222}
 h2{font-size:1.1em;margin:1.6em 0 .2em;white-space:pre-line}
 p.notes{color:#555;font-size:.85em;margin:.2em 0}
+span.key{display:inline-block;width:1.6em;height:.9em;margin-right:.3em;vertical-align:middle}
 table.settings{border-collapse:collapse;font-size:.85em}
 table.settings th{text-align:left;padding:2px 12px 2px 0;vertical-align:top}
 table.settings td{font-family:monospace;word-break:break-all}
@@ -289,7 +299,9 @@ def write_page(
     for spec, div in zip(figures, divs, strict=True):
         body.append(f"<h2>{html.escape(spec['title'])}</h2>")
         if spec["notes"]:
-            body.append(f"<p class='notes'>{html.escape('; '.join(spec['notes']))}</p>")
+            keys = [(f"<span class='key' style='background:{n['color']}'></span>" if n["color"]
+                     else "") + html.escape(n["text"]) for n in spec["notes"]]  # fmt: skip
+            body.append(f"<p class='notes'>{' &nbsp; '.join(keys)}</p>")
         body.append(f"<div class='{FIGURE_CLASS}'>{div}</div>")
     data = json.dumps(settings, default=str).replace("</", "<\\/")
     js = Resources(mode="inline", components=["bokeh"]).render_js()  # bokeh.min.js alone

@@ -128,7 +128,6 @@ def build_report(
             client.close()
             if not scheduler and client.cluster is not None:
                 client.cluster.close()
-        roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
     with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
@@ -136,6 +135,8 @@ def build_report(
             fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
         pngs["steps"] = plot_steps(study, out)
         pngs["fig8"] = plot_sec52(sec52, out)
+        if maps:
+            roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
         if page:
             write_report_page(out, figures, report_settings(results))
     text = report_markdown(results, an, study, pngs,
