@@ -85,7 +85,14 @@ def _panel(spec: dict[str, Any], x_range: Any, label_width: int) -> Any:
     return p
 
 
-def _figure_model(spec: dict[str, Any]) -> Any:
+def _legend_width(specs: Sequence[dict[str, Any]]) -> int:
+    """The legend's label width, px: one for every panel of the page, so that the x axes
+    of its figures line up."""
+    names = [ln["name"] for s in specs for p in s["panels"] for ln in p["lines"] if ln["legend"]]
+    return 6 * max((len(n) for n in names), default=0)
+
+
+def _figure_model(spec: dict[str, Any], label_width: int) -> Any:
     """One figure: its panels on their grid, x ranges shared down each column."""
     from bokeh.layouts import gridplot
     from bokeh.models import Range1d
@@ -94,8 +101,6 @@ def _figure_model(spec: dict[str, Any]) -> Any:
     ncol = 1 + max(p["col"] for p in spec["panels"])
     grid: list[list[Any]] = [[None] * ncol for _ in range(nrow)]
     shared: dict[int, Any] = {}
-    names = [ln["name"] for p in spec["panels"] for ln in p["lines"] if ln["legend"]]
-    label_width = 6 * max((len(n) for n in names), default=0)
     for p in spec["panels"]:
         if p["images"]:
             rng = Range1d(*p["xlim"])
@@ -166,7 +171,8 @@ def write_page(
     if not figures:
         raise PageError(f"{path}: no figures to write; expected at least one")
     path = Path(path)
-    models = [_figure_model(f) for f in figures]
+    width = _legend_width(figures)
+    models = [_figure_model(f, width) for f in figures]
     script, divs = components(models)
     body = []
     for spec, div in zip(figures, divs, strict=True):
