@@ -98,15 +98,22 @@ def fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
     return f"{v * scale:.{digits}f}"
 
 
+def wrap_angle(angle: Any) -> Any:
+    """``angle`` [rad] wrapped to (-pi, pi] (an array stays an array): an estimate one
+    turn from the truth is no error."""
+    return math.pi - np.mod(math.pi - np.asarray(angle, dtype=float), 2 * math.pi)
+
+
 def estimation_error(r: RunResult) -> tuple[float, float, float, float] | None:
-    """RMS and max |theta_g_hat - theta_g| [rad] over the second half of the recorded run
-    (after the observer's initial transient), and that window's start and end [s]; None
-    without an observer."""
+    """RMS and max |theta_g_hat - theta_g| [rad], the difference wrapped to (-pi, pi]
+    (:func:`wrap_angle`), over the second half of the recorded run (after the
+    observer's initial transient), and that window's start and end [s]; None without an
+    observer."""
     if "observer.theta_g_hat" not in r.columns or len(r.data) < 2:
         return None
     t = r.data[:, 0]
     i0 = int(np.searchsorted(t, 0.5 * (t[0] + t[-1])))
-    err = (r.column("observer.theta_g_hat") - r.column("plant.theta_g"))[i0:]
+    err = wrap_angle(r.column("observer.theta_g_hat") - r.column("plant.theta_g"))[i0:]
     return float(np.sqrt(np.mean(err**2))), float(np.max(np.abs(err))), float(t[i0]), float(t[-1])
 
 

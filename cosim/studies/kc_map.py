@@ -51,9 +51,10 @@ def kc_cell(r: RunResult) -> str:
     if m.get("outcome") == "settled":
         return f"settled in {m['settling_time_s']:.2f} s"
     if r.status != "ok":
-        stall = stall_of(r)
-        if stall:
-            return f"stops at {stall[2]:.2f} s ({stall[0]} stalls)"
+        reason = stop_reason(r)
+        if reason:
+            name, verb = reason.split()[:2]
+            return f"stops at {r.data[-1, 0]:.2f} s ({name} {verb})"
         return f"stops at {r.data[-1, 0]:.2f} s"
     return describe_outcome(m, brief=True)
 
@@ -147,13 +148,35 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
     return lines
 
 
-_STALL = re.compile(r"(\w+): (?:observer estimate )?glider stalled: V = ([-+0-9.eE]+) m/s")
+_STALL = re.compile(
+    r"(\w+): (?:observer estimate )?glider stalled: V = ([-+]?(?:nan|inf)|[-+0-9.eE]+) m/s"
+)
+
+
+#: the most negative speed [m/s] a stopped run's V may have for it to count as a stall
+#: (its speed fell to about zero, crossing the model's limit within one step); beyond it,
+#: or not finite, the state or estimate diverged
+STALL_FLOOR = -0.1
 
 
 def stall_of(r: RunResult) -> tuple[str, float, float] | None:
-    """(variable, V, time) of the stall that stopped a run, from its message."""
+    """(variable, V, time) of the stall or divergence that stopped a run, from its
+    message (the models' check, V above their limit, catches both)."""
     m = _STALL.search(r.message or "")
     if not m:
         return None
     name = "V_hat" if m.group(1) == "observer" else "V"
     return name, float(m.group(2)), float(r.data[-1, 0])
+
+
+def stop_reason(r: RunResult) -> str | None:
+    """How a stopped run's speed ended, or None if it did not stop on it:
+    ``V_hat stalls at 4.70 s (V_hat = -0.013 m/s)`` for a speed that fell to about zero
+    (above :data:`STALL_FLOOR`), ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``
+    otherwise."""
+    stall = stall_of(r)
+    if stall is None:
+        return None
+    name, v, t = stall
+    verb = "stalls" if math.isfinite(v) and v > STALL_FLOOR else "diverges"
+    return f"{name} {verb} at {t:.2f} s ({name} = {v:.2g} m/s)"
