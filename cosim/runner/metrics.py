@@ -23,6 +23,7 @@ an event last changed the controller):
   rate, > 0 grows) and ``outcome_window_s`` (the examined end of the run, s).
 - ``control_effort``: integral of ``|delta_cmd|`` dt over the run, rad s (held values).
 - ``max_abs_delta_cmd_rad``: largest ``|delta_cmd|``.
+- ``V_e_m_s``: the speed of that glide (m/s), which ``speed.png`` marks.
 """
 
 from __future__ import annotations
@@ -129,13 +130,23 @@ def reference_glide_angle(
     passivity, P and PI laws (they drive the tail to 0 there); for the open-loop law
     (after the events) the steady glide with its tail ``delta_open`` held
     (:func:`glider_cosim.runner.heldtail.held_glide`)."""
+    return reference_glide(p, controller, events)[0]
+
+
+def reference_glide(
+    p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
+) -> tuple[float, float]:
+    """The glide the loop should reach (:func:`reference_glide_angle`): its glide angle
+    [rad] and speed [m/s]."""
     law, delta_open = controller.get("law", 1), controller.get("delta_open", 0.0)
     for ev in events:
         law = ev.actions.get("controller.law", law)
         delta_open = ev.actions.get("controller.delta_open", delta_open)
     if int(law) != 0 or delta_open == 0.0:
-        return equilibrium(p).theta_g
-    return held_glide(p, p.K_udelta * float(delta_open)).theta_g
+        eq = equilibrium(p)
+        return eq.theta_g, eq.V
+    held = held_glide(p, p.K_udelta * float(delta_open))
+    return held.theta_g, held.V
 
 
 def compute_metrics(
@@ -156,16 +167,18 @@ def compute_metrics(
     p = GliderParams.from_mapping(sim.system.parameters.get("plant", {}))
     ctrl = sim.system.parameters.get("controller", {})
     t_on = takeover_time(ctrl, sim.system.events)
+    theta_ge, v_e = reference_glide(p, ctrl, sim.system.events)
     metrics.update(
         glide_metrics(
             data[:, 0],
             data[:, list(columns).index("plant.theta_g")],
             data[:, list(columns).index("controller.delta_cmd")],
-            reference_glide_angle(p, ctrl, sim.system.events),
+            theta_ge,
             t_on,
             completed=status == "ok",
         )
     )
+    metrics["V_e_m_s"] = v_e
     return metrics
 
 

@@ -57,8 +57,8 @@ FIGURES: tuple[Figure, ...] = (
         by_group=True, share_y=False,
     ),
     Figure(
-        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1 (full-state "
-        "feedback; the observer runs in parallel, not in the loop)",
+        "fig5-6", "Figs. 5-6: observer under noise R = 0.1 (full-state feedback; the "
+        "observer in parallel, not in the loop)",
         (Run("K_c = 10", "fig5-6-observer-noise"),
          Run("K_c = 2 (paper)", "fig5-6-observer-noise", {"controller.K_c": 2.0})),
         (("plant.theta_meas", "measured pitch [deg] (Fig. 5)"),
