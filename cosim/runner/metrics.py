@@ -123,6 +123,12 @@ def glide_metrics(
     return out
 
 
+def wrap_angle(angle: Any) -> Any:
+    """``angle`` [rad] wrapped to (-pi, pi] (an array stays an array): an estimate one
+    turn from the truth is no error."""
+    return math.pi - np.mod(math.pi - np.asarray(angle, dtype=float), 2 * math.pi)
+
+
 def reference_glide_angle(
     p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
 ) -> float:

@@ -8,11 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ..runner.metrics import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
 
 DEG = 180.0 / math.pi
+__all__ = ["DEG", "FIGURES", "Figure", "Run", "estimation_error", "fmt", "passivity_gain",
+           "wrap_angle"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -96,12 +99,6 @@ def fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "n/a"
     return f"{v * scale:.{digits}f}"
-
-
-def wrap_angle(angle: Any) -> Any:
-    """``angle`` [rad] wrapped to (-pi, pi] (an array stays an array): an estimate one
-    turn from the truth is no error."""
-    return math.pi - np.mod(math.pi - np.asarray(angle, dtype=float), 2 * math.pi)
 
 
 def estimation_error(r: RunResult) -> tuple[float, float, float, float] | None:

@@ -47,8 +47,8 @@ def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> s
         "- outcome (limit cycle amplitude and period, growth rate): the last third of the",
         "  run after the takeover, at least 10 s;",
         "- effort (integral of |delta_cmd| dt) and peak tail (max |delta_cmd|): the whole run;",
-        "- estimation error (RMS / max of theta_g_hat - theta_g): the second half of the",
-        "  recorded run, after the observer's initial transient.",
+        "- estimation error (RMS / max of theta_g_hat - theta_g, wrapped to (-180, 180]",
+        "  deg): the second half of the recorded run, after the observer's initial transient.",
         "",
     ]
     header = ("| run | status | outcome | rise [s] | overshoot [deg] | overshoot [%] | "
