@@ -102,3 +102,22 @@ def test_provenance_section_lists_options_and_every_scenario_hash():
         f"| sec53-protocol | `{'cd' * 32}` |",
         "",
     ]
+
+
+@pytest.mark.parametrize(("v", "what"), [("-249.7", "diverged"), ("0.000998", "stalled")])
+def test_a_run_plot_marks_a_diverged_estimate_as_diverged(v, what):
+    from types import SimpleNamespace
+
+    from glider_cosim.runner.provenance import marked_events
+
+    sim = SimpleNamespace(system=SimpleNamespace(parameters={}, events=[]))
+    msg = _stopped("observer", v).message
+
+    class Stop(Exception):
+        time, instance = 38.8, "observer"
+
+        def __str__(self):
+            return msg
+
+    (ev,) = marked_events(sim, "stopped", Stop())
+    assert ev == {"kind": "stall", "time_s": 38.8, "label": f"observer {what} (fmi2Discard)"}

@@ -29,6 +29,7 @@ an event last changed the controller):
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -121,6 +122,29 @@ def glide_metrics(
         in_band_s=o.in_band_s,
     )
     return out
+
+
+_SPEED_CHECK = re.compile(
+    r"(\w+): (?:observer estimate )?glider stalled: V = ([-+]?(?:nan|inf)|[-+0-9.eE]+) m/s"
+)
+#: the most negative speed [m/s] a stopped run's V may have for it to count as a stall
+#: (its speed fell to about zero, crossing the model's limit within one step); beyond it,
+#: or not finite, the state or estimate diverged
+STALL_FLOOR = -0.1
+
+
+def speed_stop(message: str) -> tuple[str, float, str] | None:
+    """What the models' speed check (V above their limit) says in an FMU's message:
+    ``(name, V, verb)``, ``name`` ``V`` (the plant) or ``V_hat`` (the observer's
+    estimate), ``V`` in m/s, ``verb`` ``stalls`` (V fell to about zero: above
+    :data:`STALL_FLOOR`) or ``diverges`` (beyond it, or not finite); None if the
+    message is not the speed check's."""
+    m = _SPEED_CHECK.search(message)
+    if not m:
+        return None
+    v = float(m.group(2))
+    verb = "stalls" if math.isfinite(v) and v > STALL_FLOOR else "diverges"
+    return ("V_hat" if m.group(1) == "observer" else "V"), v, verb
 
 
 def wrap_angle(angle: Any) -> Any:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..runner.metrics import describe_outcome
+from ..runner.metrics import describe_outcome, speed_stop
 from ..runner.run import RunResult, simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
@@ -148,35 +147,20 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
     return lines
 
 
-_STALL = re.compile(
-    r"(\w+): (?:observer estimate )?glider stalled: V = ([-+]?(?:nan|inf)|[-+0-9.eE]+) m/s"
-)
-
-
-#: the most negative speed [m/s] a stopped run's V may have for it to count as a stall
-#: (its speed fell to about zero, crossing the model's limit within one step); beyond it,
-#: or not finite, the state or estimate diverged
-STALL_FLOOR = -0.1
-
-
 def stall_of(r: RunResult) -> tuple[str, float, float] | None:
     """(variable, V, time) of the stall or divergence that stopped a run, from its
     message (the models' check, V above their limit, catches both)."""
-    m = _STALL.search(r.message or "")
-    if not m:
-        return None
-    name = "V_hat" if m.group(1) == "observer" else "V"
-    return name, float(m.group(2)), float(r.data[-1, 0])
+    found = speed_stop(r.message or "")
+    return None if found is None else (found[0], found[1], float(r.data[-1, 0]))
 
 
 def stop_reason(r: RunResult) -> str | None:
     """How a stopped run's speed ended, or None if it did not stop on it:
     ``V_hat stalls at 4.70 s (V_hat = -0.013 m/s)`` for a speed that fell to about zero
-    (above :data:`STALL_FLOOR`), ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``
-    otherwise."""
-    stall = stall_of(r)
-    if stall is None:
+    (:func:`glider_cosim.runner.metrics.speed_stop`), else
+    ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``."""
+    found = speed_stop(r.message or "")
+    if found is None:
         return None
-    name, v, t = stall
-    verb = "stalls" if math.isfinite(v) and v > STALL_FLOOR else "diverges"
-    return f"{name} {verb} at {t:.2f} s ({name} = {v:.2g} m/s)"
+    name, v, verb = found
+    return f"{name} {verb} at {float(r.data[-1, 0]):.2f} s ({name} = {v:.2g} m/s)"
