@@ -179,7 +179,8 @@ def build_report(
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
     options = {"--out": out, "--fmu-dir": fmu_dir,
                "--roa-grid": "none" if roa_grid is None else f"{roa_grid[0]}x{roa_grid[1]}",
-               **({"--scheduler": scheduler} if scheduler else {"--workers": workers}),
+               **({} if roa_grid is None else  # the map's cluster
+                  {"--scheduler": scheduler} if scheduler else {"--workers": workers}),
                "--no-plots": not page}  # fmt: skip
     every_run = [r for runs in results.values() for _, r in runs]
     every_run += [study["literal"], *(x.result for x in sec52)]
