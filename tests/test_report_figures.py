@@ -128,3 +128,20 @@ def test_pitch_with_noise_lists_the_measured_samples(tmp_path):
     assert _labels(below) == ["measured - true", "estimate - true"]
     for f in figs:
         plt.close(f)
+
+
+def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tmp_path):
+    from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52
+
+    t = np.linspace(0, 4, 201)
+    th = -0.4 + 0.05 * t
+    cols = {"plant.theta_meas": th, "plant.theta": th, "observer.theta_hat": th + 0.01}
+    runs = [Sec52Run(tail, 1.0, FakeRun(cols, status="stopped" if tail == TAILS_DEG[0] else "ok"),
+                     2.0, None, None, None, 0.0) for tail in TAILS_DEG]  # fmt: skip
+    plot_sec52(runs, tmp_path)
+    (f,) = kept
+    assert all(ax.get_legend() is None for ax in f.get_axes())
+    (legend,) = f.legends
+    assert [x.get_text() for x in legend.get_texts()] == [
+        "measured", "true", "estimated", "observer starts", "the run stops"]  # fmt: skip
+    assert f.get_axes()[0].get_title().endswith(": stops at 4.00 s")

@@ -19,7 +19,7 @@ def _bounded(r: RunResult) -> bool:
     return r.status == "ok" and r.metrics.get("outcome") != "diverging"
 
 
-def _mark_exits(
+def mark_exits(
     ax: Any, t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str, ms: float, **kw: Any
 ) -> int:
     """A triangle at the axes' edge wherever the curve ``y`` leaves ``[lo, hi]`` (every
@@ -90,7 +90,7 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
                 c = colour[run.label]
                 notes = []
                 if lim is not None:
-                    clipped |= _mark_exits(ax, t, y, lim[0], lim[1], c, 8, gid="clipped") > 0
+                    clipped |= mark_exits(ax, t, y, lim[0], lim[1], c, 8, gid="clipped") > 0
                 if r.status != "ok":
                     notes.append(f"stopped at {t[-1]:.1f} s")
                     y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
@@ -221,7 +221,7 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
                                    ("plant.theta", "pitch", 0.8)):  # fmt: skip
                 y = r.column(col) * DEG
                 top.plot(t, np.clip(y, lo, hi), color=colours[col], lw=lw, label=label)
-                _mark_exits(top, t, y, lo, hi, colours[col], 7, gid="clipped")
+                mark_exits(top, t, y, lo, hi, colours[col], 7, gid="clipped")
             th = r.metrics.get("theta_ge_rad")
             if th is not None:
                 top.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
