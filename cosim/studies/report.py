@@ -81,6 +81,7 @@ def report_provenance(
     import platform
 
     from ..fmus.files import package_version
+    from ..runner.provenance import scenario_sha256
 
     def seen(key: str) -> str:
         found = {f.get(key) or "?" for r in runs
@@ -94,11 +95,9 @@ def report_provenance(
         runs_per_map = roa_grid[0] * roa_grid[1]
         roa = (f"{roa_grid[0]} glide angles x {roa_grid[1]} speeds, {len(maps)} map(s) of "
                f"{runs_per_map} runs")  # fmt: skip
-    from ..runner.provenance import scenario_sha256
-
     scenarios = {"default": scenario_sha256(load_scenario(None))}  # the step study, K_c map
-    scenarios.update({c.scenario: scenario_sha256(load_scenario(c.scenario))
-                      for m in maps for c in (m.case,)})  # fmt: skip
+    scenarios.update({m.case.scenario: scenario_sha256(load_scenario(m.case.scenario))
+                      for m in maps})  # fmt: skip
     for r in runs:
         rec = r.metrics.get("run") or {}
         if rec.get("scenario") and rec.get("scenario_sha256"):
