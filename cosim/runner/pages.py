@@ -19,133 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from .figure_data import PageError, figure_spec
+
 #: the ``class`` of each figure's ``<div>`` in a page (a test counts them after load)
 FIGURE_CLASS = "glider-figure"
-#: matplotlib line styles -> bokeh dash patterns
-_DASH = {"-": "solid", "--": "dashed", "-.": "dashdot", ":": "dotted", "None": "solid"}
-
-
 #: matplotlib markers -> bokeh's
 _MARKERS = {"o": "circle", "D": "diamond", "X": "x", "x": "x", "^": "triangle",
-            "v": "inverted_triangle", "s": "square"}  # fmt: skip
-
-
-class PageError(ValueError):
-    """A figure that cannot be drawn as a page, or a page that cannot be written."""
-
-
-def _hex(color: Any, alpha: float | None = None) -> tuple[str, float]:
-    from matplotlib.colors import to_hex, to_rgba
-
-    rgba = to_rgba(color)
-    return to_hex(rgba[:3]), float(rgba[3] if alpha is None else alpha)
-
-
-def _label(artist: Any) -> str:
-    label = str(artist.get_label() or "")
-    return "" if label.startswith("_") else label
-
-
-def _line(ax: Any, line: Any) -> dict[str, Any] | None:
-    """One Line2D: a series in data coordinates, or an axvline/axhline across the axes."""
-    x = np.asarray(line.get_xdata(), dtype=float)
-    y = np.asarray(line.get_ydata(), dtype=float)
-    if not len(x) or not line.get_visible():
-        return None
-    tr = line.get_transform()
-    if tr == ax.get_xaxis_transform():  # axvline: x in data, y in axes fraction
-        x, y = np.array([x[0], x[0]]), np.array(ax.get_ylim(), dtype=float)
-    elif tr == ax.get_yaxis_transform():  # axhline
-        x, y = np.array(ax.get_xlim(), dtype=float), np.array([y[0], y[0]])
-    color, alpha = _hex(line.get_color(), line.get_alpha())
-    gid = line.get_gid() or ""
-    ls, marker = str(line.get_linestyle()), str(line.get_marker())
-    return {
-        "x": x,
-        "y": y,
-        "name": _label(line) or (gid.split(":", 1)[-1] if gid else ""),
-        "legend": bool(_label(line)),
-        "color": color,
-        "alpha": alpha,
-        "width": float(line.get_linewidth()),
-        "dash": _DASH.get(ls, "solid"),
-        "lines": ls not in ("None", "none", ""),
-        "marker": marker if marker not in ("None", "none", "", " ") else "",
-        "size": float(line.get_markersize()),
-        "step": str(line.get_drawstyle()).startswith("steps"),
-    }
-
-
-def _image(im: Any) -> dict[str, Any]:
-    arr = np.ma.masked_invalid(np.asarray(im.get_array(), dtype=float))
-    rgba = (im.to_rgba(arr, bytes=True)).astype(np.uint8)
-    x0, x1, y0, y1 = (float(v) for v in im.get_extent())
-    if im.origin == "upper":
-        rgba, arr = rgba[::-1], arr[::-1]
-        y0, y1 = y1, y0
-    return {"rgba": rgba, "value": arr.filled(np.nan), "x": min(x0, x1), "y": min(y0, y1),
-            "dw": abs(x1 - x0), "dh": abs(y1 - y0)}  # fmt: skip
-
-
-def figure_spec(fig: Any, title: str = "") -> dict[str, Any]:
-    """What a matplotlib figure draws, as plain data: ``{"title", "notes", "panels"}``.
-
-    Each panel is one axes: ``title``, ``xlabel``, ``ylabel``, ``xlim``, ``ylim``
-    (data units), ``inverted`` (y), ``log`` (y), ``row``/``col`` (its place, from its
-    position in the figure), ``lines`` (series, equilibrium and event lines; x and y in
-    the axes' data units), ``images`` and ``texts``; ``notes`` are the figure's legend
-    entries that are not lines (e.g. an image's colour key). Only visible axes count.
-    """
-    from matplotlib.lines import Line2D
-
-    supt = [t.get_text() for t in _suptitles(fig)]
-    axes = [ax for ax in fig.get_axes() if ax.get_visible() and ax.has_data()]
-    if not axes:
-        raise PageError(f"figure {title or supt!r}: no axes with data; expected plotted axes")
-    places = [_place(ax) for ax in axes]
-    rows = sorted({r for r, _ in places})
-    cols = sorted({c for _, c in places})
-    panels = []
-    for ax, (row, col) in zip(axes, places, strict=True):
-        lines = [s for s in (_line(ax, ln) for ln in ax.get_lines()) if s is not None]
-        panels.append({
-            "title": ax.get_title() or ax.get_title("left"),
-            "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
-            "xlim": [float(v) for v in sorted(ax.get_xlim())],
-            "ylim": [float(v) for v in sorted(ax.get_ylim())],
-            "inverted": bool(ax.yaxis_inverted()), "log": ax.get_yscale() == "log",
-            "row": rows.index(row), "col": cols.index(col),
-            "lines": lines, "images": [_image(im) for im in ax.get_images()],
-            "texts": [{"x": float(t.get_position()[0]), "y": float(t.get_position()[1]),
-                       "text": t.get_text()} for t in ax.texts
-                      if t.get_transform() == ax.transData and t.get_text()],
-        })  # fmt: skip
-    notes = []
-    for leg in list(fig.legends) + [ax.get_legend() for ax in axes if ax.get_legend()]:
-        for handle, text in zip(leg.legend_handles, leg.get_texts(), strict=False):
-            if not isinstance(handle, Line2D) and text.get_text():
-                notes.append(text.get_text())
-    first = next((p["title"] for p in panels if p["title"]), "")
-    return {"title": title or "\n".join(t for t in supt if t) or first, "notes": notes,
-            "panels": panels}  # fmt: skip
-
-
-def _place(ax: Any) -> tuple[tuple[int, int], int]:
-    """(row key, column) of an axes: its grid cell, rows of subfigures stacked in order."""
-    ss = ax.get_subplotspec()
-    if ss is None:
-        p = ax.get_position()
-        return (0, -round(p.y1 * 100)), round(p.x0 * 100)
-    parent, root = ax.get_figure(root=False), ax.get_figure(root=True)
-    subs = list(getattr(root, "subfigs", ()))
-    return (subs.index(parent) if parent in subs else 0, ss.rowspan.start), ss.colspan.start
-
-
-def _suptitles(fig: Any) -> list[Any]:
-    out = [fig._suptitle] if getattr(fig, "_suptitle", None) is not None else []
-    for sub in getattr(fig, "subfigs", ()):
-        out += _suptitles(sub)
-    return out
+            "v": "inverted_triangle", "s": "square", "*": "star"}  # fmt: skip
 
 
 def _panel(spec: dict[str, Any], x_range: Any, label_width: int) -> Any:
@@ -184,8 +64,10 @@ def _panel(spec: dict[str, Any], x_range: Any, label_width: int) -> Any:
                                 **extra, **common))  # fmt: skip
         if ln["marker"]:
             shape = _MARKERS.get(ln["marker"], "circle")
+            marks = {**common, "fill_color": ln["color"], "line_color": ln["edge"]}
+            del marks["color"]
             hovered.append(p.scatter("x", "y", marker=shape, size=max(ln["size"] * 1.5, 2.5),
-                                     **common))  # fmt: skip
+                                     **marks))  # fmt: skip
     if hovered:
         p.add_tools(HoverTool(renderers=hovered, tooltips=[("", "$name"),
                                                            (xl, "@x{0.[000]}"),
@@ -251,6 +133,7 @@ def _settings_html(settings: dict[str, Any]) -> str:
 _CSS = """body{font-family:sans-serif;margin:1em 2em;color:#222}
 h2{font-size:1.1em;margin:1.6em 0 .2em;white-space:pre-line}
 p.notes{color:#555;font-size:.85em;margin:.2em 0}
+span.key{display:inline-block;width:1.6em;height:.9em;margin-right:.3em;vertical-align:middle}
 table.settings{border-collapse:collapse;font-size:.85em}
 table.settings th{text-align:left;padding:2px 12px 2px 0;vertical-align:top}
 table.settings td{font-family:monospace;word-break:break-all}
@@ -290,7 +173,9 @@ def write_page(
     for spec, div in zip(figures, divs, strict=True):
         body.append(f"<h2>{html.escape(spec['title'])}</h2>")
         if spec["notes"]:
-            body.append(f"<p class='notes'>{html.escape('; '.join(spec['notes']))}</p>")
+            keys = [(f"<span class='key' style='background:{n['color']}'></span>" if n["color"]
+                     else "") + html.escape(n["text"]) for n in spec["notes"]]  # fmt: skip
+            body.append(f"<p class='notes'>{' &nbsp; '.join(keys)}</p>")
         body.append(f"<div class='{FIGURE_CLASS}'>{div}</div>")
     data = json.dumps(settings, default=str).replace("</", "<\\/")
     js = Resources(mode="inline", components=["bokeh"]).render_js()  # bokeh.min.js alone

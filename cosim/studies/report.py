@@ -173,7 +173,6 @@ def build_report(
             client.close()
             if not scheduler and client.cluster is not None:
                 client.cluster.close()
-        roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
     options = {"--out": out, "--fmu-dir": fmu_dir,
@@ -189,6 +188,8 @@ def build_report(
             fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
         pngs["steps"] = plot_steps(study, out)
         pngs["fig8"] = plot_sec52(sec52, out)
+        if maps:
+            roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
         if page:
             settings = {"How this report was made": made, **report_settings(results)}
             write_report_page(out, figures, settings)

@@ -160,6 +160,17 @@ def _exceptions(mp: RoaMap, limit: int = 6) -> str:
     return "; ".join(items[:limit]) + more
 
 
+def _cell_edges(mp: RoaMap) -> tuple[float, float, float, float]:
+    """The image extent (V_0 [m/s], theta_g_0 [deg]) whose cells are centred on the grid
+    points (the grid is uniform: :func:`run_roa`'s linspace)."""
+
+    def edges(v: np.ndarray) -> tuple[float, float]:
+        half = (v[-1] - v[0]) / (len(v) - 1) / 2 if len(v) > 1 else 0.5 * max(abs(v[0]), 1.0)
+        return float(v[0] - half), float(v[-1] + half)
+
+    return (*edges(mp.V0), *edges(mp.theta_g0 * DEG))
+
+
 def plot_roa(maps: list[RoaMap], out: Path) -> Path:
     """One panel per case: the outcome of each start, the equilibrium (star) and the
     Sec. 3.3 start (circle)."""
@@ -178,8 +189,9 @@ def plot_roa(maps: list[RoaMap], out: Path) -> Path:
         code = np.vectorize(lambda o: CATEGORIES.index(o) if o in CATEGORIES else np.nan)(
             mp.outcome
         ).astype(float)
-        ax.pcolormesh(mp.V0, mp.theta_g0 * DEG, code, cmap=cmap, vmin=-0.5,
-                      vmax=len(CATEGORIES) - 0.5, shading="nearest")  # fmt: skip
+        im = ax.imshow(code, cmap=cmap, vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="lower",
+                       aspect="auto", interpolation="nearest", extent=_cell_edges(mp))  # fmt: skip
+        im.value_names = CATEGORIES  # report.html's hover names the outcome, not its code
         ax.plot(e.V, e.theta_g * DEG, marker="*", color="w", mec="k", ms=14, ls="none")
         ax.plot(0.2, -35.0, marker="o", color="w", mec="k", ms=7, ls="none")
         ax.set_title(f"{mp.case.label}\n{mp.stop_time:g} s runs", fontsize=9)

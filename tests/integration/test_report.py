@@ -190,8 +190,10 @@ def test_report_html_renders_every_figure(report):
         pytest.skip("needs Debian's chromium (.ci/run installs it)")
     found = load(page)
     assert found["errors"] == [] and found["console"] == [] and found["fetched"] == []
-    # every figure of report.md but the region-of-attraction map
-    assert len(found["figures"]) == len(FIGURES) + 2 and all(n >= 1 for n in found["figures"])
+    # every figure of report.md, the region-of-attraction map (one panel per case) last
+    assert len(found["figures"]) == len(FIGURES) + 3 and all(n >= 1 for n in found["figures"])
+    assert found["figures"][-1] >= 3
+    assert "<h2>Region of attraction" in text and "span class='key'" in text
     assert "fig2-closed-loop: " in text or FIGURES[0].key in text
 
 
