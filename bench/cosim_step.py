@@ -21,7 +21,7 @@ from _common import emit
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
-from glider_cosim.runner.parquet import ParquetRecorder
+from glider_cosim.runner.parquet import ParquetFormatError, ParquetRecorder, require_pyarrow
 from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
@@ -134,6 +134,21 @@ def libcosim_step_seconds(fmu_dir: Path, out: Path) -> float:
     return float(p.stdout.strip().splitlines()[-1])
 
 
+def parquet_seconds_per_step(fmu_dir: Path, out: Path, repeat: int) -> float | None:
+    """:func:`run_seconds_per_step` recording to Parquet; None (with a note on stderr)
+    where pyarrow is not installed."""
+    try:
+        require_pyarrow()
+    except ParquetFormatError:
+        print(
+            "note: native_parquet_us_per_macro_step skipped: pyarrow is not installed "
+            "(pip install 'glider-cosim[parquet]')",
+            file=sys.stderr,
+        )
+        return None
+    return run_seconds_per_step(fmu_dir, lambda: ParquetRecorder(out / "native.parquet"), repeat)
+
+
 def cold_run_seconds(fmu_dir: Path, out: Path) -> float:
     t0 = time.perf_counter()
     subprocess.run(
@@ -167,15 +182,15 @@ def main() -> None:
         native_csv = run_seconds_per_step(
             native_dir, lambda: CsvRecorder(out / "native.csv"), args.repeat * 3
         )
-        native_parquet = run_seconds_per_step(
-            native_dir, lambda: ParquetRecorder(out / "native.parquet"), args.repeat * 3
-        )
+        native_parquet = parquet_seconds_per_step(native_dir, out, args.repeat * 3)
         python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
         csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
     result = {
         "native_us_per_macro_step": round(native_mem * 1e6, 2),
         "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
-        "native_parquet_us_per_macro_step": round(native_parquet * 1e6, 2),
+        "native_parquet_us_per_macro_step": (
+            None if native_parquet is None else round(native_parquet * 1e6, 2)
+        ),
         "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
         "csv_us_per_row": round(csv_row * 1e6, 2),
         "csv_us_per_value": round(csv_row * 1e6 / 17, 3),

@@ -326,5 +326,10 @@ def dispatch(args: argparse.Namespace) -> int:
         if args.export:
             _check_out_dir(Path(args.export), "verify --export")
         return run_command(args)
+    if args.command == "cache":
+        from ..fmus.cache import cache_report
+
+        cache_report(args.prune)
+        return 0
     print("\n".join(shipped_scenarios()))
     return 0

@@ -243,4 +243,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_verify_arguments(v, tolerance_arg)
     sub.add_parser("scenarios", help="list the shipped scenarios")
+    ca = sub.add_parser(
+        "cache",
+        help="list the cached FMU sets with their sizes",
+        description="List the per-user cache of built FMUs ($GLIDER_COSIM_CACHE, else\n"
+        "$XDG_CACHE_HOME/glider-cosim or the platform's cache folder) with sizes.",
+    )
+    ca.add_argument(
+        "--prune",
+        action="store_true",
+        help="remove the folders of other glider-cosim versions (this version's sets of "
+        "other sources are kept)",
+    )
     return p

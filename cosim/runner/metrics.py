@@ -23,11 +23,13 @@ an event last changed the controller):
   rate, > 0 grows) and ``outcome_window_s`` (the examined end of the run, s).
 - ``control_effort``: integral of ``|delta_cmd|`` dt over the run, rad s (held values).
 - ``max_abs_delta_cmd_rad``: largest ``|delta_cmd|``.
+- ``V_e_m_s``: the speed of that glide (m/s), which ``speed.png`` marks.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -122,6 +124,35 @@ def glide_metrics(
     return out
 
 
+_SPEED_CHECK = re.compile(
+    r"(\w+): (?:observer estimate )?glider stalled: V = ([-+]?(?:nan|inf)|[-+0-9.eE]+) m/s"
+)
+#: the most negative speed [m/s] a stopped run's V may have for it to count as a stall
+#: (its speed fell to about zero, crossing the model's limit within one step); beyond it,
+#: or not finite, the state or estimate diverged
+STALL_FLOOR = -0.1
+
+
+def speed_stop(message: str) -> tuple[str, float, str] | None:
+    """What the models' speed check (V above their limit) says in an FMU's message:
+    ``(name, V, verb)``, ``name`` ``V`` (the plant) or ``V_hat`` (the observer's
+    estimate), ``V`` in m/s, ``verb`` ``stalls`` (V fell to about zero: above
+    :data:`STALL_FLOOR`) or ``diverges`` (beyond it, or not finite); None if the
+    message is not the speed check's."""
+    m = _SPEED_CHECK.search(message)
+    if not m:
+        return None
+    v = float(m.group(2))
+    verb = "stalls" if math.isfinite(v) and v > STALL_FLOOR else "diverges"
+    return ("V_hat" if m.group(1) == "observer" else "V"), v, verb
+
+
+def wrap_angle(angle: Any) -> Any:
+    """``angle`` [rad] wrapped to (-pi, pi] (an array stays an array): an estimate one
+    turn from the truth is no error."""
+    return math.pi - np.mod(math.pi - np.asarray(angle, dtype=float), 2 * math.pi)
+
+
 def reference_glide_angle(
     p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
 ) -> float:
@@ -129,13 +160,23 @@ def reference_glide_angle(
     passivity, P and PI laws (they drive the tail to 0 there); for the open-loop law
     (after the events) the steady glide with its tail ``delta_open`` held
     (:func:`glider_cosim.runner.heldtail.held_glide`)."""
+    return reference_glide(p, controller, events)[0]
+
+
+def reference_glide(
+    p: GliderParams, controller: dict[str, Any], events: Sequence[Any] = ()
+) -> tuple[float, float]:
+    """The glide the loop should reach (:func:`reference_glide_angle`): its glide angle
+    [rad] and speed [m/s]."""
     law, delta_open = controller.get("law", 1), controller.get("delta_open", 0.0)
     for ev in events:
         law = ev.actions.get("controller.law", law)
         delta_open = ev.actions.get("controller.delta_open", delta_open)
     if int(law) != 0 or delta_open == 0.0:
-        return equilibrium(p).theta_g
-    return held_glide(p, p.K_udelta * float(delta_open)).theta_g
+        eq = equilibrium(p)
+        return eq.theta_g, eq.V
+    held = held_glide(p, p.K_udelta * float(delta_open))
+    return held.theta_g, held.V
 
 
 def compute_metrics(
@@ -156,16 +197,18 @@ def compute_metrics(
     p = GliderParams.from_mapping(sim.system.parameters.get("plant", {}))
     ctrl = sim.system.parameters.get("controller", {})
     t_on = takeover_time(ctrl, sim.system.events)
+    theta_ge, v_e = reference_glide(p, ctrl, sim.system.events)
     metrics.update(
         glide_metrics(
             data[:, 0],
             data[:, list(columns).index("plant.theta_g")],
             data[:, list(columns).index("controller.delta_cmd")],
-            reference_glide_angle(p, ctrl, sim.system.events),
+            theta_ge,
             t_on,
             completed=status == "ok",
         )
     )
+    metrics["V_e_m_s"] = v_e
     return metrics
 
 

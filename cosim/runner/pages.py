@@ -123,8 +123,9 @@ def _settings_html(settings: dict[str, Any]) -> str:
     """A table; for many runs (a report), one collapsed block per run."""
     nested = all(isinstance(v, dict) for v in settings.values())
     if nested:
-        blocks = [
-            f"<details><summary>{html.escape(str(k))}: {html.escape(_text(v.get('status', '')))}"
+        blocks = [  # a block without a status (how a report was made) starts open
+            f"<details{'' if 'status' in v else ' open'}><summary>{html.escape(str(k))}"
+            f"{': ' + html.escape(_text(v['status'])) if 'status' in v else ''}"
             f"</summary>{_settings_html(v)}</details>"
             for k, v in settings.items()
         ]

@@ -104,16 +104,19 @@ def _pitch(result: Any, out: Path) -> Path:
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 5.2), sharex=True, layout="constrained",
                                   height_ratios=(2, 1))  # fmt: skip
     std = float(result.scenario.parameters.get("plant", {}).get("noise_std", 0.0)) * _DEG
-    if meas is not None:
+    # without noise the measurement is the true pitch: one series, named both ways
+    same = meas is not None and true is not None and np.array_equal(meas, true)
+    if meas is not None and not same:
         ax.plot(t, meas, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray", zorder=1,
                 label=f"measured (samples, noise std {std:.2g} deg)")  # fmt: skip
     if true is not None:  # drawn over the measured samples
-        ax.plot(t, true, lw=1.6, color="tab:blue", zorder=3, label="true")
+        ax.plot(t, true, lw=1.6, color="tab:blue", zorder=3,
+                label="true = measured (noise std 0 deg)" if same else "true")  # fmt: skip
     if est is not None:
         ax.plot(t, est, lw=1.0, ls="--", color="tab:orange", zorder=3.5, label="estimate")
     # below: differences to the true pitch, or to the measured one without it
     ref, ref_name = (true, "true") if true is not None else (meas, "measured")
-    if meas is not None and true is not None:
+    if meas is not None and true is not None and not same:
         ax2.plot(t, meas - true, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray",
                  zorder=1, label="measured - true")  # fmt: skip
     if est is not None:
@@ -164,6 +167,8 @@ def _speed(result: Any, out: Path) -> Path:
     ax.plot(t, result.column("plant.V"), lw=1.4, label="true")
     if "observer.V_hat" in result.columns:
         ax.plot(t, result.column("observer.V_hat"), lw=1.0, ls="--", label="estimate")
+    if result.metrics.get("V_e_m_s") is not None:  # as glide_angle.png marks theta_ge
+        ax.axhline(result.metrics["V_e_m_s"], color="k", ls=":", lw=0.8, label="equilibrium")
     ax.set(title=_title(result, "Speed"), xlabel="time [s]", ylabel="V [m/s]")
     mark_events([ax], _events(result))
     ax.grid(alpha=0.3)

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..fmus.files import package_version
+from .metrics import speed_stop
 
 #: files a run writes into its folder (removed before a run into the same folder)
 OWNED = (
@@ -220,7 +221,9 @@ def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, An
         t = getattr(error, "time", None)
         text = str(error)
         kind = "error" if status == "error" else ("stall" if "stall" in text else "discard")
-        what = {"stall": "stalled (fmi2Discard)", "discard": "fmi2Discard",
+        speed = speed_stop(text)  # a speed that fell to zero, or one that diverged
+        verb = "diverged" if speed and speed[2] == "diverges" else "stalled"
+        what = {"stall": f"{verb} (fmi2Discard)", "discard": "fmi2Discard",
                 "error": "fmi2Error"}[kind]  # fmt: skip
         if t is not None and math.isfinite(float(t)):
             out.append({"kind": kind, "time_s": float(t),

@@ -8,11 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ..runner.metrics import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
 
 DEG = 180.0 / math.pi
+__all__ = ["DEG", "FIGURES", "Figure", "Run", "estimation_error", "fmt", "passivity_gain",
+           "wrap_angle"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -57,8 +60,8 @@ FIGURES: tuple[Figure, ...] = (
         by_group=True, share_y=False,
     ),
     Figure(
-        "fig5-6", "Figs. 5-6: observer under measurement noise R = 0.1 (full-state "
-        "feedback; the observer runs in parallel, not in the loop)",
+        "fig5-6", "Figs. 5-6: observer under noise R = 0.1 (full-state feedback; the "
+        "observer in parallel, not in the loop)",
         (Run("K_c = 10", "fig5-6-observer-noise"),
          Run("K_c = 2 (paper)", "fig5-6-observer-noise", {"controller.K_c": 2.0})),
         (("plant.theta_meas", "measured pitch [deg] (Fig. 5)"),
@@ -99,14 +102,15 @@ def fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
 
 
 def estimation_error(r: RunResult) -> tuple[float, float, float, float] | None:
-    """RMS and max |theta_g_hat - theta_g| [rad] over the second half of the recorded run
-    (after the observer's initial transient), and that window's start and end [s]; None
-    without an observer."""
+    """RMS and max |theta_g_hat - theta_g| [rad], the difference wrapped to (-pi, pi]
+    (:func:`wrap_angle`), over the second half of the recorded run (after the
+    observer's initial transient), and that window's start and end [s]; None without an
+    observer."""
     if "observer.theta_g_hat" not in r.columns or len(r.data) < 2:
         return None
     t = r.data[:, 0]
     i0 = int(np.searchsorted(t, 0.5 * (t[0] + t[-1])))
-    err = (r.column("observer.theta_g_hat") - r.column("plant.theta_g"))[i0:]
+    err = wrap_angle(r.column("observer.theta_g_hat") - r.column("plant.theta_g"))[i0:]
     return float(np.sqrt(np.mean(err**2))), float(np.max(np.abs(err))), float(t[i0]), float(t[-1])
 
 

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..runner.metrics import describe_outcome
+from ..runner.metrics import describe_outcome, speed_stop
 from ..runner.run import RunResult, simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
@@ -51,9 +50,10 @@ def kc_cell(r: RunResult) -> str:
     if m.get("outcome") == "settled":
         return f"settled in {m['settling_time_s']:.2f} s"
     if r.status != "ok":
-        stall = stall_of(r)
-        if stall:
-            return f"stops at {stall[2]:.2f} s ({stall[0]} stalls)"
+        reason = stop_reason(r)
+        if reason:
+            name, verb = reason.split()[:2]
+            return f"stops at {r.data[-1, 0]:.2f} s ({name} {verb})"
         return f"stops at {r.data[-1, 0]:.2f} s"
     return describe_outcome(m, brief=True)
 
@@ -147,13 +147,20 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
     return lines
 
 
-_STALL = re.compile(r"(\w+): (?:observer estimate )?glider stalled: V = ([-+0-9.eE]+) m/s")
-
-
 def stall_of(r: RunResult) -> tuple[str, float, float] | None:
-    """(variable, V, time) of the stall that stopped a run, from its message."""
-    m = _STALL.search(r.message or "")
-    if not m:
+    """(variable, V, time) of the stall or divergence that stopped a run, from its
+    message (the models' check, V above their limit, catches both)."""
+    found = speed_stop(r.message or "")
+    return None if found is None else (found[0], found[1], float(r.data[-1, 0]))
+
+
+def stop_reason(r: RunResult) -> str | None:
+    """How a stopped run's speed ended, or None if it did not stop on it:
+    ``V_hat stalls at 4.70 s (V_hat = -0.013 m/s)`` for a speed that fell to about zero
+    (:func:`glider_cosim.runner.metrics.speed_stop`), else
+    ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``."""
+    found = speed_stop(r.message or "")
+    if found is None:
         return None
-    name = "V_hat" if m.group(1) == "observer" else "V"
-    return name, float(m.group(2)), float(r.data[-1, 0])
+    name, v, verb = found
+    return f"{name} {verb} at {float(r.data[-1, 0]):.2f} s ({name} = {v:.2g} m/s)"

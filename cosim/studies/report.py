@@ -26,7 +26,7 @@ from ..scenarios.scenario import load_scenario
 from .figures import FIGURES, Run
 from .kc_map import kc_map
 from .report_plots import plot_figure, plot_sec53, plot_steps
-from .report_text import report_markdown
+from .report_text import provenance_markdown, report_markdown
 from .sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
 
 
@@ -66,6 +66,51 @@ def report_settings(results: dict[str, list[tuple[Run, RunResult]]]) -> dict[str
     """What report.html records: each figure run's settings, as its metrics.json would."""
     return {f"{key}: {run.label}": run_settings(r.metrics) for key, runs in results.items()
             for run, r in runs}  # fmt: skip
+
+
+def report_provenance(
+    runs: list[RunResult],
+    options: dict[str, Any],
+    roa_grid: tuple[int, int] | None,
+    maps: list[Any],
+) -> dict[str, Any]:
+    """How a report was made: its options (as ``glider-cosim report`` takes them), the
+    region-of-attraction grid or that it was skipped, the FMUs' flavor and FMI version
+    (as the runs' FMUs record them), the package and Python versions and the SHA-256 of
+    every scenario run (``metrics.json``'s ``run.scenario_sha256``)."""
+    import platform
+
+    from ..fmus.files import package_version
+    from ..runner.provenance import scenario_sha256
+
+    def seen(key: str) -> str:
+        found = {f.get(key) or "?" for r in runs
+                 for f in ((r.metrics.get("run") or {}).get("fmus") or {}).values()}  # fmt: skip
+        return ", ".join(sorted(found)) or "?"
+
+    words = " ".join(k if v is True else f"{k} {v}" for k, v in options.items() if v is not False)
+    if roa_grid is None:
+        roa = "skipped (--roa-grid none)"
+    else:
+        runs_per_map = roa_grid[0] * roa_grid[1]
+        roa = (f"{roa_grid[0]} glide angles x {roa_grid[1]} speeds, {len(maps)} map(s) of "
+               f"{runs_per_map} runs")  # fmt: skip
+    scenarios = {"default": scenario_sha256(load_scenario(None))}  # the step study, K_c map
+    scenarios.update({m.case.scenario: scenario_sha256(load_scenario(m.case.scenario))
+                      for m in maps})  # fmt: skip
+    for r in runs:
+        rec = r.metrics.get("run") or {}
+        if rec.get("scenario") and rec.get("scenario_sha256"):
+            scenarios.setdefault(rec["scenario"], rec["scenario_sha256"])
+    return {
+        "command": f"glider-cosim report {words}".strip(),
+        "region of attraction": roa,
+        "flavor": seen("flavor"),
+        "FMI version": seen("fmi_version"),
+        "package version": f"glider-cosim {package_version()}",
+        "Python": platform.python_version(),
+        "scenarios": dict(sorted(scenarios.items())),
+    }
 
 
 def build_report(
@@ -130,6 +175,14 @@ def build_report(
                 client.cluster.close()
     if bar:
         bar.step("region of attraction" if maps else "region of attraction (skipped)")
+    options = {"--out": out, "--fmu-dir": fmu_dir,
+               "--roa-grid": "none" if roa_grid is None else f"{roa_grid[0]}x{roa_grid[1]}",
+               **({} if roa_grid is None else  # the map's cluster
+                  {"--scheduler": scheduler} if scheduler else {"--workers": workers}),
+               "--no-plots": not page}  # fmt: skip
+    every_run = [r for runs in results.values() for _, r in runs]
+    every_run += [study["literal"], *(x.result for x in sec52)]
+    made = report_provenance(every_run, options, roa_grid, maps)
     with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
         pngs = {fig.key: (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
             fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
@@ -138,11 +191,14 @@ def build_report(
         if maps:
             roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
         if page:
-            write_report_page(out, figures, report_settings(results))
+            settings = {"How this report was made": made, **report_settings(results)}
+            write_report_page(out, figures, settings)
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
+    text += "\n" + "\n".join(provenance_markdown(made))
     (out / "report.md").write_text(text)
     summary = {
+        "made": made,
         "metrics": {
             f"{k}: {run.label}": {kk: vv for kk, vv in r.metrics.items() if kk != "message"}
             for k, runs in results.items()

@@ -19,6 +19,39 @@ def _bounded(r: RunResult) -> bool:
     return r.status == "ok" and r.metrics.get("outcome") != "diverging"
 
 
+def mark_exits(
+    ax: Any, t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str, ms: float, **kw: Any
+) -> int:
+    """A triangle at the axes' edge wherever the curve ``y`` leaves ``[lo, hi]`` (every
+    exit, not only the first: at each sample outside whose predecessor is inside or on
+    the other side); the number of exits."""
+    side = np.where(y > hi, 1, np.where(y < lo, -1, 0))
+    prev = np.r_[0, side[:-1]]
+    exits = np.nonzero((side != 0) & (side != prev))[0]
+    for k in exits:
+        above = side[k] > 0
+        ax.plot(t[k], hi if above else lo, marker="^" if above else "v", color=colour, ms=ms,
+                ls="none", clip_on=False, zorder=5, **kw)  # fmt: skip
+    return len(exits)
+
+
+def _keys(clipped: bool, stopped: bool, marked: bool) -> list[Any]:
+    """Legend entries for the marks a figure uses (proxy artists)."""
+    from matplotlib.lines import Line2D
+
+    keys = []
+    if clipped:
+        keys.append(Line2D([], [], marker="^", ls="none", color="0.3", ms=7,
+                           label="leaves the axes (clipped there)"))  # fmt: skip
+    if stopped:
+        keys.append(Line2D([], [], marker="x", ls="none", color="0.3", ms=7, mew=2,
+                           label="the run stops (V or V_hat stalls or diverges)"))  # fmt: skip
+    if marked:
+        keys.append(Line2D([], [], ls="-.", color="0.3", lw=0.8,
+                           label="the controller takes over"))  # fmt: skip
+    return keys
+
+
 def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
     """One panel per (column, group); y-limits of a row from the runs that stay bounded
     (shared by the row's panels); a run leaving them is clipped and marked (a triangle
@@ -57,12 +90,7 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
                 c = colour[run.label]
                 notes = []
                 if lim is not None:
-                    out_of = np.nonzero((y < lim[0]) | (y > lim[1]))[0]
-                    if len(out_of):
-                        k = out_of[0]
-                        above = y[k] > lim[1]
-                        ax.plot(t[k], lim[1] if above else lim[0], marker="^" if above else "v",
-                                color=c, ms=8, clip_on=False, zorder=5)  # fmt: skip
+                    clipped |= mark_exits(ax, t, y, lim[0], lim[1], c, 8, gid="clipped") > 0
                 if r.status != "ok":
                     notes.append(f"stopped at {t[-1]:.1f} s")
                     y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
@@ -75,38 +103,36 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
                         marked = True
                 label = run.label + (f" ({'; '.join(notes)})" if notes else "")
                 ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
-                clipped |= lim is not None and bool(np.any((y < lim[0]) | (y > lim[1])))
                 stopped |= r.status != "ok"
             if lim is not None:
                 ax.set_ylim(*lim)
             if col in ("plant.theta_g", "observer.theta_g_hat"):
                 th = next((r.metrics.get("theta_ge_rad") for _, r in results), None)
                 if th is not None:
-                    ax.axhline(th * DEG, color="k", ls=":", lw=0.8,
-                               label="equilibrium" if i == 0 else None)  # fmt: skip
+                    ax.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
             ax.grid(alpha=0.3)
             if j == 0:
                 ax.set_ylabel(ylabel, fontsize=8)
             if i == 0 and fig.by_group:
                 ax.set_title(g, fontsize=9)
-            if i == 0 and not fig.by_group:
-                ax.legend(fontsize=7, loc="best")
             if i == nrow - 1:
                 ax.set_xlabel("time [s]")
+    keys = _keys(clipped, stopped, marked)
     if fig.by_group:  # legends under each column, out of the curves' way
         for j in range(ncol):
             h, lab = axes[0, j].get_legend_handles_labels()
+            h += keys
+            lab += [k.get_label() for k in keys]
             axes[-1, j].legend(h, lab, fontsize=7, loc="upper center", ncol=1,
                                bbox_to_anchor=(0.5, -0.28))  # fmt: skip
-    keys = []
-    if clipped:
-        keys.append("triangle: the run leaves the axes (clipped there)")
-    if stopped:
-        keys.append("cross: the run stops (stall)")
-    if marked:
-        keys.append("dash-dot: the controller takes over")
-    title = "\n".join(textwrap.wrap(fig.title, int(width * 11)))
-    f.suptitle(title + (f"\n{'; '.join(keys)}" if keys else ""), fontsize=10)
+    else:  # one legend under the panels: the runs, the equilibrium and the marks
+        found = {}
+        for ax in axes[:, 0]:
+            found.update(zip(*reversed(ax.get_legend_handles_labels()), strict=True))
+        found.update({k.get_label(): k for k in keys})
+        f.legend(list(found.values()), list(found), loc="outside lower center",
+                 ncol=min(len(found), 3), fontsize=7)  # fmt: skip
+    f.suptitle("\n".join(textwrap.wrap(fig.title, int(width * 13))), fontsize=10)
     path = out / f"{fig.key}.png"
     f.savefig(path, dpi=100)
     plt.close(f)
@@ -195,13 +221,7 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
                                    ("plant.theta", "pitch", 0.8)):  # fmt: skip
                 y = r.column(col) * DEG
                 top.plot(t, np.clip(y, lo, hi), color=colours[col], lw=lw, label=label)
-                out_of = np.nonzero((y < lo) | (y > hi))[0]
-                if len(out_of):
-                    k = out_of[0]
-                    above = y[k] > hi
-                    top.plot(t[k], hi if above else lo, marker="^" if above else "v",
-                             color=colours[col], ms=7, clip_on=False, zorder=5,
-                             gid="clipped")  # fmt: skip
+                mark_exits(top, t, y, lo, hi, colours[col], 7, gid="clipped")
             th = r.metrics.get("theta_ge_rad")
             if th is not None:
                 top.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
@@ -228,22 +248,23 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
                 y_end = float(np.clip(r.column("plant.theta_g")[-1] * DEG, lo, hi))
                 top.plot(t[-1], y_end, marker="x", color="r", ms=9, mew=2, clip_on=False,
                          zorder=6, gid="event:stop", label="stop")  # fmt: skip
-                bottom.axvline(t[-1], color="r", lw=0.8, gid="event:stop")
+                bottom.axvline(t[-1], color="r", lw=0.8, gid="event:stop",
+                               label="stop (tail panel)")  # fmt: skip
             if j == 0:
                 top.set_ylabel("angle [deg]", fontsize=8)
                 bottom.set_ylabel("tail cmd [deg]", fontsize=8)
             if gi == len(groups) - 1:
                 bottom.set_xlabel("time [s]")
-            if gi == 0 and j == 0:
-                handles = dict(zip(*reversed(top.get_legend_handles_labels()), strict=False))
-            elif r.status != "ok" and "stop" not in handles:
-                handles.update(zip(*reversed(top.get_legend_handles_labels()), strict=False))
+            for ax in (top, bottom):  # every label once, the first panel's first
+                for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                    handles.setdefault(lab, h)
     f.legend(list(handles.values()), list(handles.keys()), loc="outside lower center",
              ncol=len(handles), fontsize=8)  # fmt: skip
     f.suptitle(
         fig.title + f"\nfrom t = {start:g} s (before the takeover every run is the same 2 deg "
         "hold); dash-dot: the controller takes over at 1 m depth;\ntriangle: the curve leaves "
-        "the axes (clipped there); cross: the run stops (stall)",
+        "the axes (clipped there); cross and red line: the run stops (V or V_hat stalls or "
+        "diverges)",
         fontsize=10,
     )
     path = out / f"{fig.key}.png"

@@ -13,8 +13,8 @@ from ..runner.metrics import describe_outcome
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
-from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
-from .kc_map import kc_map_markdown, stall_of
+from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain, wrap_angle
+from .kc_map import kc_map_markdown, stop_reason
 
 
 def _metrics_row(label: str, r: RunResult) -> str:
@@ -47,8 +47,8 @@ def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> s
         "- outcome (limit cycle amplitude and period, growth rate): the last third of the",
         "  run after the takeover, at least 10 s;",
         "- effort (integral of |delta_cmd| dt) and peak tail (max |delta_cmd|): the whole run;",
-        "- estimation error (RMS / max of theta_g_hat - theta_g): the second half of the",
-        "  recorded run, after the observer's initial transient.",
+        "- estimation error (RMS / max of theta_g_hat - theta_g, wrapped to (-180, 180]",
+        "  deg): the second half of the recorded run, after the observer's initial transient.",
         "",
     ]
     header = ("| run | status | outcome | rise [s] | overshoot [deg] | overshoot [%] | "
@@ -245,13 +245,19 @@ def _agreement_section(results, an, study) -> list[str]:
     paper = [(k, r) for k, r in s53.items() if "(ours)" not in k]
     bad = [(k, r) for k, r in paper if r.metrics.get("outcome") != "settled"]
     if bad:
-        ends = [r.data[-1, 0] for _, r in bad if r.status != "ok"]
-        stall = (
-            f"; {len(ends)} of them stop when a state or its estimate stalls (V below the "
-            f"model's limit), between t = {min(ends):.1f} and {max(ends):.1f} s"
-            if ends
-            else ""
-        )
+        stops = {}
+        for _, r in bad:
+            reason = stop_reason(r)
+            if reason:
+                stops.setdefault(reason.split()[1], []).append(float(r.data[-1, 0]))
+        stall = "".join(
+            f"; {len(ends)} of them {'stops' if len(ends) == 1 else 'stop'} when the speed "
+            f"or its estimate {what}"
+            f"{' (falls to zero)' if what == 'stalls' else ' (leaves every physical value)'}"
+            + (f", at t = {ends[0]:.1f} s" if len(ends) == 1
+               else f", between t = {min(ends):.1f} and {max(ends):.1f} s")
+            for what, ends in sorted(stops.items(), reverse=True)
+        )  # fmt: skip
         lines.append(
             f"- **Disagreement**: {len(bad)} of the paper's {len(paper)} Sec. 5.3 gains ("
             + "; ".join(k for k, _ in bad)
@@ -290,6 +296,15 @@ def _law_and_gains(sc: Scenario) -> str:
     return "open-loop law"
 
 
+def _swing(err: np.ndarray, overshoot: float | None) -> str:
+    """What the glide angle did against the equilibrium: the overshoot past it (the
+    metrics' ``overshoot_rad``), else its largest distance from it (``err`` [rad])."""
+    if overshoot is not None and math.isfinite(overshoot) and overshoot > 0:
+        return f"swings up to {overshoot * DEG:.2f} deg past the equilibrium"
+    return (f"does not pass the equilibrium (largest distance from it "
+            f"{np.max(np.abs(err)) * DEG:.2f} deg)")  # fmt: skip
+
+
 def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> str | None:
     """One line with the numbers for a run that does not settle (the paper's runs all
     converge), else None: why (the linear limit, or the gain against ours), what the run
@@ -318,7 +333,7 @@ def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> s
     after = t >= t0
     th_e = m.get("theta_ge_rad")
     if th_e is not None and "plant.theta_g" in r.columns and after.any():
-        err = np.angle(np.exp(1j * (r.column("plant.theta_g")[after] - th_e)))
+        err = wrap_angle(r.column("plant.theta_g")[after] - th_e)
         dmax = float(sc.parameters.get("controller", {}).get("delta_max", math.pi / 2))
         sat = np.abs(r.column("controller.delta_cmd")[after]) >= 0.999 * dmax
         where = f"after the takeover at {t0:.1f} s" if t0 > 0 else "from the start"
@@ -329,14 +344,36 @@ def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> s
             else ""
         )
         parts.append(
-            f"{where} the glide angle swings up to {np.max(np.abs(err)) * DEG:.1f} deg from "
-            f"the equilibrium and the tail command up to {tail:.1f} deg{limit}"
+            f"{where} the glide angle {_swing(err, m.get('overshoot_rad'))} and the tail "
+            f"command reaches {tail:.1f} deg{limit}"
         )
-    stall = stall_of(r)
-    if stall:
-        parts.append(f"{stall[0]} stalls at {stall[2]:.2f} s ({stall[0]} = {stall[1]:.2g} m/s)")
+    reason = stop_reason(r)
+    if reason:
+        parts.append(reason)
     elif r.status != "ok":
         parts.append(f"the run stops at {t[-1]:.2f} s ({r.message})")
     else:
         parts.append(describe_outcome(m))
     return "**disagrees** with the paper, whose run with these gains settles: " + "; ".join(parts)
+
+
+def provenance_markdown(made: dict[str, Any]) -> list[str]:
+    """The report's "How this report was made" section from :func:`report_provenance`'s
+    record (the same record report.html and report.json carry)."""
+    lines = ["## How this report was made", ""]
+    for key, value in made.items():
+        if key == "scenarios":
+            continue
+        lines.append(f"- {key}: {_plain_value(value)}")
+    lines += ["", "| scenario | SHA-256 |", "|---|---|"]
+    lines += [f"| {name} | `{sha}` |" for name, sha in made.get("scenarios", {}).items()]
+    lines.append("")
+    return lines
+
+
+def _plain_value(value: Any) -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_plain_value(v)}" for k, v in value.items()) or "none"
+    return (
+        f"`{value}`" if isinstance(value, str) and value.startswith("glider-cosim ") else str(value)
+    )

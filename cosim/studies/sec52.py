@@ -25,6 +25,7 @@ from ..runner.heldtail import (
 )
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import load_scenario
+from .report_plots import mark_exits
 
 DEG = 180.0 / math.pi
 TAILS_DEG = (15.0, 30.0, 45.0)
@@ -133,6 +134,7 @@ def plot_sec52(runs: list[Sec52Run], out: Path) -> Path:
     ks = list(dict.fromkeys(r.k_udelta for r in runs))
     f, axes = plt.subplots(len(ks), len(TAILS_DEG), figsize=(12, 3.2 * len(ks) + 0.5),
                            squeeze=False, layout="constrained")  # fmt: skip
+    legend: dict[str, Any] = {}  # one legend under the panels, out of the data
     for run in runs:
         i, j = ks.index(run.k_udelta), TAILS_DEG.index(run.tail_deg)
         ax = axes[i, j]
@@ -144,30 +146,34 @@ def plot_sec52(runs: list[Sec52Run], out: Path) -> Path:
         lo, hi = float(np.nanmin(meas)), float(np.nanmax(meas))
         pad = 0.08 * max(hi - lo, 1.0)
         lo, hi = max(lo - pad, -180.0), min(hi + pad, 180.0)
-        outside = np.nonzero((est < lo) | (est > hi))[0]
         ax.plot(t, meas, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray", zorder=1,
                 label="measured")  # fmt: skip
         ax.plot(t, _breaks(true), lw=1.5, color="tab:blue", zorder=3, label="true")
         ax.plot(t, _breaks(np.clip(est, lo, hi)), lw=1.0, ls="--", color="tab:orange",
-                zorder=3.5, label="estimated" + (" (clipped)" if len(outside) else ""))  # fmt: skip
-        if len(outside):  # where the estimate leaves the axes
-            k = outside[0]
-            ax.plot(t[k], hi if est[k] > hi else lo, marker="^" if est[k] > hi else "v",
-                    color="tab:orange", ms=7, clip_on=False, zorder=5,
-                    label=f"estimate leaves the axes at {t[k]:.2f} s")  # fmt: skip
+                zorder=3.5, label="estimated")  # fmt: skip
+        if mark_exits(ax, t, est, lo, hi, "tab:orange", 7, gid="clipped"):  # every exit
+            ax.lines[-1].set_label("the estimate leaves the axes (clipped there)")
         ax.set_ylim(lo, hi)
         ax.axvline(run.t_start, color="k", ls=":", lw=0.8, label="observer starts")
+        title = f"tail held at {run.tail_deg:g} deg, K_udelta = {run.k_udelta:g}"
         if r.status != "ok":
             ax.plot(t[-1], min(max(float(meas[-1]), lo), hi), marker="x", color="k", ms=8, mew=2,
-                    label=f"stopped at {t[-1]:.2f} s")  # fmt: skip
-        ax.set_title(f"tail held at {run.tail_deg:g} deg, K_udelta = {run.k_udelta:g}",
-                     fontsize=9)  # fmt: skip
+                    label="the run stops")  # fmt: skip
+            title += f": stops at {t[-1]:.2f} s"
+        ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6.5, loc="best")
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(lab, h)
         if j == 0:
             ax.set_ylabel("pitch theta [deg], wrapped to +-180")
         if i == len(ks) - 1:
             ax.set_xlabel("time [s]")
+    from matplotlib.lines import Line2D
+
+    if "measured" in legend:  # the samples' dots, large enough to see in the legend
+        legend["measured"] = Line2D([], [], ls="none", marker=".", ms=6, color="tab:gray")
+    f.legend(list(legend.values()), list(legend), loc="outside lower center",
+             ncol=len(legend), fontsize=8)  # fmt: skip
     f.suptitle("Sec. 5.2 / Fig. 8 in simulation: open loop with the tail held, observer "
                "initialised 2 s after release", fontsize=10)  # fmt: skip
     path = out / "fig8.png"

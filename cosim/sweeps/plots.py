@@ -7,6 +7,82 @@ import math
 from pathlib import Path
 
 
+def _short(param: str, params: list[str]) -> str:
+    """``controller.K_c`` as ``K_c`` unless another swept parameter has that name."""
+    name = param.rpartition(".")[2]
+    return name if sum(p.rpartition(".")[2] == name for p in params) == 1 else param
+
+
+def _value(text: str) -> str:
+    try:
+        return f"{float(text):g}"
+    except (TypeError, ValueError):
+        return str(text)
+
+
+def runs_named(rows: list[dict], params: list[str], most: int = 6) -> str:
+    """The swept values of ``rows``, e.g. ``K_c = 4, 6`` (one parameter) or
+    ``K_c = 4, V_0 = 0.2; K_c = 6, V_0 = 0.3``; at most ``most`` runs, then ``...``."""
+    if len(params) == 1:
+        text = ", ".join(_value(r.get(params[0])) for r in rows[:most])
+        text = f"{_short(params[0], params)} = {text}"
+    else:
+        text = "; ".join(
+            ", ".join(f"{_short(p, params)} = {_value(r.get(p))}" for p in params)
+            for r in rows[:most]
+        )
+    return text + (", ..." if len(rows) > most else "")
+
+
+def missing_runs_note(rows: list[dict], shown: list[bool], params: list[str], what: str) -> str:
+    """One line counting the runs a plot does not show, by reason, naming their values:
+    ``2 of 5 runs did not settle (K_c = 4, 6); 1 of 5 runs failed (K_c = -1)``. Empty
+    when every run is shown.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The sweep's rows (``sweep.csv``).
+    shown : list of bool
+        Whether each row is drawn.
+    params : list of str
+        The swept parameters (``instance.name``).
+    what : str
+        Why an ``ok`` run is not drawn, e.g. ``did not settle``.
+    """
+    n = len(rows)
+    hidden = [r for r, s in zip(rows, shown, strict=True) if not s]
+    parts = []
+    for reason, group in (
+        (what, [r for r in hidden if r.get("status") == "ok"]),
+        ("failed", [r for r in hidden if r.get("status") != "ok"]),
+    ):
+        if group:
+            runs = "run" if n == 1 else "runs"
+            parts.append(f"{len(group)} of {n} {runs} {reason} ({runs_named(group, params)})")
+    return "; ".join(parts)
+
+
+def _save(fig, path: Path, note: str) -> Path:
+    """Save ``fig`` with ``note`` (wrapped) under the axes, then close it."""
+    import textwrap
+
+    import matplotlib.pyplot as plt
+
+    lines = textwrap.wrap(note, 90)
+    fig.tight_layout(rect=(0, 0.045 * len(lines), 1, 1))
+    _note(fig, "\n".join(lines))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _note(fig, text: str) -> None:
+    """``text`` under the axes (nothing when empty)."""
+    if text:
+        fig.text(0.5, 0.01, text, ha="center", va="bottom", fontsize=8, color="tab:red")
+
+
 def write_plots(path: Path, out: Path) -> list[Path]:
     """Plots that apply to the swept parameters (PNG beside the results)."""
     import matplotlib
@@ -28,7 +104,13 @@ def write_plots(path: Path, out: Path) -> list[Path]:
     params = [k for k in rows[0] if "." in k]
     files = []
     if "controller.K_c" in params:
-        ok = [r for r in rows if r["status"] == "ok" and r["settling_time_s"] not in ("", None)]
+        shown = [
+            r["status"] == "ok"
+            and math.isfinite(num(r, "settling_time_s"))
+            and math.isfinite(num(r, "control_effort"))
+            for r in rows
+        ]
+        ok = [r for r, s in zip(rows, shown, strict=True) if s]
         fig, ax = plt.subplots(figsize=(6, 4))
         sc = ax.scatter([num(r, "control_effort") for r in ok],
                         [num(r, "settling_time_s") for r in ok],
@@ -37,10 +119,8 @@ def write_plots(path: Path, out: Path) -> list[Path]:
         ax.set(xlabel="control effort [rad s]", ylabel="settling time [s]",
                title="Settling time against control effort (Sec. 3.3 trade-off)")  # fmt: skip
         ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "settling_vs_effort.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
+        note = missing_runs_note(rows, shown, params, "did not settle")
+        files.append(_save(fig, out / "settling_vs_effort.png", note))
     if len(params) >= 2:
         a, b = params[:2]
         good = [r["status"] == "ok" and r["settling_time_s"] not in ("", None) for r in rows]
@@ -49,26 +129,28 @@ def write_plots(path: Path, out: Path) -> list[Path]:
                                     (False, "tab:red", "does not settle / fails")):  # fmt: skip
             pts = [(num(r, a), num(r, b)) for r, g in zip(rows, good, strict=True) if g == flag]
             if pts:
-                ax.scatter(*zip(*pts, strict=True), c=colour, label=label, s=18)
+                ax.scatter(*zip(*pts, strict=True), c=colour, s=18,
+                           label=f"{label} ({len(pts)} of {len(rows)})")  # fmt: skip
         ax.set(xlabel=a, ylabel=b, title="Stability boundary")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "stability_boundary.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
+        files.append(_save(fig, out / "stability_boundary.png", ""))
     if "plant.noise_std" in params:
         pts = [(num(r, "plant.noise_std"), num(r, "estimation_rms_rad")) for r in rows]
+        shown = [
+            r["status"] == "ok" and all(map(math.isfinite, p))
+            for r, p in zip(rows, pts, strict=True)
+        ]
         fig, ax = plt.subplots(figsize=(6, 4))
-        ax.scatter(*zip(*pts, strict=True), s=18)
+        drawn = [p for p, s in zip(pts, shown, strict=True) if s]
+        if drawn:
+            ax.scatter(*zip(*drawn, strict=True), s=18)
         ax.set(xlabel="sensor noise std [rad]", ylabel="estimation error RMS [rad]",
                title="Estimation error against sensor noise")  # fmt: skip
         ax.grid(alpha=0.3)
-        fig.tight_layout()
-        files.append(out / "estimation_vs_noise.png")
-        fig.savefig(files[-1], dpi=100)
-        plt.close(fig)
+        note = missing_runs_note(rows, shown, params, "have no estimation error")
+        files.append(_save(fig, out / "estimation_vs_noise.png", note))
     return files
 
 
-__all__ = ["write_plots"]
+__all__ = ["missing_runs_note", "runs_named", "write_plots"]

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..master.cosimulation import CoSimulation
 from ..master.errors import FMUCallError, FMUStopped, MasterError
-from ..runner.metrics import compute_metrics
+from ..runner.metrics import compute_metrics, wrap_angle
 from ..runner.recorders import ArrayRecorder
 from ..scenarios.fields import ScenarioError
 from ..scenarios.sampling import has_our_observer, with_sampling
@@ -165,7 +165,8 @@ def run_one(
     if data is not None and len(data) and sim is not None:
         m = compute_metrics(cols, data, scenario, sim, status)
         if "observer.theta_g_hat" in cols:
-            err = data[:, cols.index("observer.theta_g_hat")] - data[:, cols.index("plant.theta_g")]
+            err = wrap_angle(data[:, cols.index("observer.theta_g_hat")]
+                             - data[:, cols.index("plant.theta_g")])  # fmt: skip
             m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
         row.update({k: m.get(k) for k in METRIC_KEYS})
     if trajectories and cols:  # recording started: the rows up to a failure too

@@ -450,9 +450,22 @@ int glider_op_setup(void *c, int call, int tolerance_defined, double tolerance, 
     return end(&x, st);
 }
 
+/* fmi2Terminate/fmi3Terminate after the back end is gone (the host's Python finalized: a
+ * tool ending its instances at process exit). The slave cannot be called and need not
+ * be: a stepping instance is marked terminated, OK, and nothing is logged (the host's
+ * logger may be Python's too); any other state is refused, silently. */
+static Status terminate_after_exit(void *c) {
+    Instance *inst = lookup(c);
+    if (!inst || !(GLIDER_CALLS[C_TERMINATE].allowed & inst->state)) return ST_ERROR;
+    inst->state = S_TERMINATED;
+    return ST_OK;
+}
+
 int glider_op_transition(void *c, int call, unsigned next) {
     Ctx x;
-    Status st = begin(&x, c, call);
+    Status st;
+    if (call == C_TERMINATE && !B.alive()) return terminate_after_exit(c);
+    st = begin(&x, c, call);
     if (st == ST_OK && (st = B.transition(&x, call)) == ST_OK) x.inst->state = next;
     return end(&x, st);
 }

@@ -195,3 +195,43 @@ def test_report_html_renders_every_figure(report):
     assert found["figures"][-1] >= 3
     assert "<h2>Region of attraction" in text and "span class='key'" in text
     assert "fig2-closed-loop: " in text or FIGURES[0].key in text
+
+
+def test_report_records_how_it_was_made_in_md_json_and_html(report, fmu_dir):
+    from glider_cosim.fmus.files import package_version
+    from glider_cosim.runner.provenance import scenario_sha256
+
+    text, _, out = report
+    sec = _section(text, "How this report was made")
+    assert f"- command: `glider-cosim report --out {out} --fmu-dir {fmu_dir} --roa-grid 3x3 " \
+           "--workers 2`" in sec  # fmt: skip
+    assert "- region of attraction: 3 glide angles x 3 speeds, " in sec
+    assert "- flavor: python\n" in sec and "- FMI version: 2.0\n" in sec
+    assert f"- package version: `glider-cosim {package_version()}`" in sec
+    names = {run.scenario for fig in FIGURES for run in fig.runs} | {"default", "sec53-literal"}
+    for name in names:
+        assert f"| {name} | `{scenario_sha256(load_scenario(name))}` |" in sec
+    made = json.loads((out / "report.json").read_text())["made"]
+    assert made["region of attraction"].startswith("3 glide angles x 3 speeds")
+    page = (out / "report.html").read_text()
+    assert "<details open><summary>How this report was made</summary>" in page
+    assert made["command"] in page and scenario_sha256(load_scenario("default")) in page
+
+
+def test_the_report_wraps_the_estimation_error_and_tells_divergence_from_stall(report):
+    text, _, _ = report
+    sec = _section(text, FIGURES[3].title)
+    rows = [x for x in sec.splitlines() if re.fullmatch(r".*\| [0-9.]+ / [0-9.]+ \|", x)]
+    assert len(rows) == len(FIGURES[3].runs)
+    for row in rows:
+        rms, peak = (float(v) for v in row.split("|")[-2].split(" / "))
+        assert 0 <= rms <= peak <= 180.0, row
+    for line in text.splitlines():
+        for m in re.finditer(
+            r"(V_hat|V) (stalls|diverges) at [0-9.]+ s \(\1 = ([^ ]+) m/s\)", line
+        ):
+            assert (m.group(2) == "stalls") == (float(m.group(3)) > -0.1), line
+    sec34 = _section(text, FIGURES[1].title)
+    (k6,) = [x for x in sec34.splitlines() if x.startswith("K_c = 6: ")]
+    over = re.search(r"^\| K_c = 6 \| ok \| [^|]+\| [0-9.]+ \| ([0-9.]+) \|", sec34, re.M).group(1)
+    assert f"the glide angle swings up to {over} deg past the equilibrium" in k6

@@ -1,0 +1,147 @@
+"""The report's and a run's figures (issue 28 point 5): titles on one line, every exit
+from the axes marked, legends out of the data, every mark in a legend, the measured
+pitch not listed when it is the true one, the equilibrium speed on speed.png."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+
+from glider_cosim.runner import plots as run_plots
+from glider_cosim.studies.figures import DEG, FIGURES, Figure, Run
+from glider_cosim.studies.report_plots import plot_figure, plot_sec53
+
+THETA_E = -22.5 / DEG
+
+
+class FakeRun:
+    def __init__(self, cols: dict, status="ok", metrics=None, message="", feedback="full"):
+        self.columns = ["time", *cols]
+        self.data = np.column_stack([np.linspace(0, 10, 501)[: len(next(iter(cols.values())))],
+                                     *cols.values()])  # fmt: skip
+        self.status, self.message = status, message
+        self.metrics = {"theta_ge_rad": THETA_E, "events": [], "outcome": "settled",
+                        "settling_time_s": 5.0, **(metrics or {})}  # fmt: skip
+        self.scenario = SimpleNamespace(name="fake", feedback=feedback,
+                                        parameters={"controller": {}, "plant": {}})  # fmt: skip
+
+    def column(self, name):
+        return self.data[:, self.columns.index(name)]
+
+
+@pytest.fixture
+def kept(monkeypatch):
+    figs, close = [], plt.close
+    monkeypatch.setattr(plt, "close", figs.append)
+    yield figs
+    for f in figs:
+        close(f)
+
+
+def _clipped(ax):
+    return [ln for ln in ax.get_lines() if ln.get_gid() == "clipped"]
+
+
+def test_fig5_6_title_one_line_every_exit_marked_legend_outside(kept, tmp_path):
+    t = np.linspace(0, 10, 501)
+    calm = THETA_E + 0.05 * np.exp(-t)  # the bounded run sets the axes
+    wild = THETA_E + np.sin(2 * np.pi * 0.3 * t)  # leaves them above and below: 6 exits
+    results = [
+        (Run("K_c = 10", "x"), FakeRun({c: calm for c in ("plant.theta_meas",
+                                        "observer.theta_g_hat", "plant.theta_g")})),
+        (Run("K_c = 2", "x"), FakeRun({c: wild for c in ("plant.theta_meas",
+                                       "observer.theta_g_hat", "plant.theta_g")},
+                                      status="stopped", metrics={"outcome": "stopped"})),
+    ]  # fmt: skip
+    fig = FIGURES[2]
+    assert fig.key == "fig5-6"
+    plot_figure(fig, results, tmp_path)
+    (f,) = kept
+    assert "\n" not in f.get_suptitle()
+    panels = [ax for ax in f.get_axes()]
+    assert all(ax.get_legend() is None for ax in panels)  # no legend over the curves
+    (legend,) = f.legends
+    labels = [x.get_text() for x in legend.get_texts()]
+    assert labels == ["K_c = 10", "K_c = 2 (stopped at 10.0 s)", "equilibrium",
+                      "leaves the axes (clipped there)",
+                      "the run stops (V or V_hat stalls or diverges)"]  # fmt: skip
+    side = np.sign(np.round(wild - THETA_E, 9))  # outside the calm run's narrow range
+    exits = int(np.sum((side != 0) & (side != np.r_[0, side[:-1]])))
+    assert exits == 6
+    for ax in panels:
+        assert len(_clipped(ax)) == exits
+
+
+def test_fig11_20_legend_names_the_stop_line_of_the_tail_panel(kept, tmp_path):
+    t = np.linspace(0, 10, 501)
+    cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
+            "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
+    stopped = FakeRun(cols, status="stopped", feedback="observer",
+                      metrics={"outcome": "stopped"}, message="plant: fmi2Error")  # fmt: skip
+    fig = Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True)
+    plot_sec53(fig, [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer")),
+                     (Run("b", "x", group="g"), stopped)], tmp_path)  # fmt: skip
+    (f,) = kept
+    labels = [x.get_text() for x in f.legends[0].get_texts()]
+    assert "stop" in labels and "stop (tail panel)" in labels and "tail command" in labels
+    assert "cross and red line: the run stops" in f.get_suptitle()
+
+
+def _run_result(noise_std: float, meas_offset: float):
+    t = np.linspace(0, 10, 501)
+    theta = -0.4 + 0.01 * np.sin(t)
+    cols = {"plant.theta_g": theta, "plant.theta": theta, "plant.theta_meas": theta + meas_offset,
+            "observer.theta_hat": theta + 0.001, "controller.delta_cmd": 0 * t,
+            "plant.V": 0.2 + 0 * t, "observer.V_hat": 0.21 + 0 * t}  # fmt: skip
+    r = FakeRun(cols, metrics={"V_e_m_s": 0.237})
+    r.scenario.parameters["plant"]["noise_std"] = noise_std
+    return r
+
+
+def _labels(ax):
+    return ax.get_legend_handles_labels()[1]
+
+
+def test_pitch_at_noise_0_lists_no_measured_series_and_speed_marks_the_equilibrium(tmp_path):
+    figs = []
+    run_plots.write_plots(_run_result(0.0, 0.0), tmp_path, keep=figs)
+    by_name = {f.axes[0].get_title().split(" (")[0]: f for f in figs}
+    top, below = by_name["Pitch"].axes[:2]
+    assert _labels(top) == ["true = measured (noise std 0 deg)", "estimate"]
+    assert _labels(below) == ["estimate - true"]
+    speed = by_name["Speed"].axes[0]
+    assert _labels(speed) == ["true", "estimate", "equilibrium"]
+    (eq,) = [ln for ln in speed.get_lines() if ln.get_label() == "equilibrium"]
+    assert eq.get_ydata()[0] == pytest.approx(0.237)
+    for f in figs:
+        plt.close(f)
+
+
+def test_pitch_with_noise_lists_the_measured_samples(tmp_path):
+    figs = []
+    run_plots.write_plots(_run_result(0.1, 0.05), tmp_path, keep=figs)
+    top, below = next(f for f in figs if f.axes[0].get_title().startswith("Pitch")).axes[:2]
+    assert _labels(top)[0].startswith("measured (samples, noise std 5.7 deg)")
+    assert _labels(below) == ["measured - true", "estimate - true"]
+    for f in figs:
+        plt.close(f)
+
+
+def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tmp_path):
+    from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52
+
+    t = np.linspace(0, 4, 201)
+    th = -0.4 + 0.05 * t
+    cols = {"plant.theta_meas": th, "plant.theta": th, "observer.theta_hat": th + 0.01}
+    runs = [Sec52Run(tail, 1.0, FakeRun(cols, status="stopped" if tail == TAILS_DEG[0] else "ok"),
+                     2.0, None, None, None, 0.0) for tail in TAILS_DEG]  # fmt: skip
+    plot_sec52(runs, tmp_path)
+    (f,) = kept
+    assert all(ax.get_legend() is None for ax in f.get_axes())
+    (legend,) = f.legends
+    assert [x.get_text() for x in legend.get_texts()] == [
+        "measured", "true", "estimated", "observer starts", "the run stops"]  # fmt: skip
+    assert f.get_axes()[0].get_title().endswith(": stops at 4.00 s")

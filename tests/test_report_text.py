@@ -1,0 +1,123 @@
+"""The report says true things (issue 28 point 5): the estimation error wrapped to
+(-180, 180] deg, "stalls" only for a speed that fell to zero, the overshoot quoted as
+the swing past the target, and a section on how the report was made."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glider_cosim.studies.figures import DEG, estimation_error, wrap_angle
+from glider_cosim.studies.kc_map import kc_cell, stop_reason
+from glider_cosim.studies.report_text import _swing, provenance_markdown
+
+
+class FakeRun:
+    """What the report reads off a RunResult: columns, data, message, status, metrics."""
+
+    def __init__(self, columns, data, message="", status="ok", metrics=None):
+        self.columns, self.data = list(columns), np.asarray(data, dtype=float)
+        self.message, self.status, self.metrics = message, status, metrics or {}
+
+    def column(self, name):
+        return self.data[:, self.columns.index(name)]
+
+
+def test_wrap_angle_is_in_minus_pi_exclusive_to_pi_inclusive():
+    x = np.array([math.pi, -math.pi, 3 * math.pi, 2 * math.pi, 1.5 * math.pi, -0.25, 7.0])
+    w = wrap_angle(x)
+    assert w.tolist() == pytest.approx([math.pi, math.pi, math.pi, 0.0, -0.5 * math.pi, -0.25,
+                                        7.0 - 2 * math.pi])  # fmt: skip
+    assert np.all(w > -math.pi) and np.all(w <= math.pi)
+    assert float(wrap_angle(-math.pi)) == math.pi
+
+
+def test_estimation_error_of_an_estimate_a_turn_away_is_small():
+    t = np.linspace(0.0, 10.0, 101)
+    truth = -0.4 + 0.01 * np.sin(t)
+    # the estimate is off by 0.02 rad, then jumps one turn (and more) away halfway
+    est = truth + 0.02 + np.where(t > 5.0, 2 * math.pi, 0.0) + np.where(t > 8.0, 2 * math.pi, 0)
+    r = FakeRun(["time", "plant.theta_g", "observer.theta_g_hat"], np.c_[t, truth, est])
+    rms, peak, w0, w1 = estimation_error(r)
+    assert rms * DEG == pytest.approx(0.02 * DEG) and peak * DEG == pytest.approx(0.02 * DEG)
+    assert (w0, w1) == (5.0, 10.0)
+
+
+def _stopped(instance: str, v: str, t_end: float = 38.8) -> FakeRun:
+    what = "observer estimate glider stalled" if instance == "observer" else "glider stalled"
+    msg = (f"{instance}: fmi2DoStep at t = {t_end} s returned fmi2Discard: [fmi2Discard] "
+           f"{instance}: {what}: V = {v} m/s (model valid for V > 0.001 m/s, Eq. (7) divides "
+           "by V)")  # fmt: skip
+    return FakeRun(["time"], [[0.0], [t_end]], msg, "stopped")
+
+
+@pytest.mark.parametrize(
+    ("instance", "v", "reason"),
+    [("observer", "-249.7", "V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)"),
+     ("observer", "-0.0035", "V_hat stalls at 38.80 s (V_hat = -0.0035 m/s)"),
+     ("observer", "0.000998", "V_hat stalls at 38.80 s (V_hat = 0.001 m/s)"),
+     ("plant", "nan", "V diverges at 38.80 s (V = nan m/s)"),
+     ("plant", "-inf", "V diverges at 38.80 s (V = -inf m/s)"),
+     ("plant", "-0.5", "V diverges at 38.80 s (V = -0.5 m/s)")],
+)  # fmt: skip
+def test_only_a_speed_that_fell_to_zero_stalls(instance, v, reason):
+    r = _stopped(instance, v)
+    assert stop_reason(r) == reason
+    name, verb = reason.split()[:2]
+    assert kc_cell(r) == f"stops at 38.80 s ({name} {verb})"
+
+
+def test_a_run_stopped_for_another_reason_has_no_stall():
+    assert stop_reason(FakeRun(["time"], [[0.0], [1.0]], "plant: fmi2Error", "error")) is None
+
+
+def test_the_swing_quoted_is_the_overshoot_past_the_target():
+    err = np.array([12.5, 3.0, -8.05, 2.0]) / DEG  # from 12.5 deg off to 8.05 deg past
+    assert _swing(err, 8.05 / DEG) == "swings up to 8.05 deg past the equilibrium"
+    assert _swing(err[:2], 0.0) == (
+        "does not pass the equilibrium (largest distance from it 12.50 deg)"
+    )
+
+
+def test_provenance_section_lists_options_and_every_scenario_hash():
+    made = {"command": "glider-cosim report --out out/report --roa-grid none --workers 2",
+            "region of attraction": "skipped (--roa-grid none)", "flavor": "python",
+            "FMI version": "2.0", "package version": "glider-cosim 0.1.0", "Python": "3.11.7",
+            "scenarios": {"default": "ab" * 32, "sec53-protocol": "cd" * 32}}  # fmt: skip
+    assert provenance_markdown(made) == [
+        "## How this report was made",
+        "",
+        "- command: `glider-cosim report --out out/report --roa-grid none --workers 2`",
+        "- region of attraction: skipped (--roa-grid none)",
+        "- flavor: python",
+        "- FMI version: 2.0",
+        "- package version: `glider-cosim 0.1.0`",
+        "- Python: 3.11.7",
+        "",
+        "| scenario | SHA-256 |",
+        "|---|---|",
+        f"| default | `{'ab' * 32}` |",
+        f"| sec53-protocol | `{'cd' * 32}` |",
+        "",
+    ]
+
+
+@pytest.mark.parametrize(("v", "what"), [("-249.7", "diverged"), ("0.000998", "stalled")])
+def test_a_run_plot_marks_a_diverged_estimate_as_diverged(v, what):
+    from types import SimpleNamespace
+
+    from glider_cosim.runner.provenance import marked_events
+
+    sim = SimpleNamespace(system=SimpleNamespace(parameters={}, events=[]))
+    msg = _stopped("observer", v).message
+
+    class Stop(Exception):
+        time, instance = 38.8, "observer"
+
+        def __str__(self):
+            return msg
+
+    (ev,) = marked_events(sim, "stopped", Stop())
+    assert ev == {"kind": "stall", "time_s": 38.8, "label": f"observer {what} (fmi2Discard)"}

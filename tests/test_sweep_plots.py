@@ -1,0 +1,69 @@
+"""Sweep plots show or count every run (issue 28 point 3)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from glider_cosim.sweeps import plots
+from glider_cosim.sweeps.plots import missing_runs_note, runs_named
+
+COLS = ["run_id", "seed", "controller.K_c", "status", "message", "settling_time_s",
+        "control_effort", "estimation_rms_rad"]  # fmt: skip
+
+
+def write_csv(path: Path, rows: list[dict]) -> Path:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLS)
+        w.writeheader()
+        for i, r in enumerate(rows):
+            w.writerow({"run_id": i, "seed": 0, "status": "ok", "message": "", **r})
+    return path
+
+
+def kc_rows() -> list[dict]:
+    settled = {1: 20.0, 2: 12.0, 3: 9.0}
+    return [
+        {
+            "controller.K_c": k,
+            "status": "ok",
+            "settling_time_s": settled.get(k, ""),
+            "control_effort": 0.1 * k,
+        }  # fmt: skip
+        for k in (1, 2, 3, 4, 6)
+    ]
+
+
+def test_settling_plot_counts_the_runs_that_did_not_settle(tmp_path, monkeypatch):
+    notes = []
+    monkeypatch.setattr(plots, "_note", lambda fig, text: notes.append(text))
+    files = plots.write_plots(write_csv(tmp_path / "sweep.csv", kc_rows()), tmp_path)
+    assert [f.name for f in files] == ["settling_vs_effort.png"]
+    assert notes == ["2 of 5 runs did not settle (K_c = 4, 6)"]
+
+
+def test_failed_runs_are_counted_apart():
+    rows = kc_rows()
+    rows[0].update(status="error", settling_time_s="", message="K_c = -1 is invalid")
+    shown = [r["settling_time_s"] != "" for r in rows]
+    assert missing_runs_note(rows, shown, ["controller.K_c"], "did not settle") == (
+        "2 of 5 runs did not settle (K_c = 4, 6); 1 of 5 runs failed (K_c = 1)"
+    )
+
+
+def test_every_run_shown_gives_no_note(tmp_path, monkeypatch):
+    notes = []
+    monkeypatch.setattr(plots, "_note", lambda fig, text: notes.append(text))
+    rows = [r for r in kc_rows() if r["settling_time_s"] != ""]
+    plots.write_plots(write_csv(tmp_path / "sweep.csv", rows), tmp_path)
+    assert notes == [""]
+
+
+def test_runs_are_named_by_every_swept_value():
+    rows = [{"a.K_c": "4", "b.V_0": "0.2"}, {"a.K_c": "6.0", "b.V_0": "0.30"}]
+    assert runs_named(rows, ["a.K_c", "b.V_0"]) == "K_c = 4, V_0 = 0.2; K_c = 6, V_0 = 0.3"
+    assert runs_named(rows, ["a.K_c", "b.K_c"]) == (
+        "a.K_c = 4, b.K_c = None; a.K_c = 6, b.K_c = None"
+    )
+    many = [{"a.K_c": str(k)} for k in range(9)]
+    assert runs_named(many, ["a.K_c"]) == "K_c = 0, 1, 2, 3, 4, 5, ..."
