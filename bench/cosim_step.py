@@ -1,8 +1,10 @@
 """Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
 against the same sampled loop calling the model code directly (no FMI).
 
-Usage: python bench/cosim_step.py [--json] [--repeat N]
-The last line with --json is one JSON object (figures quoted in README).
+Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only]
+The last line with --json is one JSON object (figures quoted in
+docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
+cold run.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from _common import emit
 
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
+from glider_cosim.master.fastloop import library
+from glider_cosim.runner import monolithic
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
 from glider_cosim.runner.parquet import ParquetRecorder
 from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
@@ -83,6 +87,30 @@ def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
         rec.row(rows[i % 256])
     rec.close()
     return (time.perf_counter() - t0) / n
+
+
+def format_seconds_per_value(native_dir: Path, function: str, repeat: int) -> float:
+    """Best of ``repeat`` formattings of the native default run's rows (3001 x 17 values,
+    in memory) into CSV text by the C helper's ``function`` (``glider_format_rows``:
+    Python's repr; ``glider_format_rows_17g``: '%.17g', the text before), s per value."""
+    import ctypes
+
+    sc = load_scenario(None)
+    sim = CoSimulation(system_for(sc, native_dir), step=sc.step, coupling=sc.coupling)
+    rec = ArrayRecorder()
+    try:
+        sim.run(sc.stop_time, rec)
+    finally:
+        sim.close()
+    rows = rec.array()
+    fn = getattr(library(), function)
+    buf = ctypes.create_string_buffer(rows.size * 25 + 16)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(ctypes.c_void_p(rows.ctypes.data), rows.shape[0], rows.shape[1], buf, len(buf))
+        best = min(best, time.perf_counter() - t0)
+    return best / rows.size
 
 
 def monolithic_step_times(fmu_dir: Path, out: Path) -> list[float]:
@@ -150,46 +178,65 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs; the best median is kept")
     ap.add_argument("--fmu-dir", default="fmus", help="the Python flavor's FMUs")
     ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
+    ap.add_argument("--native-only", action="store_true", help="the native figures alone")
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
-    build_all(fmu_dir, only_stale=True, flavor="python")
+    if not args.native_only:
+        build_all(fmu_dir, only_stale=True, flavor="python")
     build_all(native_dir, only_stale=True, flavor="native")
+    result: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        cosim = min(statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat))
-        mono = min(
-            statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
-        )
-        cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
-        libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
         native_mem = run_seconds_per_step(native_dir, ArrayRecorder, args.repeat * 3)
         native_csv = run_seconds_per_step(
             native_dir, lambda: CsvRecorder(out / "native.csv"), args.repeat * 3
         )
-        native_parquet = run_seconds_per_step(
-            native_dir, lambda: ParquetRecorder(out / "native.parquet"), args.repeat * 3
-        )
-        python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
-        csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
-    result = {
-        "native_us_per_macro_step": round(native_mem * 1e6, 2),
-        "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
-        "native_parquet_us_per_macro_step": round(native_parquet * 1e6, 2),
-        "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
-        "csv_us_per_row": round(csv_row * 1e6, 2),
-        "csv_us_per_value": round(csv_row * 1e6 / 17, 3),
-        "us_per_macro_step": round(cosim * 1e6, 1),
-        "monolithic_us_per_macro_step": round(mono * 1e6, 1),
-        "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
-        "ratio_to_libcosim": round(cosim / libcosim, 3),
-        "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
-        "cold_run_s": round(cold, 2),
+        floor = monolithic.seconds_per_step(load_scenario(None), native_dir, args.repeat * 3)
+        csv_value = format_seconds_per_value(native_dir, "glider_format_rows", args.repeat * 5)
+        csv_17g = format_seconds_per_value(native_dir, "glider_format_rows_17g", args.repeat)
+        result.update({
+            "native_us_per_macro_step": round(native_mem * 1e6, 2),
+            "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
+            "native_csv_over_in_memory": round(native_csv / native_mem, 2),
+            "csv_us_per_value": round(csv_value * 1e6, 4),
+            "csv_17g_us_per_value": round(csv_17g * 1e6, 4),
+            "native_monolithic_us_per_macro_step": round(floor * 1e6, 3),
+            "native_fmi_overhead_us_per_macro_step": round((native_mem - floor) * 1e6, 3),
+        })  # fmt: skip
+        if not args.native_only:
+            native_parquet = run_seconds_per_step(
+                native_dir, lambda: ParquetRecorder(out / "native.parquet"), args.repeat * 3
+            )
+            cosim = min(
+                statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat)
+            )
+            mono = min(
+                statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
+            )
+            cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
+            libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
+            python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
+            csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
+            result.update({
+                "native_parquet_us_per_macro_step": round(native_parquet * 1e6, 2),
+                "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
+                "csv_us_per_row": round(csv_row * 1e6, 2),
+                "us_per_macro_step": round(cosim * 1e6, 1),
+                "monolithic_us_per_macro_step": round(mono * 1e6, 1),
+                "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
+                "ratio_to_libcosim": round(cosim / libcosim, 3),
+                "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
+                "cold_run_s": round(cold, 2),
+            })  # fmt: skip
+    result.update({
         "scenario": "default (60 s, 3 FMUs, 50 Hz; us_per_macro_step and monolithic: both "
         "loops recording the same CSV, step by step; native_*: CoSimulation.run in memory / "
-        "to CSV)",
+        "to CSV; native_monolithic: the native FMUs' C models in one C loop, no FMI; "
+        "csv_us_per_value: the C formatter on the native run's rows, repr text; "
+        "csv_17g_us_per_value: the same rows as '%.17g', the text before)",
         "cpus": os.cpu_count(),
-    }
+    })  # fmt: skip
     emit(result, args.json)
 
 
