@@ -302,7 +302,7 @@ class NativeMonolithic:
     Parameters
     ----------
     scenario : Scenario
-        No events, FMU swaps, inputs or disturbances.
+        No events, FMU swaps, inputs or disturbances; with the observer.
     step : float, optional
         The communication step (s); default the scenario's.
     fmu_dir : str or Path, optional
@@ -323,6 +323,11 @@ class NativeMonolithic:
         if scenario.disturbances:
             raise ScenarioError(
                 f"{scenario.source}: the native monolithic loop has no disturbances"
+            )
+        if not scenario.observer:
+            raise ScenarioError(
+                f"{scenario.source}: the native monolithic loop runs the observer: "
+                "with_observer = false is not supported"
             )
         self.step = step if step is not None else scenario.step
         pp, op, cp = loop_parameters(scenario, self.step, fmu_dir, "native monolithic")
