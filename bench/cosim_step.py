@@ -104,7 +104,7 @@ def format_seconds_per_value(native_dir: Path, function: str, repeat: int) -> fl
         sim.close()
     rows = rec.array()
     fn = getattr(library(), function)
-    buf = ctypes.create_string_buffer(rows.size * 25 + 16)
+    buf = ctypes.create_string_buffer(rows.size * 25 + 64)
     best = float("inf")
     for _ in range(repeat):
         t0 = time.perf_counter()

@@ -31,7 +31,7 @@ def lib():
 def c_lines(lib, values: np.ndarray, ncol: int = 1) -> list[str]:
     """``values`` formatted by glider_format_rows in rows of ``ncol``, one text a value."""
     values = np.ascontiguousarray(values, dtype=float)
-    buf = ctypes.create_string_buffer(values.size * 25 + 16)
+    buf = ctypes.create_string_buffer(values.size * 25 + 64)
     n = lib.glider_format_rows(ctypes.c_void_p(values.ctypes.data), values.size // ncol, ncol,
                                buf, len(buf))  # fmt: skip
     assert n > 0
@@ -118,7 +118,7 @@ def test_the_portable_128_bit_multiply_gives_the_same_text(tmp_path):
     toolchain.run([*cmd, str(fastloop.SOURCES[1]), "-o", str(out)], "shortest.c", timeout=120)
     portable = ctypes.CDLL(str(out))
     values = np.concatenate([special_values(), random_values(50_000, seed=2)])
-    buf = ctypes.create_string_buffer(32)
+    buf = ctypes.create_string_buffer(64)
     texts = []
     for v in values.tolist():
         n = portable.glider_repr(ctypes.c_double(v), buf)

@@ -54,7 +54,7 @@ long glider_format_rows(const double *values, int nrows, int ncol, char *out, lo
     long used = 0;
     const double *v = values;
     for (int r = 0; r < nrows; ++r) {
-        if (size - used < (long)ncol * (GLIDER_REPR_MAX + 1)) return -1;
+        if (size - used < (long)ncol * (GLIDER_REPR_MAX + 1) + GLIDER_REPR_ROOM) return -1;
         for (int c = 0; c < ncol; ++c) {
             used += glider_repr(*v++, out + used);
             out[used++] = ',';

@@ -73,12 +73,13 @@ static const char DIGIT_PAIRS[201] =
 static inline char *write_digits(uint64_t f, char *end) {
     while (f >= 100000000u) {
         uint32_t lo = (uint32_t)(f % 100000000u);
+        uint32_t hi4 = lo / 10000, lo4 = lo % 10000;
         f /= 100000000u;
-        for (int i = 0; i < 4; ++i) {
-            end -= 2;
-            memcpy(end, DIGIT_PAIRS + 2 * (lo % 100), 2);
-            lo /= 100;
-        }
+        memcpy(end - 2, DIGIT_PAIRS + 2 * (lo4 % 100), 2);
+        memcpy(end - 4, DIGIT_PAIRS + 2 * (lo4 / 100), 2);
+        memcpy(end - 6, DIGIT_PAIRS + 2 * (hi4 % 100), 2);
+        memcpy(end - 8, DIGIT_PAIRS + 2 * (hi4 / 100), 2);
+        end -= 8;
     }
     uint32_t r = (uint32_t)f;
     while (r >= 100) {
@@ -141,17 +142,19 @@ int glider_repr(double v, char *out) {
     if (up_in != wp_in) {
         f = up_in ? sp10 : tp10;
     } else {
-        uint64_t s1 = s + 1;
-        int u_in = vbl + open <= s << 2, w_in = (s1 << 2) + open <= vbr;
-        if (u_in != w_in) {
-            f = u_in ? s : s1;
-        } else { /* both: the closer, the even one on a tie */
-            uint64_t mid = (s + s1) << 1;
-            f = (vb < mid || (vb == mid && (s & 1) == 0)) ? s : s1;
-        }
+        /* s or s + 1: the one in the interval; when both are, the closer, the even one on
+         * a tie (written without branches: which one is as good as random) */
+        uint64_t mid = (2 * s + 1) << 1;
+        int u_in = vbl + open <= s << 2, w_in = ((s + 1) << 2) + open <= vbr;
+        int lower = vb < mid || (vb == mid && (s & 1) == 0);
+        f = s + (uint64_t)(u_in != w_in ? w_in : !lower);
     }
-    char digits[24];
-    char *end = digits + sizeof digits;
+    /* the digits end at buf + 24, the copies below read up to 24 bytes past them: fixed
+     * sizes, so the compiler makes them a few moves, never a call (what is past the text
+     * in out is overwritten by the next value or never read; so are the bytes of buf the
+     * copies take past the digits) */
+    char buf[48];
+    char *end = buf + 24;
     char *d = write_digits(f, end);
     while (end[-1] == '0') { /* f > 0: a nonzero digit comes first */
         --end;
@@ -160,39 +163,36 @@ int glider_repr(double v, char *out) {
     int nd = (int)(end - d);
     int x = k + nd - 1; /* v ~ d.ddd 10^x */
     if (x < -4 || x >= 16) {
-        *p++ = d[0];
-        if (nd > 1) {
-            *p++ = '.';
-            memcpy(p, d + 1, (size_t)(nd - 1));
-            p += nd - 1;
-        }
-        *p++ = 'e';
-        *p++ = x < 0 ? '-' : '+';
+        p[0] = d[0];
+        p[1] = '.';
+        memcpy(p + 2, d + 1, 16);
+        p += nd > 1 ? nd + 1 : 1;
+        p[0] = 'e';
+        p[1] = x < 0 ? '-' : '+';
         int ax = x < 0 ? -x : x;
         if (ax >= 100) {
-            *p++ = (char)('0' + ax / 100);
-            ax %= 100;
+            p[2] = (char)('0' + ax / 100);
+            memcpy(p + 3, DIGIT_PAIRS + 2 * (ax % 100), 2);
+            p += 5;
+        } else {
+            memcpy(p + 2, DIGIT_PAIRS + 2 * ax, 2);
+            p += 4;
         }
-        memcpy(p, DIGIT_PAIRS + 2 * ax, 2);
-        p += 2;
-    } else if (k >= 0) { /* an integer: digits, zeros, ".0" */
-        memcpy(p, d, (size_t)nd);
-        p += nd;
-        memset(p, '0', (size_t)k);
-        p += k;
+    } else if (k >= 0) { /* an integer: digits, zeros, ".0" (nd + k <= 16) */
+        memcpy(p, d, 16);
+        memset(p + nd, '0', 16);
+        p += nd + k;
         memcpy(p, ".0", 2);
         p += 2;
-    } else if (x >= 0) { /* the point among the digits */
-        memcpy(p, d, (size_t)(x + 1));
-        p += x + 1;
-        *p++ = '.';
-        memcpy(p, d + x + 1, (size_t)(nd - x - 1));
-        p += nd - x - 1;
-    } else { /* 0.000ddd */
-        memcpy(p, "0.000", (size_t)(1 - x));
-        p += 1 - x;
-        memcpy(p, d, (size_t)nd);
-        p += nd;
+    } else if (x >= 0) { /* the point among the digits (x + 1 < nd <= 17) */
+        memcpy(p, d, 16);
+        p[x + 1] = '.';
+        memcpy(p + x + 2, d + x + 1, 16);
+        p += nd + 1;
+    } else { /* 0.000ddd (x = -1 .. -4) */
+        memcpy(p, "0.000", 5);
+        memcpy(p + 1 - x, d, 17);
+        p += 1 - x + nd;
     }
     return (int)(p - out);
 }
