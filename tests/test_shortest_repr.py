@@ -8,6 +8,7 @@ import importlib
 import importlib.util
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -149,7 +150,9 @@ def test_every_csv_writer_writes_the_same_text(tmp_path, lib, monkeypatch):
         return body
 
     assert recorded("c.csv") == expected
-    monkeypatch.setattr(fastloop, "library", lambda: None)  # the Python path
+    monkeypatch.setattr(CsvRecorder, "THREADED", False)  # formatted in this thread
+    assert recorded("sync.csv") == expected
+    monkeypatch.setattr(fastloop, "library", lambda **kw: None)  # the Python path
     assert recorded("py.csv") == expected
     assert csv_lines(values).decode() == expected
 
@@ -188,3 +191,38 @@ def test_model_description_start_values_read_back_as_the_slaves_own(module, name
     spec = {v.name: v.start for v in slave_cls.VARIABLES}
     assert starts and {n: float(t) for n, t in starts.items()} == {n: spec[n] for n in starts}
     assert all(t == repr(float(spec[n])) for n, t in starts.items())
+
+
+class _FullDisk:
+    def write(self, data) -> int:
+        raise OSError(28, "No space left on device")
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_write_error_of_the_writer_thread_is_raised_once(tmp_path, lib):
+    rec = CsvRecorder(tmp_path / "full.csv")
+    rec.start(["a", "b"])
+    rec._f.close()
+    rec._f = _FullDisk()
+    block = (ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0)
+    rec.rows_block(block, 2, 2)  # handed over: the writer thread fails on it
+    with pytest.raises(OSError, match="No space left on device"):
+        rec.close()
+    rec.close()  # closed: nothing raised twice
+
+
+def test_rows_handed_after_a_writer_error_raise_it(tmp_path, lib):
+    rec = CsvRecorder(tmp_path / "full.csv")
+    rec.start(["a"])
+    rec._f.close()
+    rec._f = _FullDisk()
+    rec.rows_block((ctypes.c_double * 1)(1.0), 1, 1)
+    for _ in range(1000):  # until the writer thread has taken the block and failed on it
+        if rec._error is not None:
+            break
+        time.sleep(0.01)
+    with pytest.raises(OSError, match="No space left on device"):
+        rec.rows_block((ctypes.c_double * 1)(2.0), 1, 1)
+    rec.close()  # already raised: not again

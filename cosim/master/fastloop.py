@@ -45,11 +45,18 @@ class _Op(ctypes.Structure):
     ]
 
 
-def library() -> ctypes.CDLL | None:
-    """The compiled helper for code that only formats (no FMI calls), or None."""
+def library(release_gil: bool = False) -> ctypes.CDLL | None:
+    """The compiled helper for code that only formats (no FMI calls), or None.
+
+    Parameters
+    ----------
+    release_gil : bool
+        Load it as ``ctypes.CDLL`` (its calls release the GIL: for a thread formatting
+        while another one runs), else as ``ctypes.PyDLL`` (cheaper calls).
+    """
     if os.environ.get(ENV, "1") == "0":
         return None
-    return _library(True)
+    return _library(not release_gil)
 
 
 #: the FMI 2.0-signature shims over an FMI 3.0 instance (``fastloop.c``), by the call
