@@ -99,9 +99,15 @@ def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
     return (time.perf_counter() - t0) / n
 
 
-class Csv17gRecorder(CsvRecorder):
-    """The CSV recorder as it was: '%.17g' text (``glider_format_rows_17g``), for the
-    before-and-after figure in one run."""
+class SyncCsvRecorder(CsvRecorder):
+    """The CSV recorder formatting and writing in the caller's thread (no writer thread)."""
+
+    THREADED = False
+
+
+class Csv17gRecorder(SyncCsvRecorder):
+    """The CSV recorder as it was: '%.17g' text (``glider_format_rows_17g``) in the
+    caller's thread, for the before-and-after figure in one run."""
 
     def _write_text(self, values, nrows: int) -> None:
         need = nrows * self._ncol * 26 + 64
@@ -245,11 +251,13 @@ def main() -> None:
             {
                 "mem": ArrayRecorder,
                 "csv": lambda: CsvRecorder(out / "native.csv"),
+                "csv_sync": lambda: SyncCsvRecorder(out / "native_sync.csv"),
                 "csv_17g": lambda: Csv17gRecorder(out / "native17g.csv"),
             },
             args.repeat * 3,
         )
         native_mem, native_csv, native_csv_17g = runs["mem"], runs["csv"], runs["csv_17g"]
+        native_csv_sync = runs["csv_sync"]
         floor = monolithic.seconds_per_step(load_scenario(None), native_dir, args.repeat * 3)
         parts = native_breakdown(native_dir, args.repeat * 10)
         csv_value = format_seconds_per_value(native_dir, "glider_format_rows", args.repeat * 5)
@@ -258,6 +266,7 @@ def main() -> None:
             "native_us_per_macro_step": round(native_mem * 1e6, 2),
             "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
             "native_csv_over_in_memory": round(native_csv / native_mem, 2),
+            "native_csv_sync_us_per_macro_step": round(native_csv_sync * 1e6, 2),
             "native_csv_17g_us_per_macro_step": round(native_csv_17g * 1e6, 2),
             "csv_us_per_value": round(csv_value * 1e6, 4),
             "csv_17g_us_per_value": round(csv_17g * 1e6, 4),
@@ -298,7 +307,9 @@ def main() -> None:
         "native_do_steps_only / exchange_only: the fast loop making only the 3 doSteps / "
         "only the planned gets and sets and the recorded row; csv_us_per_value: the C "
         "formatter on the native run's rows, repr text; "
-        "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g', the text before)",
+        "native_csv_sync: CSV formatted and written in the run's thread (no writer thread); "
+        "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g' in the run's thread, "
+        "the text before)",
         "cpus": os.cpu_count(),
     })  # fmt: skip
     emit(result, args.json)
