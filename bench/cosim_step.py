@@ -1,13 +1,16 @@
 """Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
 against the same sampled loop calling the model code directly (no FMI).
 
-Usage: python bench/cosim_step.py [--json] [--repeat N]
-The last line with --json is one JSON object (figures quoted in README).
+Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only]
+The last line with --json is one JSON object (figures quoted in
+docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
+cold run.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import os
 import statistics
 import subprocess
@@ -20,6 +23,8 @@ from _common import emit
 
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
+from glider_cosim.master.fastloop import FastLoop, library
+from glider_cosim.runner import monolithic
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
 from glider_cosim.runner.parquet import ParquetFormatError, ParquetRecorder, require_pyarrow
 from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
@@ -53,20 +58,29 @@ def cosim_step_times(fmu_dir: Path, out: Path) -> list[float]:
 def run_seconds_per_step(fmu_dir: Path, recorder_for, repeat: int) -> float:
     """Best of ``repeat`` runs of the default scenario through :meth:`CoSimulation.run`
     (the master's own loop: the C fast loop in blocks), seconds per macro step."""
+    return runs_seconds_per_step(fmu_dir, {"run": recorder_for}, repeat)["run"]
+
+
+def runs_seconds_per_step(fmu_dir: Path, recorders: dict, repeat: int) -> dict[str, float]:
+    """:func:`run_seconds_per_step` for several recorders (name -> factory), their runs
+    interleaved (one of each per round: the same load for all), best of ``repeat`` each.
+    The time includes the recorder's ``close`` (a CSV's last write)."""
     sc = load_scenario(None)
     n = round(sc.stop_time / sc.step)
-    best = float("inf")
+    best = dict.fromkeys(recorders, float("inf"))
     for _ in range(repeat):
-        sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
-        rec = recorder_for()
-        try:
-            sim.initialize()  # FMU loading and initialisation are not in the figure
-            t0 = time.perf_counter()
-            sim.run(sc.stop_time, rec)
-            best = min(best, (time.perf_counter() - t0) / n)
-        finally:
-            rec.close()
-            sim.close()
+        for name, recorder_for in recorders.items():
+            sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
+            rec = recorder_for()
+            try:
+                sim.initialize()  # FMU loading and initialisation are not in the figure
+                t0 = time.perf_counter()
+                sim.run(sc.stop_time, rec)
+                rec.close()
+                best[name] = min(best[name], (time.perf_counter() - t0) / n)
+            finally:
+                rec.close()
+                sim.close()
     return best
 
 
@@ -83,6 +97,78 @@ def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
         rec.row(rows[i % 256])
     rec.close()
     return (time.perf_counter() - t0) / n
+
+
+class SyncCsvRecorder(CsvRecorder):
+    """The CSV recorder formatting and writing in the caller's thread (no writer thread)."""
+
+    THREADED = False
+
+
+class Csv17gRecorder(SyncCsvRecorder):
+    """The CSV recorder as it was: '%.17g' text (``glider_format_rows_17g``) in the
+    caller's thread, for the before-and-after figure in one run."""
+
+    def _write_text(self, values, nrows: int) -> None:
+        need = nrows * self._ncol * 26 + 64
+        if len(self._buf) < need:
+            self._buf = ctypes.create_string_buffer(need)
+        n = self._lib.glider_format_rows_17g(values, nrows, self._ncol, self._buf,
+                                             len(self._buf))  # fmt: skip
+        self._f.write(memoryview(self._buf)[:n])
+
+
+def format_seconds_per_value(native_dir: Path, function: str, repeat: int) -> float:
+    """Best of ``repeat`` formattings of the native default run's rows (3001 x 17 values,
+    in memory) into CSV text by the C helper's ``function`` (``glider_format_rows``:
+    Python's repr; ``glider_format_rows_17g``: '%.17g', the text before), s per value."""
+    sc = load_scenario(None)
+    sim = CoSimulation(system_for(sc, native_dir), step=sc.step, coupling=sc.coupling)
+    rec = ArrayRecorder()
+    try:
+        sim.run(sc.stop_time, rec)
+    finally:
+        sim.close()
+    rows = rec.array()
+    fn = getattr(library(), function)
+    buf = ctypes.create_string_buffer(rows.size * 25 + 64)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(ctypes.c_void_p(rows.ctypes.data), rows.shape[0], rows.shape[1], buf, len(buf))
+        best = min(best, time.perf_counter() - t0)
+    return best / rows.size
+
+
+def native_breakdown(native_dir: Path, repeat: int) -> dict[str, float]:
+    """Where the native flavor's time per macro step goes, s: ``glider_run`` (the fast
+    loop of ``CoSimulation.run``) over the same instances with only the three
+    fmi2DoSteps (no exchange: inputs held), and with only the exchange (the planned
+    fmi2GetReal/fmi2SetReal calls and the recorded row, no step). Best of ``repeat``
+    blocks of 256 steps each, from a state 2 s into the default run."""
+    sc = load_scenario(None)
+    sim = CoSimulation(system_for(sc, native_dir), step=sc.step, coupling=sc.coupling)
+    try:
+        sim.initialize()
+        sim.run(2.0, ArrayRecorder())  # warm, and the fast loop set up with its record
+        fast = sim._fast
+        nops, nsteps = fast._nops, fast._nsteps
+        out, k = {}, sim.k
+        for name, ops, steps in (("steps", 0, nsteps.value), ("exchange", nops.value, 0)):
+            fast._nops, fast._nsteps = ctypes.c_int(ops), ctypes.c_int(steps)
+            best = float("inf")
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                done, where = fast.run(sim.t0, k, sim.step_size, FastLoop.RUN_BLOCK)[:2]
+                best = min(best, (time.perf_counter() - t0) / done)
+                if where >= 0:
+                    raise SystemExit(f"bench: the {name}-only loop failed after {done} steps")
+                k += done if steps else 0  # each doStep from the instances' own time
+            out[name] = best
+        fast._nops, fast._nsteps = nops, nsteps
+    finally:
+        sim.close()
+    return out
 
 
 def monolithic_step_times(fmu_dir: Path, out: Path) -> list[float]:
@@ -165,46 +251,82 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs; the best median is kept")
     ap.add_argument("--fmu-dir", default="fmus", help="the Python flavor's FMUs")
     ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
+    ap.add_argument("--native-only", action="store_true", help="the native figures alone")
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
-    build_all(fmu_dir, only_stale=True, flavor="python")
+    if not args.native_only:
+        build_all(fmu_dir, only_stale=True, flavor="python")
     build_all(native_dir, only_stale=True, flavor="native")
+    result: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
-        cosim = min(statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat))
-        mono = min(
-            statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
+        runs = runs_seconds_per_step(
+            native_dir,
+            {
+                "mem": ArrayRecorder,
+                "csv": lambda: CsvRecorder(out / "native.csv"),
+                "csv_sync": lambda: SyncCsvRecorder(out / "native_sync.csv"),
+                "csv_17g": lambda: Csv17gRecorder(out / "native17g.csv"),
+            },
+            args.repeat * 3,
         )
-        cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
-        libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
-        native_mem = run_seconds_per_step(native_dir, ArrayRecorder, args.repeat * 3)
-        native_csv = run_seconds_per_step(
-            native_dir, lambda: CsvRecorder(out / "native.csv"), args.repeat * 3
-        )
-        native_parquet = parquet_seconds_per_step(native_dir, out, args.repeat * 3)
-        python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
-        csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
-    result = {
-        "native_us_per_macro_step": round(native_mem * 1e6, 2),
-        "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
-        "native_parquet_us_per_macro_step": (
-            None if native_parquet is None else round(native_parquet * 1e6, 2)
-        ),
-        "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
-        "csv_us_per_row": round(csv_row * 1e6, 2),
-        "csv_us_per_value": round(csv_row * 1e6 / 17, 3),
-        "us_per_macro_step": round(cosim * 1e6, 1),
-        "monolithic_us_per_macro_step": round(mono * 1e6, 1),
-        "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
-        "ratio_to_libcosim": round(cosim / libcosim, 3),
-        "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
-        "cold_run_s": round(cold, 2),
+        native_mem, native_csv, native_csv_17g = runs["mem"], runs["csv"], runs["csv_17g"]
+        native_csv_sync = runs["csv_sync"]
+        floor = monolithic.seconds_per_step(load_scenario(None), native_dir, args.repeat * 3)
+        parts = native_breakdown(native_dir, args.repeat * 10)
+        csv_value = format_seconds_per_value(native_dir, "glider_format_rows", args.repeat * 5)
+        csv_17g = format_seconds_per_value(native_dir, "glider_format_rows_17g", args.repeat)
+        result.update({
+            "native_us_per_macro_step": round(native_mem * 1e6, 2),
+            "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
+            "native_csv_over_in_memory": round(native_csv / native_mem, 2),
+            "native_csv_sync_us_per_macro_step": round(native_csv_sync * 1e6, 2),
+            "native_csv_17g_us_per_macro_step": round(native_csv_17g * 1e6, 2),
+            "csv_us_per_value": round(csv_value * 1e6, 4),
+            "csv_17g_us_per_value": round(csv_17g * 1e6, 4),
+            "native_monolithic_us_per_macro_step": round(floor * 1e6, 3),
+            "native_fmi_overhead_us_per_macro_step": round((native_mem - floor) * 1e6, 3),
+            "native_do_steps_only_us_per_macro_step": round(parts["steps"] * 1e6, 3),
+            "native_exchange_only_us_per_macro_step": round(parts["exchange"] * 1e6, 3),
+        })  # fmt: skip
+        if not args.native_only:
+            native_parquet = parquet_seconds_per_step(native_dir, out, args.repeat * 3)
+            cosim = min(
+                statistics.median(cosim_step_times(fmu_dir, out)) for _ in range(args.repeat)
+            )
+            mono = min(
+                statistics.median(monolithic_step_times(fmu_dir, out)) for _ in range(args.repeat)
+            )
+            cold = min(cold_run_seconds(fmu_dir, out) for _ in range(args.repeat))
+            libcosim = min(libcosim_step_seconds(fmu_dir, out) for _ in range(args.repeat))
+            python_mem = run_seconds_per_step(fmu_dir, ArrayRecorder, args.repeat)
+            csv_row = min(csv_seconds_per_row(out) for _ in range(args.repeat))
+            result.update({
+                "native_parquet_us_per_macro_step": (
+                    None if native_parquet is None else round(native_parquet * 1e6, 2)
+                ),
+                "python_in_memory_us_per_macro_step": round(python_mem * 1e6, 1),
+                "csv_us_per_row": round(csv_row * 1e6, 2),
+                "us_per_macro_step": round(cosim * 1e6, 1),
+                "monolithic_us_per_macro_step": round(mono * 1e6, 1),
+                "fmi_overhead_us_per_macro_step": round((cosim - mono) * 1e6, 1),
+                "ratio_to_libcosim": round(cosim / libcosim, 3),
+                "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
+                "cold_run_s": round(cold, 2),
+            })  # fmt: skip
+    result.update({
         "scenario": "default (60 s, 3 FMUs, 50 Hz; us_per_macro_step and monolithic: both "
         "loops recording the same CSV, step by step; native_*: CoSimulation.run in memory / "
-        "to CSV)",
+        "to CSV; native_monolithic: the native FMUs' C models in one C loop, no FMI; "
+        "native_do_steps_only / exchange_only: the fast loop making only the 3 doSteps / "
+        "only the planned gets and sets and the recorded row; csv_us_per_value: the C "
+        "formatter on the native run's rows, repr text; "
+        "native_csv_sync: CSV formatted and written in the run's thread (no writer thread); "
+        "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g' in the run's thread, "
+        "the text before)",
         "cpus": os.cpu_count(),
-    }
+    })  # fmt: skip
     emit(result, args.json)
 
 

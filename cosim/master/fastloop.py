@@ -24,6 +24,10 @@ from pathlib import Path
 from typing import Any
 
 SOURCE = Path(__file__).with_name("fastloop.c")
+#: the files compiled into the helper (``shortest.c``: the CSV text, Python's repr)
+SOURCES = (SOURCE, SOURCE.with_name("shortest.c"))
+#: the headers they include (in the build's hash too)
+HEADERS = (SOURCE.with_name("shortest.h"), SOURCE.with_name("shortest_pow10.h"))
 ENV = "GLIDER_COSIM_FASTLOOP"
 #: the helper's compile flags (after the toolchain's shared-library ones)
 FLAGS = ("-O2", "-ffp-contract=off")
@@ -41,11 +45,18 @@ class _Op(ctypes.Structure):
     ]
 
 
-def library() -> ctypes.CDLL | None:
-    """The compiled helper for code that only formats (no FMI calls), or None."""
+def library(release_gil: bool = False) -> ctypes.CDLL | None:
+    """The compiled helper for code that only formats (no FMI calls), or None.
+
+    Parameters
+    ----------
+    release_gil : bool
+        Load it as ``ctypes.CDLL`` (its calls release the GIL: for a thread formatting
+        while another one runs), else as ``ctypes.PyDLL`` (cheaper calls).
+    """
     if os.environ.get(ENV, "1") == "0":
         return None
-    return _library(True)
+    return _library(not release_gil)
 
 
 #: the FMI 2.0-signature shims over an FMI 3.0 instance (``fastloop.c``), by the call
@@ -77,6 +88,7 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
         lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
+        lib.glider_format_rows_17g.restype = ctypes.c_long
         for name in SHIMS.values():
             getattr(lib, name).restype = ctypes.c_int
     except (OSError, subprocess.SubprocessError):
@@ -87,10 +99,40 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
 
 def built_library() -> Path:
     """The compiled helper, built once per FMU cache (:func:`glider_cosim.fmus.folders.
-    cache_root`): ``<cache>/<version>/fastloop-<hash>/fastloop<suffix>``, the hash over
-    its source, flags and compiler. Built under a temporary name and renamed, so
-    concurrent processes never load a half-written file; in this process's temporary
-    folder when the cache cannot be written.
+    cache_root`): ``<cache>/<version>/fastloop-<hash>/fastloop<suffix>`` (see
+    :func:`build_helper`).
+
+    Raises
+    ------
+    OSError
+        No compiler for this machine, or it failed.
+    """
+    return build_helper("fastloop", SOURCES, HEADERS, FLAGS, "the master's C loop")
+
+
+def build_helper(
+    stem: str, sources: Sequence[Path], headers: Sequence[Path], flags: Sequence[str], what: str
+) -> Path:
+    """A shared library of ``sources`` for this process, built once per FMU cache.
+
+    Parameters
+    ----------
+    stem : str
+        The library's name: ``<cache>/<version>/<stem>-<hash>/<stem><suffix>``, the hash
+        over the sources, the headers they include, the flags and the compiler.
+    sources, headers : sequence of Path
+        The C files compiled, the files they include.
+    flags : sequence of str
+        Compile flags after the toolchain's shared-library ones.
+    what : str
+        What it is, for the compiler's error message.
+
+    Returns
+    -------
+    Path
+        The library. Built under a temporary name and renamed, so concurrent processes
+        never load a half-written file; in this process's temporary folder when the
+        cache cannot be written.
 
     Raises
     ------
@@ -102,28 +144,30 @@ def built_library() -> Path:
     from ..fmus.files import cache_root, package_version
     from ..inputs.tempdirs import new_temp_dir
 
-    cmd = [*toolchain.host_command(), *FLAGS]
-    h = hashlib.sha256(SOURCE.read_bytes())
-    h.update(" ".join([*FLAGS, toolchain.fingerprint()]).encode())
+    cmd = [*toolchain.host_command(), *flags]
+    h = hashlib.sha256()
+    for path in (*sources, *headers):
+        h.update(path.read_bytes())
+    h.update(" ".join([*flags, toolchain.fingerprint()]).encode())
     suffix = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
-    folder = cache_root() / package_version() / f"fastloop-{h.hexdigest()[:16]}"
-    out = folder / f"fastloop{suffix}"
+    folder = cache_root() / package_version() / f"{stem}-{h.hexdigest()[:16]}"
+    out = folder / f"{stem}{suffix}"
     if out.is_file():
         return out
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        part = folder / f".fastloop-{os.getpid()}{suffix}"
+        part = folder / f".{stem}-{os.getpid()}{suffix}"
     except OSError:
-        out = new_temp_dir("fastloop_") / f"fastloop{suffix}"
+        out = new_temp_dir(f"{stem}_") / f"{stem}{suffix}"
         part = out
     try:
-        toolchain.run([*cmd, str(SOURCE), "-o", str(part)], "the master's C loop", timeout=120)
+        toolchain.run([*cmd, *map(str, sources), "-o", str(part)], what, timeout=120)
         if part != out:
             os.replace(part, out)
     finally:
         if part != out:
             part.unlink(missing_ok=True)
-            for extra in folder.glob(f".fastloop-{os.getpid()}.*"):  # zig's .pdb/.lib
+            for extra in folder.glob(f".{stem}-{os.getpid()}.*"):  # zig's .pdb/.lib
                 extra.unlink(missing_ok=True)
     return out
 

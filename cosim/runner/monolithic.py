@@ -1,15 +1,32 @@
 """The same sampled-data loop as the three FMUs under the Gauss-Seidel master, calling
-the pure model code directly (no FMI): the reference for accuracy and FMI overhead."""
+the model code directly (no FMI): the reference for accuracy and FMI overhead.
+
+:func:`simulate_monolithic` calls the Python models. :class:`NativeMonolithic` is the
+native flavor's floor: ``monolithic.c`` (next to this module) compiled with the native
+FMUs' own C models (``src/<part>/<part>_model.c``, their flags) into a helper of the FMU
+cache, like the master's fast loop (:func:`glider_cosim.master.fastloop.build_helper`),
+runs the same loop in C. Its rows are bit for bit those of the native co-simulation
+(tested), so its time is what the models cost, and the native flavor's time per macro
+step minus it is what FMI and the master add (``bench/cosim_step.py``:
+``native_monolithic_us_per_macro_step``).
+"""
 
 from __future__ import annotations
 
+import ctypes
+import time
 from collections.abc import Callable
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fmpy import read_model_description
 
+import glider_controller
+import glider_fmi
+import glider_observer
+import glider_plant
 from glider_controller.laws import Law, PIController, passivity_law
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step
@@ -49,6 +66,31 @@ def _fmus(fmu_dir: str | Path | None) -> Path:
     return prepare_fmus(fmu_dir, None)
 
 
+def loop_parameters(
+    scenario: Scenario, step: float, fmu_dir: str | Path | None = None, what: str = "monolithic"
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """The plant's, observer's and controller's parameters and start values for a loop
+    without FMI: the FMUs' defaults (their model descriptions in ``fmu_dir``, default the
+    per-user cache), the scenario's values over them, ``f_sample`` following ``step`` (s).
+
+    Raises
+    ------
+    ScenarioError
+        The scenario has events, FMU swaps or inputs (the loops have none of them).
+    """
+    if scenario.events or scenario.fmus or scenario.inputs:
+        raise ScenarioError(
+            f"{scenario.source}: the {what} loop supports no events, FMU swaps or inputs"
+        )
+    fmu_dir = _fmus(fmu_dir)
+    params = with_sampling(scenario.parameters, step, scenario.source)  # f_sample follows h
+    pp, op, cp = (
+        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
+        for inst, name in FMU_NAMES.items()
+    )
+    return pp, op, cp
+
+
 def simulate_monolithic(
     scenario: Scenario,
     step: float | None = None,
@@ -70,18 +112,9 @@ def simulate_monolithic(
     ndarray
         One row per communication point with :data:`COLUMNS`.
     """
-    if scenario.events or scenario.fmus or scenario.inputs:
-        raise ScenarioError(
-            f"{scenario.source}: the monolithic loop supports no events, FMU swaps or inputs"
-        )
     h = step if step is not None else scenario.step
     stop = stop_time if stop_time is not None else scenario.stop_time
-    fmu_dir = _fmus(fmu_dir)
-    params = with_sampling(scenario.parameters, h, scenario.source)  # f_sample follows h
-    pp, op, cp = (
-        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
-        for inst, name in FMU_NAMES.items()
-    )
+    pp, op, cp = loop_parameters(scenario, h, fmu_dir)
     p, po, pc = (GliderParams.from_mapping(d) for d in (pp, op, cp))
     eq_c = equilibrium(pc)
     sensor = PitchSensor(pp["noise_std"], int(pp["noise_seed"]))
@@ -186,3 +219,181 @@ def simulate_continuous(
     sol = solve_ivp(rhs, (0.0, t[-1]), y0, method="LSODA", t_eval=t, rtol=1e-10, atol=1e-12)
     cmd = [command(sol.y[:, k]) for k in range(sol.y.shape[1])]
     return np.column_stack([sol.t, sol.y[1], sol.y[6], cmd])
+
+
+# ------------------------------------------------------------ the native floor, in C
+SOURCE = Path(__file__).with_name("monolithic.c")
+_DIRS = [Path(m.__file__).parent for m in (glider_plant, glider_observer, glider_controller)]
+#: the C files compiled into the helper, the headers they include
+SOURCES = (SOURCE, *(d / f"{d.name.removeprefix('glider_')}_model.c" for d in _DIRS))
+HEADERS = (
+    *(d / f"{d.name.removeprefix('glider_')}_model.h" for d in _DIRS),
+    Path(glider_fmi.__file__).with_name("glider_fp.h"),
+)
+#: the native FMUs' language and optimisation flags (glider_fmi.compile.CFLAGS)
+FLAGS = ("-std=gnu11", "-O2", *(f"-I{p.parent}" for p in HEADERS))
+_PARAMS = [f.name for f in fields(GliderParams)]
+
+
+class _Params(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_double) for name in _PARAMS]
+
+
+class _Setup(ctypes.Structure):
+    """``MonoSetup`` of ``monolithic.c``: every field a double, in its order."""
+
+    _fields_ = [
+        ("plant", _Params), ("observer", _Params), ("controller", _Params),
+        *((n, ctypes.c_double) for n in (
+            "V_0", "theta_g_0", "alpha_0", "omega2_0", "x_0", "z_0", "delta_0",
+            "plant_delta_max", "tau_servo", "plant_h_max", "noise_std", "noise_seed", "R")),
+        ("Q", ctypes.c_double * 4),
+        *((n, ctypes.c_double) for n in (
+            "f_sample", "f_cutoff", "t_start", "observer_h_max", "theta_meas_start",
+            "filter_enabled", "start_at_equilibrium", "V_hat_0", "theta_g_hat_0", "alpha_hat_0",
+            "omega2_hat_0", "law", "K_c", "K_P", "K_I", "controller_delta_max", "delta_open",
+            "t_enable", "feedback_state")),
+    ]  # fmt: skip
+
+
+_LIB: list[ctypes.CDLL] = []
+
+
+def _library() -> ctypes.CDLL:
+    if not _LIB:
+        from ..master.fastloop import build_helper
+
+        out = build_helper("monolithic", SOURCES, HEADERS, FLAGS, "the native monolithic loop")
+        lib = ctypes.CDLL(str(out))
+        lib.glider_mono_state_size.restype = ctypes.c_size_t
+        lib.glider_mono_init.restype = ctypes.c_int
+        lib.glider_mono_run.restype = ctypes.c_long
+        _LIB.append(lib)
+    return _LIB[0]
+
+
+def _setup(pp: dict[str, Any], op: dict[str, Any], cp: dict[str, Any], state_fb: bool) -> _Setup:
+    s = _Setup()
+    for part, values in (("plant", pp), ("observer", op), ("controller", cp)):
+        params = GliderParams.from_mapping(values)
+        for name in _PARAMS:
+            setattr(getattr(s, part), name, float(getattr(params, name)))
+    for name in ("V_0", "theta_g_0", "alpha_0", "omega2_0", "x_0", "z_0", "delta_0",
+                 "tau_servo", "noise_std", "noise_seed"):  # fmt: skip
+        setattr(s, name, float(pp[name]))
+    s.plant_delta_max, s.plant_h_max = float(pp["delta_max"]), float(pp["h_max"])
+    s.R = float(op["R"])
+    s.Q[:] = [float(op[q]) for q in ("Q_V", "Q_theta_g", "Q_alpha", "Q_omega2")]
+    for name in ("f_sample", "f_cutoff", "t_start", "filter_enabled", "start_at_equilibrium",
+                 "V_hat_0", "theta_g_hat_0", "alpha_hat_0", "omega2_hat_0"):  # fmt: skip
+        setattr(s, name, float(op[name]))
+    s.observer_h_max, s.theta_meas_start = float(op["h_max"]), float(op["theta_meas"])
+    s.law = float(Law(int(cp["law"])))
+    for name in ("K_c", "K_P", "K_I", "delta_open", "t_enable"):
+        setattr(s, name, float(cp[name]))
+    s.controller_delta_max = float(cp["delta_max"])
+    s.feedback_state = 1.0 if state_fb else 0.0
+    return s
+
+
+class NativeMonolithic:
+    """The loop of one scenario in C, started and run in blocks.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        No events, FMU swaps, inputs or disturbances; with the observer.
+    step : float, optional
+        The communication step (s); default the scenario's.
+    fmu_dir : str or Path, optional
+        The folder whose FMUs give the parameter defaults (default: the per-user cache).
+
+    Raises
+    ------
+    ScenarioError
+        The scenario has what the loop does not support, or a model refuses its
+        parameters (the message of the FMU's own initialisation).
+    OSError
+        No C compiler for this machine.
+    """
+
+    def __init__(
+        self, scenario: Scenario, step: float | None = None, fmu_dir: str | Path | None = None
+    ) -> None:
+        if scenario.disturbances:
+            raise ScenarioError(
+                f"{scenario.source}: the native monolithic loop has no disturbances"
+            )
+        if not scenario.observer:
+            raise ScenarioError(
+                f"{scenario.source}: the native monolithic loop runs the observer: "
+                "with_observer = false is not supported"
+            )
+        self.step = step if step is not None else scenario.step
+        pp, op, cp = loop_parameters(scenario, self.step, fmu_dir, "native monolithic")
+        self._lib = _library()
+        self._setup = _setup(pp, op, cp, scenario.feedback == "state")
+        self._state = ctypes.create_string_buffer(self._lib.glider_mono_state_size())
+        self._msg = ctypes.create_string_buffer(1024)
+        self.source = scenario.source
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start (the models initialised again from the parameters)."""
+        if self._lib.glider_mono_init(self._state, ctypes.byref(self._setup), self._msg,
+                                      len(self._msg)):  # fmt: skip
+            raise ScenarioError(f"{self.source}: {self._msg.value.decode()}")
+
+    def run(self, n_steps: int) -> tuple[np.ndarray, str | None]:
+        """The rows at times ``0, h, ..., n_steps h`` (:data:`COLUMNS`) and None, or the
+        rows up to the step where a model stopped the run and its message."""
+        rows = np.empty((n_steps + 1, len(COLUMNS)))
+        done = self._lib.glider_mono_run(
+            self._state, ctypes.c_double(self.step), ctypes.c_long(0), ctypes.c_long(n_steps + 1),
+            1, ctypes.c_void_p(rows.ctypes.data), self._msg, len(self._msg),
+        )  # fmt: skip
+        if done == n_steps + 1:
+            return rows, None
+        return rows[:done], self._msg.value.decode()
+
+
+def simulate_native_monolithic(
+    scenario: Scenario,
+    step: float | None = None,
+    stop_time: float | None = None,
+    fmu_dir: str | Path | None = None,
+) -> np.ndarray:
+    """Run the scenario's closed loop with the native FMUs' C models, without FMI.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        No events, FMU swaps, inputs or disturbances.
+    step, stop_time : float, optional
+        Communication step and end time (s); default the scenario's.
+    fmu_dir : str or Path, optional
+        The folder whose FMUs give the parameter defaults (default: the per-user cache).
+
+    Returns
+    -------
+    ndarray
+        One row per communication point with :data:`COLUMNS` (fewer when a model stops
+        the run).
+    """
+    loop = NativeMonolithic(scenario, step, fmu_dir)
+    stop = stop_time if stop_time is not None else scenario.stop_time
+    return loop.run(round(stop / loop.step))[0]
+
+
+def seconds_per_step(scenario: Scenario, fmu_dir: str | Path | None, repeat: int = 5) -> float:
+    """Best of ``repeat`` runs of the whole scenario in C (initialisation not included),
+    seconds per macro step."""
+    loop = NativeMonolithic(scenario, None, fmu_dir)
+    n = round(scenario.stop_time / loop.step)
+    best = float("inf")
+    for _ in range(repeat):
+        loop.reset()
+        t0 = time.perf_counter()
+        loop.run(n)
+        best = min(best, (time.perf_counter() - t0) / n)
+    return best

@@ -160,8 +160,9 @@ def simulate(
     max_steps : int
         Most communication steps; a longer run is refused before it starts.
     results_format : {"csv", "parquet"}
-        ``results.csv`` (text, 17 significant digits) or ``results.parquet`` (float64 as
-        they are; pandas and polars read it; needs pyarrow; about 4 us a row faster here).
+        ``results.csv`` (text: each value as ``repr`` writes it, exact) or
+        ``results.parquet`` (float64 as they are; pandas and polars read it; needs
+        pyarrow; about 0.5 us a row faster here).
     real_time : RealTime, optional
         Pace the communication points to the wall clock
         (:mod:`glider_cosim.realtime.pacing`); ``metrics.json`` gains ``real_time``.

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import io
 import math
 import os
 import time
@@ -42,7 +41,7 @@ import numpy as np
 from ..master.cosimulation import CoSimulation
 from ..master.errors import FMUCallError, FMUStopped, MasterError
 from ..runner.metrics import compute_metrics, wrap_angle
-from ..runner.recorders import ArrayRecorder
+from ..runner.recorders import ArrayRecorder, csv_lines
 from ..scenarios.fields import ScenarioError
 from ..scenarios.sampling import has_our_observer, with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
@@ -92,12 +91,8 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
 
 
 def _csv_text(columns: Sequence[str], data: np.ndarray) -> bytes:
-    """A trajectory as the CSV bytes ``run`` writes (17 significant digits)."""
-    buf = io.StringIO()
-    buf.write(",".join(columns) + "\n")
-    if len(data):
-        np.savetxt(buf, data, fmt="%.17g", delimiter=",")
-    return buf.getvalue().encode()
+    """A trajectory as the CSV bytes ``run`` writes (each value as ``repr``)."""
+    return (",".join(columns) + "\n").encode() + (csv_lines(data) if len(data) else b"")
 
 
 def run_one(

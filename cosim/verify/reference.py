@@ -18,7 +18,7 @@ import glider_plant
 
 from ..master.cosimulation import CoSimulation
 from ..master.spec import System
-from ..runner.recorders import ArrayRecorder
+from ..runner.recorders import ArrayRecorder, csv_lines
 
 STEP = 0.02
 STOP = 10.0
@@ -90,7 +90,8 @@ def run_reference(
 
 
 def write_csv(path: Path, columns: list[str], data: np.ndarray) -> None:
-    np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.17g")
+    """``columns`` and the rows of ``data`` as CSV, each value as ``repr`` writes it."""
+    Path(path).write_bytes((",".join(columns) + "\n").encode() + csv_lines(data))
 
 
 def read_csv(path: Path) -> tuple[list[str], np.ndarray]:

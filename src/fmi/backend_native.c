@@ -192,9 +192,10 @@ static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const 
 /* ------------------------------------------------------------------ stepping */
 static Status nat_step(Ctx *x, double t, double h, int *go_on) {
     NativeInstance *ni = NI(x->inst);
-    char msg[1024] = "", warning[1024] = "", a[64], b[64];
+    char msg[1024], warning[1024], a[64], b[64]; /* no "" initializers: 2 kB to zero */
     size_t i;
     int r;
+    msg[0] = warning[0] = '\0';
     if (fabs(t - ni->time) > 1e-9 * (fabs(ni->time) > 1.0 ? fabs(ni->time) : 1.0)) {
         py_float_repr(t, a, sizeof a);
         py_float_repr(ni->time, b, sizeof b);

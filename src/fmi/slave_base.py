@@ -175,6 +175,8 @@ class GliderSlave(Fmi2Slave):
             real = sv.find("Real")
             if v is None or real is None:
                 continue
+            if real.get("start") is not None:  # pythonfmu writes %.16g: maybe another double
+                real.set("start", repr(float(v.start)))
             if v.unit in _UNITS:
                 real.set("unit", v.unit)
                 used.add(v.unit)
