@@ -18,12 +18,13 @@ LAW = "expected one of 'open-loop', 'passivity', 'p', 'pi' (any case) or an inte
         ("controller.law=PID", f"--set 'controller.law=PID': 'PID' is invalid: {LAW}"),
         ("controller.law=7", f"--set 'controller.law=7': '7' is invalid: {LAW}"),
         ("plant.V_0=fast",
-         "--set 'plant.V_0=fast': 'fast' is not a number: expected a number (m/s)"),
+         "--set 'plant.V_0=fast': 'fast' is not a number: expected a number (m/s) or "
+         "'X m/s'"),
         ("plant.theta_g_0=x", "--set 'plant.theta_g_0=x': 'x' is not a number: expected a number "
          "(rad) or 'X deg'"),
         ("controller.K_c=a", "--set 'controller.K_c=a': 'a' is not a number: expected a number"),
         ("observer.f_sample=x",
-         "--set 'observer.f_sample=x': 'x' is not a number: expected a number (Hz)"),
+         "--set 'observer.f_sample=x': 'x' is not a number: expected a number (Hz) or 'X Hz'"),
         ("plant.not_ours=x", "--set 'plant.not_ours=x': 'x' is not a number: expected a number"),
     ],
 )  # fmt: skip
@@ -51,7 +52,8 @@ def test_law_names_any_case(text):
         ({"event": [{"when": "time >= 1", "set": {"controller.law": "pd"}}]},
          f"s.toml: key event[0].set.controller.law: 'pd' is invalid: {LAW}"),
         ({"plant": {"V_0": "fast"}},
-         "s.toml: key 'plant.V_0': 'fast' is not a number: expected a number (m/s)"),
+         "s.toml: key 'plant.V_0': 'fast' is not a number: expected a number (m/s) or "
+         "'X m/s'"),
         ({"plant": {"theta_g_0": "steep"}},
          "s.toml: key 'plant.theta_g_0': 'steep' is not a number: expected a number (rad) or "
          "'X deg'"),

@@ -17,11 +17,11 @@ from typing import Any
 
 from .text import quote
 from .values import (
-    Degrees,
+    Quantity,
     ValueCheckError,
+    check_declared_unit,
+    check_unit,
     check_value,
-    has_unit,
-    is_angle,
     unit_of,
 )
 
@@ -89,16 +89,17 @@ def check_system_values(sim: Any, origin: Origin) -> None:
                 f"{where}.when: threshold {quote(ev.threshold)} is invalid: expected a finite "
                 "number"
             )
-        if isinstance(ev.threshold, Degrees):
+        if isinstance(ev.threshold, Quantity):
             inst_name, _, name = ev.variable.partition(".")
             inst = sim.instances.get(inst_name)
             v = inst.vars.get(name) if inst is not None and name else None
-            if v is None or v.type != "Real" or (has_unit(v) and not is_angle(inst.md, v)):
+            if v is None or v.type != "Real":
                 unit = "s" if ev.variable == "time" else (unit_of(v) if v is not None else "?")
                 raise ValueCheckError(
-                    f"{where}.when: {quote(ev.threshold.text)} is invalid: 'deg' only applies "
-                    f"to angles; {ev.variable} is in {unit}"
+                    f"{where}.when: {quote(ev.threshold.text)} is invalid: {ev.variable} is "
+                    f"in {unit}: expected a plain number"
                 )
+            check_unit(ev.threshold, inst.md, v, f"{where}.when")
         for target in list(ev.actions):
             inst_name, _, name = target.partition(".")
             inst = sim.instances.get(inst_name)
@@ -168,9 +169,10 @@ def check_ranges(
             continue
         table = tables.setdefault(kinds[inst], _table(kinds[inst]))
         spec = table.get(name)
-        if spec is None or spec.valid is None or isinstance(value, bool):
+        if spec is None or isinstance(value, bool):
             continue
-        if not isinstance(value, int | float):
+        check_declared_unit(value, name, spec.unit, where)  # a unit error before a range's
+        if spec.valid is None or not isinstance(value, int | float):
             continue
         try:
             v = float(value)
@@ -179,7 +181,7 @@ def check_ranges(
         if spec.type == "Integer" and not float(v).is_integer():
             continue  # not an integer: the type check says so
         if not spec.valid.contains(v):
-            shown = quote(value.text if isinstance(value, Degrees) else value)
+            shown = quote(value.text if isinstance(value, Quantity) else value)
             if spec.type == "Integer":
                 r = spec.valid
                 expected = f"an integer in [{r.low:.0f}, {r.high:.0f}]"

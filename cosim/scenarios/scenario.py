@@ -33,7 +33,7 @@ from typing import Any
 
 from ..inputs.archives import InputFileError, regular_file
 from ..inputs.text import quote, shown_path
-from ..inputs.values import Degrees
+from ..inputs.values import Quantity
 from ..master.spec import Disturbance, Event
 from .fields import ScenarioError, parse_choice, parse_float, parse_law, parse_number, parse_table
 
@@ -225,10 +225,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
             raise ScenarioError(
                 f"{where}.when: threshold {quote(m.group(3))} is invalid: expected a finite number"
             )
-        if isinstance(threshold, Degrees) and m.group(1) == "time":
-            raise ScenarioError(
-                f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not deg"
-            )
+        if isinstance(threshold, Quantity) and m.group(1) == "time":
+            if threshold.unit != "s":
+                raise ScenarioError(
+                    f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not "
+                    f"{threshold.unit}"
+                )
+            threshold = float(threshold)
         sc.events.append(
             Event(
                 variable=m.group(1),
