@@ -64,6 +64,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..inputs.check import check_ranges, our_kinds
     from ..master.spec import count_steps
     from ..runner.metrics import describe_outcome
+    from ..runner.provenance import overrides_text
     from ..runner.run import origin_of, simulate
     from ..scenarios.overrides import apply_overrides, parse_sets
     from ..scenarios.scenario import load_scenario
@@ -97,9 +98,7 @@ def _run(args: argparse.Namespace) -> int:
     except SystemSpecError as err:
         where = " and ".join(f"{o} {v:g}" for o, v in given) or source
         raise UsageError(f"{where}: {err}") from None
-    out = Path(args.out)
-    if args.out == "out":
-        out = out / name
+    out = Path(args.out) if args.out is not None else Path("out") / name  # one rule
     _check_out_dir(out, "--out")
     options = {
         opt: value
@@ -149,9 +148,12 @@ def _run(args: argparse.Namespace) -> int:
         v = m.get(key)
         return "n/a" if v is None else f"{v * scale:.3f}{unit}"
 
+    overrides = overrides_text(m)
     print(
-        f"scenario {scenario.name} ({scenario.source}): {m['rows']} rows to "
-        f"t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, step {_time(m['step_s'])} s"
+        f"scenario {scenario.name} ({scenario.source})"
+        + (f" with {overrides}" if overrides else "")
+        + f": {m['rows']} rows to t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, "
+        f"step {_time(m['step_s'])} s"
     )
     print(
         f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"

@@ -100,7 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"TOML file, shipped name ({', '.join(shipped_scenarios())}) or .ssp/.ssd "
         "file; default: default",
     )
-    r.add_argument("--out", default="out", help="results folder ('out' means out/<scenario>)")
+    r.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="results folder, written straight into (default: out/<scenario>); results "
+        "an earlier run made there with other settings are replaced, with a note naming them",
+    )
     add_fmu_options(r, fmi=True)
     r.add_argument(
         "--coupling",

@@ -31,7 +31,7 @@ from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, system_for
 from .metrics import compute_metrics
-from .provenance import clear_owned, marked_events, run_record
+from .provenance import clear_owned, marked_events, replaced_note, run_record
 from .recorders import ArrayRecorder, CsvRecorder
 
 log = logging.getLogger(__name__)
@@ -147,8 +147,10 @@ def simulate(
         ``None`` runs the default (paper Sec. 3.3) scenario; a ``.ssp``/``.ssd`` path
         runs an SSP.
     out : path, optional
-        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
-        it, nothing is written and the rows are kept in memory.
+        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots, written
+        straight into it (what an earlier run wrote there is replaced; one made with
+        other settings is named in a warning first). Without it, nothing is written and
+        the rows are kept in memory.
     fmu_dir : path, optional
         Where the FMUs are (built there first if missing or stale, when ``build``).
         Default: the per-user cache (:func:`glider_cosim.fmus.folders.cache_dir`), so nothing is
@@ -256,9 +258,16 @@ def simulate(
         raise SystemSpecError(f"{scenario.source}: {err}") from None
     for note in notes:  # only for a system that loaded: a refused one gets one line
         log.warning(note)
+    if options is None:
+        options = {k: v for k, v in (("coupling", coupling), ("step", step),
+                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    record = run_record(scenario, sim, options)
     files: dict[str, Path] = {}
     if out is not None:
         out = Path(out)
+        note = replaced_note(out, record)  # earlier results made otherwise: say so, once
+        if note is not None:
+            log.warning(note)
         out.mkdir(parents=True, exist_ok=True)
         clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
         if results_format == "parquet":
@@ -315,15 +324,12 @@ def simulate(
         columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
     metrics = compute_metrics(columns, data, scenario, sim, status)
     metrics.update(status=status, message=message)
-    if options is None:
-        options = {k: v for k, v in (("coupling", coupling), ("step", step),
-                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
     ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
     if ext:
         metrics["external"] = ext
     if pacer is not None:
         metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
-    metrics["run"] = run_record(scenario, sim, options)
+    metrics["run"] = record
     metrics["events"] = marked_events(sim, status, failure)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
     if out is not None:
