@@ -168,7 +168,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  {describe(m['real_time'])}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
-        print(f"glider-cosim: run {result.status}: {one_line(result.message)}", file=sys.stderr)
+        print(f"glider-cosim run: error: run {result.status}: {one_line(result.message)}",
+              file=sys.stderr)  # fmt: skip
         return 1
     return 0
 
@@ -270,7 +271,7 @@ def dispatch(args: argparse.Namespace) -> int:
         from ..fmus.folders import build_all
 
         out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
-        _check_out_dir(out, "build --out")
+        _check_out_dir(out, "--out")
         if args.compiler is not None:  # every build step and hash of this process uses it
             from glider_fmi.toolchain import COMPILER_ENV
 
@@ -282,7 +283,7 @@ def dispatch(args: argparse.Namespace) -> int:
         except ToolchainError as err:  # a compiler chosen is missing or failed
             raise UsageError(str(err)) from None
         except OSError as err:
-            raise _os_error(err, {"build --out": out}) from None
+            raise _os_error(err, {"--out": out}) from None
         for name, path in built.items():
             print(f"{name}: {path}")
         return 0
@@ -297,7 +298,7 @@ def dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command in ("export-fmu", "export-ssp"):
         out = Path(args.out)
-        _check_out_file(out, f"{args.command} OUT")
+        _check_out_file(out, "OUT")
         if args.command == "export-fmu":
             from ..interop.onefmu import export_one_fmu as export
         else:
@@ -305,9 +306,7 @@ def dispatch(args: argparse.Namespace) -> int:
         try:
             print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
         except OSError as err:
-            raise _os_error(
-                err, {f"{args.command} OUT": out, "--fmu-dir": Path(args.fmu_dir)}
-            ) from None
+            raise _os_error(err, {"OUT": out, "--fmu-dir": Path(args.fmu_dir)}) from None
         return 0
     if args.command == "host-env":
         from ..interop.hostenv import main as host_env_main
@@ -318,7 +317,7 @@ def dispatch(args: argparse.Namespace) -> int:
 
         return sweep_main(args)
     if args.command == "report":
-        _check_out_dir(Path(args.out), "report --out")
+        _check_out_dir(Path(args.out), "--out")
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
@@ -326,7 +325,12 @@ def dispatch(args: argparse.Namespace) -> int:
         from ..verify.command import run_command
 
         if args.export:
-            _check_out_dir(Path(args.export), "verify --export")
+            _check_out_dir(Path(args.export), "--export")
         return run_command(args)
-    print("\n".join(shipped_scenarios()))
+    from ..scenarios.scenario import load_scenario, one_line_summary
+
+    names = shipped_scenarios()
+    width = max(len(n) for n in names)
+    for name in names:
+        print(f"{name:<{width}}  {one_line_summary(load_scenario(name))}")
     return 0

@@ -6,7 +6,7 @@ import argparse
 import re
 
 from ..fmus.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
-from ..inputs.text import one_line, quote
+from ..inputs.text import did_you_mean, one_line, quote
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 
@@ -42,6 +42,17 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # one line, exit code 2
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+    def _check_value(self, action: argparse.Action, value: object) -> None:
+        """argparse's check of ``choices``, with a "did you mean" for a misspelt choice
+        (a subcommand, ``--coupling jacobe``)."""
+        choices = action.choices
+        if choices is not None and value not in choices:
+            shown = ", ".join(repr(c) for c in choices)
+            raise argparse.ArgumentError(
+                action, f"invalid choice: {value!r} (choose from {shown})"
+                + did_you_mean(value, choices)
+            )  # fmt: skip
 
 
 def _positive(text: str) -> float:
@@ -248,5 +259,9 @@ def build_parser() -> argparse.ArgumentParser:
         "failed, 2 on bad input, a missing core interface or no case that can run.",
     )
     add_verify_arguments(v, tolerance_arg)
-    sub.add_parser("scenarios", help="list the shipped scenarios")
+    sub.add_parser(
+        "scenarios",
+        help="list the shipped scenarios, one line each",
+        description="List the shipped scenarios: each name and what it is, in one line.",
+    )
     return p

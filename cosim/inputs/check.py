@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from .text import quote
+from .text import did_you_mean, quote
 from .values import (
     Quantity,
     ValueCheckError,
@@ -39,12 +39,18 @@ def _settable(inst: Any, name: str, where: str) -> Any:
     if v is None:
         raise ValueCheckError(
             f"{where}: instance {inst.name} ({inst.md.modelName}) has no variable {quote(name)}"
+            + did_you_mean(name, _settable_names(inst))
         )
     if v.causality not in ("parameter", "input") or v.variability == "constant":
         raise ValueCheckError(
             f"{where}: {inst.name}.{name} is a {v.variability} {v.causality}: it cannot be set"
         )
     return v
+
+
+def _settable_names(inst: Any) -> list[str]:
+    return [n for n, v in inst.vars.items()
+            if v.causality in ("parameter", "input") and v.variability != "constant"]  # fmt: skip
 
 
 def check_system_values(sim: Any, origin: Origin) -> None:
@@ -70,7 +76,7 @@ def check_system_values(sim: Any, origin: Origin) -> None:
         if inst is None:
             raise ValueCheckError(
                 f"{origin(inst_name)}: no instance {quote(inst_name)} "
-                f"(instances: {', '.join(sim.instances)})"
+                f"(instances: {', '.join(sim.instances)})" + did_you_mean(inst_name, sim.instances)
             )
         for name in list(params):
             where = origin(f"{inst_name}.{name}")
@@ -107,7 +113,7 @@ def check_system_values(sim: Any, origin: Origin) -> None:
             if inst is None:
                 raise ValueCheckError(
                     f"{twhere}: no instance {quote(inst_name)} (instances: "
-                    f"{', '.join(sim.instances)})"
+                    f"{', '.join(sim.instances)})" + did_you_mean(inst_name, sim.instances)
                 )
             v = _settable(inst, name, twhere)
             ev.actions[target] = check_value(ev.actions[target], inst.md, v, twhere)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,7 @@ from ..master.errors import (
 )
 from ..master.spec import DEFAULT_MAX_STEPS, count_steps
 from ..realtime.pacing import Pacer, RealTime, TooLate, paced_run
+from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, system_for
@@ -127,6 +128,7 @@ def simulate(
     scenario: Scenario | str | Path | None = None,
     out: str | Path | None = None,
     *,
+    overrides: Mapping[str, Any] | None = None,
     fmu_dir: str | Path | None = DEFAULT_FMU_DIR,
     build: bool = True,
     coupling: str | None = None,
@@ -151,6 +153,12 @@ def simulate(
         straight into it (what an earlier run wrote there is replaced; one made with
         other settings is named in a warning first). Without it, nothing is written and
         the rows are kept in memory.
+    overrides : mapping, optional
+        ``{"controller.K_c": 6, "plant.theta_g_0": "-30 deg", "plant.V_0": "0.2 m/s"}``:
+        what ``--set`` takes, as numbers, booleans or strings (a value in the variable's
+        declared unit, ``deg`` for an angle, a law name for ``controller.law``), checked
+        as ``--set`` is before anything is built; recorded in ``metrics.json``
+        (``run.overrides``). Not for an SSP.
     fmu_dir : path, optional
         Where the FMUs are (built there first if missing or stale, when ``build``).
         Default: the per-user cache (:func:`glider_cosim.fmus.folders.cache_dir`), so nothing is
@@ -188,7 +196,7 @@ def simulate(
     ------
     ScenarioError, SSPError, SystemSpecError, ValueError
         Bad arguments (scenario, SSP or FMU files, names, value types and units, step
-        and stop time): raised before any FMU is instantiated.
+        and stop time, ``overrides``): raised before any FMU is instantiated.
     OSError
         ``out`` cannot be created or written.
     glider_cosim.master.Interrupted
@@ -220,6 +228,10 @@ def simulate(
                             stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    if overrides:
+        if ssp_system is not None:
+            raise ValueError("overrides do not apply to an SSP (edit its parameter values)")
+        scenario = override_scenario(scenario, overrides)
     h = step if step is not None else scenario.step
     stop = stop_time if stop_time is not None else scenario.stop_time
     try:

@@ -6,7 +6,7 @@ import math
 import re
 from typing import Any
 
-from ..inputs.text import quote
+from ..inputs.text import did_you_mean, quote
 from ..inputs.values import Quantity, parse_quantity
 
 LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
@@ -102,7 +102,9 @@ def parse_law(value: Any, where: str) -> Any:
             return int(key)
     elif not isinstance(value, bool) and isinstance(value, int) and value in LAWS.values():
         return value
-    raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
+    raise ScenarioError(
+        f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}" + did_you_mean(value, LAWS)
+    )
 
 
 def parse_choice(value: Any, choices: tuple[str, ...], where: str) -> str:
@@ -111,6 +113,7 @@ def parse_choice(value: Any, choices: tuple[str, ...], where: str) -> str:
         return value.strip().lower()
     raise ScenarioError(
         f"{where}: {quote(value)} is invalid: expected {_choices(choices)} (any case)"
+        + did_you_mean(value, choices)
     )
 
 

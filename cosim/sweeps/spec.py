@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..inputs.text import did_you_mean
 from ..inputs.values import parse_quantity
 from ..scenarios.scenario import INSTANCES, Scenario
 from ..scenarios.system import FMU_NAMES, system_for
@@ -87,6 +88,7 @@ def parse_param(item: str) -> ParamSpec:
     if not sep or not dot or inst not in INSTANCES or not name:
         raise SweepSpecError(
             f"{where}: expected INSTANCE.NAME=SPEC with INSTANCE one of {', '.join(INSTANCES)}"
+            + (did_you_mean(inst, INSTANCES) if dot and inst not in INSTANCES else "")
         )
     spec = spec.strip()
     target = f"{inst}.{name}"
@@ -184,7 +186,7 @@ def check_targets(
         if inst not in fmus:
             raise SweepSpecError(
                 f"--param {t}: the scenario {scenario.name} has no instance '{inst}' "
-                f"(instances: {', '.join(fmus)})"
+                f"(instances: {', '.join(fmus)})" + did_you_mean(inst, fmus)
             )
         if inst not in variables:
             try:
@@ -199,6 +201,9 @@ def check_targets(
         if causality is None:
             raise SweepSpecError(
                 f"--param {t}: instance {inst} ({models[inst]}) has no variable '{name}'"
+                + did_you_mean(
+                    name, [n for n, c in variables[inst].items() if c in ("parameter", "input")]
+                )  # fmt: skip
             )
         if causality not in ("parameter", "input"):
             raise SweepSpecError(f"--param {t}: {t} has causality {causality}: expected one of "

@@ -32,11 +32,11 @@ def run_cli(capsys, *argv: str) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def assert_one_line_error(code: int, err: str, *expected: str) -> None:
+def assert_one_line_error(code: int, err: str, *expected: str, command: str = "run") -> None:
     assert code == 2, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
-    assert lines[0].startswith("glider-cosim: error: "), err
+    assert lines[0].startswith(f"glider-cosim {command}: error: "), err
     assert "Traceback" not in err
     for text in expected:
         assert text in lines[0], lines[0]
@@ -198,16 +198,16 @@ def test_os_errors_name_the_option(capsys, fmu_dir, tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("x")
     cases = [
-        (["run", "--out", str(afile), "--fmu-dir", str(fmu_dir)], f"--out '{afile}'"),
-        (["run", "--out", str(afile / "sub"), "--fmu-dir", str(fmu_dir)], "--out"),
-        (["run", "--out", "/proc/x", "--fmu-dir", str(fmu_dir)], "--out '/proc/x'"),
-        (["export-ssp", str(tmp_path), "--fmu-dir", str(fmu_dir)], "export-ssp OUT"),
-        (["export-fmu", str(tmp_path), "--fmu-dir", str(fmu_dir)], "export-fmu OUT"),
-        (["build", "--out", str(afile)], "build --out"),
+        (["run", "--out", str(afile), "--fmu-dir", str(fmu_dir)], f"error: --out '{afile}'"),
+        (["run", "--out", str(afile / "sub"), "--fmu-dir", str(fmu_dir)], "error: --out"),
+        (["run", "--out", "/proc/x", "--fmu-dir", str(fmu_dir)], "error: --out '/proc/x'"),
+        (["export-ssp", str(tmp_path), "--fmu-dir", str(fmu_dir)], "error: OUT"),
+        (["export-fmu", str(tmp_path), "--fmu-dir", str(fmu_dir)], "error: OUT"),
+        (["build", "--out", str(afile)], "error: --out"),
     ]
     for argv, expected in cases:
         code, err = run_cli(capsys, *argv)
-        assert_one_line_error(code, err, expected)
+        assert_one_line_error(code, err, expected, command=argv[0])
         assert not err.split("error: ", 1)[1].startswith("[Errno"), err
 
 
@@ -514,3 +514,43 @@ def test_api_argument_errors_are_typed(fmu_dir, kwargs, error, message, no_insta
     kwargs = {"scenario": "default", **kwargs}
     with pytest.raises(error, match=re.escape(message)):
         simulate(out=None, fmu_dir=fmu_dir, build=False, **kwargs)
+
+
+# ------------------------------------------------------------------ issue 28, point 6
+def test_api_overrides_take_what_set_takes(fmu_dir):
+    r = simulate(None, overrides={"controller.K_c": 6, "plant.theta_g_0": "-30 deg",
+                                  "plant.V_0": "0.2 m/s"}, stop_time=0.1,
+                 fmu_dir=fmu_dir)  # fmt: skip
+    assert r.status == "ok", r.message
+    assert r.metrics["run"]["overrides"] == {"controller.K_c": 6, "plant.theta_g_0": "-30 deg",
+                                             "plant.V_0": "0.2 m/s"}  # fmt: skip
+    assert r.column("plant.theta_g")[0] == pytest.approx(np.radians(-30))
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"controller.K_c": "6 deg"}, "overrides['controller.K_c']: '6 deg' is invalid: K_c has "
+         "no unit: expected a plain number"),
+        ({"controller.K_x": 6}, "overrides['controller.K_x']: instance controller "
+         "(GliderController) has no variable 'K_x'"),
+    ],
+)  # fmt: skip
+def test_api_overrides_are_refused_before_instantiation(fmu_dir, no_instantiation, overrides,
+                                                        message):  # fmt: skip
+    with pytest.raises(ValueError) as err:
+        simulate(None, overrides=overrides, stop_time=0.1, fmu_dir=fmu_dir)
+    assert str(err.value).startswith(message)
+
+
+def test_a_failed_run_names_the_command(fmu_dir, tmp_path, capsys):
+    """The run's failure line has the one prefix form too (exit 1)."""
+    code = main(["run", "--set", "controller.K_c=0.05", "--stop-time", "3", "--no-plots",
+                 "--fmu-dir", str(fmu_dir), "--out", str(tmp_path)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.startswith(
+        "glider-cosim run: error: run stopped: observer: fmi2DoStep at t = 2.58 s returned "
+        "fmi2Discard: "
+    ), err
+    assert err.count("\n") == 1

@@ -126,9 +126,9 @@ def test_unknown_targets_are_refused_before_any_work(fmu_dir, tmp_path, capsys, 
 @pytest.mark.parametrize(
     ("param", "message"),
     [
-        ("controller.K_c=-1,5", "glider-cosim: error: --param 'controller.K_c=-1,5': -1 is "
+        ("controller.K_c=-1,5", "glider-cosim sweep: error: --param 'controller.K_c=-1,5': -1 is "
          "invalid: expected a finite value in (0, inf)"),
-        ("controller.K_c=6 deg,8", "glider-cosim: error: --param 'controller.K_c=6 deg,8': "
+        ("controller.K_c=6 deg,8", "glider-cosim sweep: error: --param 'controller.K_c=6 deg,8': "
          "'6 deg' is invalid: K_c has no unit: expected a plain number"),
     ],
 )  # fmt: skip
