@@ -138,6 +138,14 @@ def _error(capsys, argv: list[str]) -> str:
          "controller; did you mean 'controller'?"),
         (["report", "--workers", "0"], "glider-cosim report: error: --workers 0: expected a "
          "number >= 1"),
+        # issue 28, point 4: exports refuse what makes no sense
+        (["export-fmu", "x.txt"], "glider-cosim export-fmu: error: OUT 'x.txt': expected a file "
+         "name ending in .fmu"),
+        (["export-ssp", "x.fmu"], "glider-cosim export-ssp: error: OUT 'x.fmu': expected a file "
+         "name ending in .ssp"),
+        (["export-ssp", "no-such-folder-28/x.ssp"], "glider-cosim export-ssp: error: OUT "
+         "'no-such-folder-28/x.ssp': folder 'no-such-folder-28' does not exist: expected an "
+         "existing folder (create it first)"),
     ],
 )  # fmt: skip
 def test_every_error_line_names_its_command(capsys, no_fmus, argv, line):
@@ -226,3 +234,21 @@ def test_api_overrides_take_what_set_takes():
         with pytest.raises(ValueError) as err:
             override_scenario(load_scenario(None), overrides)
         assert str(err.value) == message
+
+
+def test_a_fmu_dir_that_does_not_exist_gets_one_note(capsys, no_fmus, tmp_path):
+    """A typo in --fmu-dir would build a whole new set there: one note says so."""
+    folder = tmp_path / "fmuz"
+    code = main(["run", "--fmu-dir", str(folder), "--set", "controller.K_c=6", "--set",
+                 "controller.K_c=7"])  # fmt: skip
+    lines = capsys.readouterr().err.splitlines()
+    assert code == 2
+    assert lines[0] == (
+        f"glider-cosim: note: --fmu-dir '{folder}' does not exist: a fresh set of FMUs is "
+        "built there"
+    )
+    assert len(lines) == 2 and lines[1].startswith("glider-cosim run: error: --set")
+    folder.mkdir()
+    main(["run", "--fmu-dir", str(folder), "--set", "controller.K_c=6", "--set",
+          "controller.K_c=7"])  # fmt: skip
+    assert "note" not in capsys.readouterr().err  # an existing folder: no note

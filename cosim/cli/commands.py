@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ from ..master.errors import SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from .parser import UsageError
+
+log = logging.getLogger(__name__)
 
 
 def _check_out_dir(path: Path, option: str) -> None:
@@ -30,11 +33,24 @@ def _check_out_dir(path: Path, option: str) -> None:
         raise UsageError(f"{shown}: {quote(str(parent))} is not writable")
 
 
-def _check_out_file(path: Path, option: str) -> None:
-    """Refuse an output file that is a folder or cannot be created (naming the option)."""
+def _check_out_file(path: Path, option: str, suffix: str) -> None:
+    """Refuse an output file that is a folder, does not end in ``suffix``, is in a folder
+    that does not exist, or cannot be created (naming the option)."""
+    shown = f"{option} {quote(str(path))}"
     if path.is_dir():
-        raise UsageError(f"{option} {quote(str(path))}: is a folder: expected a file name")
+        raise UsageError(f"{shown}: is a folder: expected a file name")
+    if path.suffix.lower() != suffix:
+        raise UsageError(f"{shown}: expected a file name ending in {suffix}")
+    if not path.parent.is_dir() and not path.parent.exists():
+        raise UsageError(
+            f"{shown}: folder {quote(str(path.parent))} does not exist: expected an existing "
+            "folder (create it first)"
+        )
     _check_out_dir(path.parent, option)
+
+
+#: the file each export writes
+EXPORT_SUFFIX = {"export-fmu": ".fmu", "export-ssp": ".ssp"}
 
 
 def _os_error(err: OSError, paths: dict[str, Path]) -> UsageError:
@@ -258,10 +274,15 @@ def dispatch(args: argparse.Namespace) -> int:
     """Run the parsed subcommand; its exit code."""
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
     # asked; verify builds ours only for --write-references/--export
+    if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
+        _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
+        if folder is not None and not folder.exists():  # a typo builds a whole new set
+            log.warning(f"--fmu-dir {quote(str(folder))} does not exist: a fresh set of "
+                        "FMUs is built there")  # fmt: skip
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         try:
             args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
@@ -298,7 +319,6 @@ def dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command in ("export-fmu", "export-ssp"):
         out = Path(args.out)
-        _check_out_file(out, "OUT")
         if args.command == "export-fmu":
             from ..interop.onefmu import export_one_fmu as export
         else:

@@ -211,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
     ob.add_argument("--out", required=True, help="output folder")
 
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
-    e.add_argument("out", help="output .ssp file")
+    e.add_argument("out", metavar="OUT", help="output .ssp file, in a folder that exists")
     e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
     add_fmu_options(e, fmi=True)
 
@@ -225,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
-    xf.add_argument("out", help="output .fmu file")
+    xf.add_argument("out", metavar="OUT", help="output .fmu file, in a folder that exists")
     xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
     add_fmu_options(xf)
 
