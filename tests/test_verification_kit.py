@@ -176,12 +176,12 @@ def test_not_an_fmu_is_one_line(capsys, tmp_path):
     text.write_text("hello")
     assert main(["verify", str(text)]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'notes.fmu' is not a readable zip (File is not a zip "
+        "glider-cosim verify: error: FMU 'notes.fmu' is not a readable zip (File is not a zip "
         "file)\n"
     )
     assert main(["verify", str(tmp_path / "missing.fmu")]) == 2
     assert capsys.readouterr().err == (
-        f"glider-cosim: error: verify: FMU {tmp_path / 'missing.fmu'} does not exist\n"
+        f"glider-cosim verify: error: FMU {tmp_path / 'missing.fmu'} does not exist\n"
     )
 
 
@@ -191,7 +191,7 @@ def test_an_fmi1_fmu_is_refused_in_one_line(capsys, tmp_path):
         z.writestr("modelDescription.xml", '<fmiModelDescription fmiVersion="1.0"/>')
     assert main(["verify", str(fmu)]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'One.fmu' is an FMI 1.0 FMU: this build runs FMI "
+        "glider-cosim verify: error: FMU 'One.fmu' is an FMI 1.0 FMU: this build runs FMI "
         "2.0, 3.0 co-simulation FMUs\n"
     )
 
@@ -209,7 +209,7 @@ def test_an_unknown_component_is_one_line(capsys):
 def test_verify_needs_an_fmu_or_a_command(capsys):
     assert main(["verify"]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: expected an FMU (or --write-references, --export DIR)\n"
+        "glider-cosim verify: error: expected an FMU (or --write-references, --export DIR)\n"
     )
 
 

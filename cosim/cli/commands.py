@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ from ..master.errors import SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from .parser import UsageError
+
+log = logging.getLogger(__name__)
 
 
 def _check_out_dir(path: Path, option: str) -> None:
@@ -30,11 +33,24 @@ def _check_out_dir(path: Path, option: str) -> None:
         raise UsageError(f"{shown}: {quote(str(parent))} is not writable")
 
 
-def _check_out_file(path: Path, option: str) -> None:
-    """Refuse an output file that is a folder or cannot be created (naming the option)."""
+def _check_out_file(path: Path, option: str, suffix: str) -> None:
+    """Refuse an output file that is a folder, does not end in ``suffix``, is in a folder
+    that does not exist, or cannot be created (naming the option)."""
+    shown = f"{option} {quote(str(path))}"
     if path.is_dir():
-        raise UsageError(f"{option} {quote(str(path))}: is a folder: expected a file name")
+        raise UsageError(f"{shown}: is a folder: expected a file name")
+    if path.suffix.lower() != suffix:
+        raise UsageError(f"{shown}: expected a file name ending in {suffix}")
+    if not path.parent.is_dir() and not path.parent.exists():
+        raise UsageError(
+            f"{shown}: folder {quote(str(path.parent))} does not exist: expected an existing "
+            "folder (create it first)"
+        )
     _check_out_dir(path.parent, option)
+
+
+#: the file each export writes
+EXPORT_SUFFIX = {"export-fmu": ".fmu", "export-ssp": ".ssp"}
 
 
 def _os_error(err: OSError, paths: dict[str, Path]) -> UsageError:
@@ -64,6 +80,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..inputs.check import check_ranges, our_kinds
     from ..master.spec import count_steps
     from ..runner.metrics import describe_outcome
+    from ..runner.provenance import overrides_text
     from ..runner.run import origin_of, simulate
     from ..scenarios.overrides import apply_overrides, parse_sets
     from ..scenarios.scenario import load_scenario
@@ -97,9 +114,7 @@ def _run(args: argparse.Namespace) -> int:
     except SystemSpecError as err:
         where = " and ".join(f"{o} {v:g}" for o, v in given) or source
         raise UsageError(f"{where}: {err}") from None
-    out = Path(args.out)
-    if args.out == "out":
-        out = out / name
+    out = Path(args.out) if args.out is not None else Path("out") / name  # one rule
     _check_out_dir(out, "--out")
     options = {
         opt: value
@@ -149,9 +164,12 @@ def _run(args: argparse.Namespace) -> int:
         v = m.get(key)
         return "n/a" if v is None else f"{v * scale:.3f}{unit}"
 
+    overrides = overrides_text(m)
     print(
-        f"scenario {scenario.name} ({scenario.source}): {m['rows']} rows to "
-        f"t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, step {_time(m['step_s'])} s"
+        f"scenario {scenario.name} ({scenario.source})"
+        + (f" with {overrides}" if overrides else "")
+        + f": {m['rows']} rows to t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, "
+        f"step {_time(m['step_s'])} s"
     )
     print(
         f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"
@@ -166,7 +184,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  {describe(m['real_time'])}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
-        print(f"glider-cosim: run {result.status}: {one_line(result.message)}", file=sys.stderr)
+        print(f"glider-cosim run: error: run {result.status}: {one_line(result.message)}",
+              file=sys.stderr)  # fmt: skip
         return 1
     return 0
 
@@ -255,10 +274,15 @@ def dispatch(args: argparse.Namespace) -> int:
     """Run the parsed subcommand; its exit code."""
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
     # asked; verify builds ours only for --write-references/--export
+    if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
+        _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None
+        if folder is not None and not folder.exists():  # a typo builds a whole new set
+            log.warning(f"--fmu-dir {quote(str(folder))} does not exist: a fresh set of "
+                        "FMUs is built there")  # fmt: skip
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         try:
             args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
@@ -268,7 +292,7 @@ def dispatch(args: argparse.Namespace) -> int:
         from ..fmus.folders import build_all
 
         out = Path(args.out) if args.out is not None else default_dir(args.flavor, args.fmi)
-        _check_out_dir(out, "build --out")
+        _check_out_dir(out, "--out")
         if args.compiler is not None:  # every build step and hash of this process uses it
             from glider_fmi.toolchain import COMPILER_ENV
 
@@ -280,7 +304,7 @@ def dispatch(args: argparse.Namespace) -> int:
         except ToolchainError as err:  # a compiler chosen is missing or failed
             raise UsageError(str(err)) from None
         except OSError as err:
-            raise _os_error(err, {"build --out": out}) from None
+            raise _os_error(err, {"--out": out}) from None
         for name, path in built.items():
             print(f"{name}: {path}")
         return 0
@@ -295,7 +319,6 @@ def dispatch(args: argparse.Namespace) -> int:
         return 0
     if args.command in ("export-fmu", "export-ssp"):
         out = Path(args.out)
-        _check_out_file(out, f"{args.command} OUT")
         if args.command == "export-fmu":
             from ..interop.onefmu import export_one_fmu as export
         else:
@@ -303,9 +326,7 @@ def dispatch(args: argparse.Namespace) -> int:
         try:
             print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
         except OSError as err:
-            raise _os_error(
-                err, {f"{args.command} OUT": out, "--fmu-dir": Path(args.fmu_dir)}
-            ) from None
+            raise _os_error(err, {"OUT": out, "--fmu-dir": Path(args.fmu_dir)}) from None
         return 0
     if args.command == "host-env":
         from ..interop.hostenv import main as host_env_main
@@ -316,7 +337,7 @@ def dispatch(args: argparse.Namespace) -> int:
 
         return sweep_main(args)
     if args.command == "report":
-        _check_out_dir(Path(args.out), "report --out")
+        _check_out_dir(Path(args.out), "--out")
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
@@ -324,12 +345,17 @@ def dispatch(args: argparse.Namespace) -> int:
         from ..verify.command import run_command
 
         if args.export:
-            _check_out_dir(Path(args.export), "verify --export")
+            _check_out_dir(Path(args.export), "--export")
         return run_command(args)
     if args.command == "cache":
         from ..fmus.cache import cache_report
 
         cache_report(args.prune)
         return 0
-    print("\n".join(shipped_scenarios()))
+    from ..scenarios.scenario import load_scenario, one_line_summary
+
+    names = shipped_scenarios()
+    width = max(len(n) for n in names)
+    for name in names:
+        print(f"{name:<{width}}  {one_line_summary(load_scenario(name))}")
     return 0

@@ -67,31 +67,45 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _main(args)
 
 
+def error_prefix(command: str | None) -> str:
+    """``"glider-cosim COMMAND: error: "``: the one form of every error line (argparse's
+    too: each subcommand's parser has ``prog`` ``glider-cosim COMMAND``)."""
+    return f"glider-cosim {command}: error: " if command else "glider-cosim: error: "
+
+
+def _message(err: BaseException, command: str | None) -> str:
+    """The error's message on one line, without a leading ``COMMAND: `` (the prefix names
+    the command already, e.g. ``verify: FMU ...`` of the file checks)."""
+    text = one_line(err)
+    return text.removeprefix(f"{command}: ") if command else text
+
+
 def _main(args: argparse.Namespace) -> int:
+    command = getattr(args, "command", None)
+    error = error_prefix(command)
     old_term = None
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C
     try:
         code = dispatch(args)
     except (ScenarioError, SystemSpecError, ValueError) as err:
-        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        print(f"{error}{_message(err, command)}", file=sys.stderr)
         code = 2
     except MasterError as err:
-        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        print(f"{error}{_message(err, command)}", file=sys.stderr)
         code = 1
     except KeyboardInterrupt as err:
         if isinstance(err, Interrupted) and err.signum == signal.SIGTERM:
-            print("glider-cosim: terminated (SIGTERM); results so far are written",
-                  file=sys.stderr)  # fmt: skip
+            print(f"{error}terminated (SIGTERM); results so far are written", file=sys.stderr)
             code = 143
         else:
-            print("glider-cosim: interrupted; results so far are written", file=sys.stderr)
+            print(f"{error}interrupted; results so far are written", file=sys.stderr)
             code = 130
     except OSError as err:
-        print(f"glider-cosim: error: {one_line(err)}", file=sys.stderr)
+        print(f"{error}{_message(err, command)}", file=sys.stderr)
         code = 2
     except RecursionError:
-        print("glider-cosim: error: input nested too deeply", file=sys.stderr)
+        print(f"{error}input nested too deeply", file=sys.stderr)
         code = 2
     finally:
         if old_term is not None:

@@ -6,7 +6,7 @@ import argparse
 import re
 
 from ..fmus.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
-from ..inputs.text import one_line, quote
+from ..inputs.text import did_you_mean, one_line, quote
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 
@@ -42,6 +42,17 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # one line, exit code 2
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+    def _check_value(self, action: argparse.Action, value: object) -> None:
+        """argparse's check of ``choices``, with a "did you mean" for a misspelt choice
+        (a subcommand, ``--coupling jacobe``)."""
+        choices = action.choices
+        if choices is not None and value not in choices:
+            shown = ", ".join(repr(c) for c in choices)
+            raise argparse.ArgumentError(
+                action, f"invalid choice: {value!r} (choose from {shown})"
+                + did_you_mean(value, choices)
+            )  # fmt: skip
 
 
 def _positive(text: str) -> float:
@@ -100,7 +111,13 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"TOML file, shipped name ({', '.join(shipped_scenarios())}) or .ssp/.ssd "
         "file; default: default",
     )
-    r.add_argument("--out", default="out", help="results folder ('out' means out/<scenario>)")
+    r.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="results folder, written straight into (default: out/<scenario>); results "
+        "an earlier run made there with other settings are replaced, with a note naming them",
+    )
     add_fmu_options(r, fmi=True)
     r.add_argument(
         "--coupling",
@@ -194,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
     ob.add_argument("--out", required=True, help="output folder")
 
     e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
-    e.add_argument("out", help="output .ssp file")
+    e.add_argument("out", metavar="OUT", help="output .ssp file, in a folder that exists")
     e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
     add_fmu_options(e, fmi=True)
 
@@ -208,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
-    xf.add_argument("out", help="output .fmu file")
+    xf.add_argument("out", metavar="OUT", help="output .fmu file, in a folder that exists")
     xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
     add_fmu_options(xf)
 
@@ -242,7 +259,11 @@ def build_parser() -> argparse.ArgumentParser:
         "failed, 2 on bad input, a missing core interface or no case that can run.",
     )
     add_verify_arguments(v, tolerance_arg)
-    sub.add_parser("scenarios", help="list the shipped scenarios")
+    sub.add_parser(
+        "scenarios",
+        help="list the shipped scenarios, one line each",
+        description="List the shipped scenarios: each name and what it is, in one line.",
+    )
     ca = sub.add_parser(
         "cache",
         help="list the cached FMU sets with their sizes",

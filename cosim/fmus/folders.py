@@ -162,8 +162,9 @@ def add_fmu_options(parser: Any, fmi: bool = False) -> None:
     parser.add_argument(
         "--fmu-dir",
         default=None,
-        help="FMU folder, built if missing or stale in the flavor it holds (default: the "
-        "per-user cache, e.g. ~/.cache/glider-cosim, built from the installed sources)",
+        help="FMU folder, built if missing or stale in the flavor it holds; one that does not "
+        "exist gets a fresh set, with a note (default: the per-user cache, e.g. "
+        "~/.cache/glider-cosim, built from the installed sources)",
     )
     parser.add_argument(
         "--flavor",

@@ -15,13 +15,13 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from .text import quote
+from .text import did_you_mean, quote
 from .values import (
-    Degrees,
+    Quantity,
     ValueCheckError,
+    check_declared_unit,
+    check_unit,
     check_value,
-    has_unit,
-    is_angle,
     unit_of,
 )
 
@@ -39,12 +39,18 @@ def _settable(inst: Any, name: str, where: str) -> Any:
     if v is None:
         raise ValueCheckError(
             f"{where}: instance {inst.name} ({inst.md.modelName}) has no variable {quote(name)}"
+            + did_you_mean(name, _settable_names(inst))
         )
     if v.causality not in ("parameter", "input") or v.variability == "constant":
         raise ValueCheckError(
             f"{where}: {inst.name}.{name} is a {v.variability} {v.causality}: it cannot be set"
         )
     return v
+
+
+def _settable_names(inst: Any) -> list[str]:
+    return [n for n, v in inst.vars.items()
+            if v.causality in ("parameter", "input") and v.variability != "constant"]  # fmt: skip
 
 
 def check_system_values(sim: Any, origin: Origin) -> None:
@@ -70,7 +76,7 @@ def check_system_values(sim: Any, origin: Origin) -> None:
         if inst is None:
             raise ValueCheckError(
                 f"{origin(inst_name)}: no instance {quote(inst_name)} "
-                f"(instances: {', '.join(sim.instances)})"
+                f"(instances: {', '.join(sim.instances)})" + did_you_mean(inst_name, sim.instances)
             )
         for name in list(params):
             where = origin(f"{inst_name}.{name}")
@@ -89,16 +95,17 @@ def check_system_values(sim: Any, origin: Origin) -> None:
                 f"{where}.when: threshold {quote(ev.threshold)} is invalid: expected a finite "
                 "number"
             )
-        if isinstance(ev.threshold, Degrees):
+        if isinstance(ev.threshold, Quantity):
             inst_name, _, name = ev.variable.partition(".")
             inst = sim.instances.get(inst_name)
             v = inst.vars.get(name) if inst is not None and name else None
-            if v is None or v.type != "Real" or (has_unit(v) and not is_angle(inst.md, v)):
+            if v is None or v.type != "Real":
                 unit = "s" if ev.variable == "time" else (unit_of(v) if v is not None else "?")
                 raise ValueCheckError(
-                    f"{where}.when: {quote(ev.threshold.text)} is invalid: 'deg' only applies "
-                    f"to angles; {ev.variable} is in {unit}"
+                    f"{where}.when: {quote(ev.threshold.text)} is invalid: {ev.variable} is "
+                    f"in {unit}: expected a plain number"
                 )
+            check_unit(ev.threshold, inst.md, v, f"{where}.when")
         for target in list(ev.actions):
             inst_name, _, name = target.partition(".")
             inst = sim.instances.get(inst_name)
@@ -106,7 +113,7 @@ def check_system_values(sim: Any, origin: Origin) -> None:
             if inst is None:
                 raise ValueCheckError(
                     f"{twhere}: no instance {quote(inst_name)} (instances: "
-                    f"{', '.join(sim.instances)})"
+                    f"{', '.join(sim.instances)})" + did_you_mean(inst_name, sim.instances)
                 )
             v = _settable(inst, name, twhere)
             ev.actions[target] = check_value(ev.actions[target], inst.md, v, twhere)
@@ -168,9 +175,10 @@ def check_ranges(
             continue
         table = tables.setdefault(kinds[inst], _table(kinds[inst]))
         spec = table.get(name)
-        if spec is None or spec.valid is None or isinstance(value, bool):
+        if spec is None or isinstance(value, bool):
             continue
-        if not isinstance(value, int | float):
+        check_declared_unit(value, name, spec.unit, where)  # a unit error before a range's
+        if spec.valid is None or not isinstance(value, int | float):
             continue
         try:
             v = float(value)
@@ -179,7 +187,7 @@ def check_ranges(
         if spec.type == "Integer" and not float(v).is_integer():
             continue  # not an integer: the type check says so
         if not spec.valid.contains(v):
-            shown = quote(value.text if isinstance(value, Degrees) else value)
+            shown = quote(value.text if isinstance(value, Quantity) else value)
             if spec.type == "Integer":
                 r = spec.valid
                 expected = f"an integer in [{r.low:.0f}, {r.high:.0f}]"

@@ -1,7 +1,9 @@
-"""Bounded quoting of user text in messages."""
+"""Bounded quoting of user text in messages, and the "did you mean" of a misspelt name."""
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from typing import Any
 
 QUOTE_LIMIT = 200
@@ -47,3 +49,13 @@ def shown_path(path: Any) -> str:
     """A file name for messages: as is, or quoted and cut if it is long or unprintable."""
     text = str(path)
     return text if len(text) <= QUOTE_LIMIT and text.isprintable() else quote(text)
+
+
+def did_you_mean(word: Any, choices: Iterable[Any]) -> str:
+    """``"; did you mean 'K_c'?"`` for the choice closest to a misspelt ``word`` (difflib,
+    any case), or ``""`` if none is close; appended to a message that refuses ``word``."""
+    if not isinstance(word, str) or len(word) > QUOTE_LIMIT:
+        return ""
+    names = {str(c).lower(): str(c) for c in choices}
+    close = difflib.get_close_matches(word.lower(), list(names), n=1, cutoff=0.6)
+    return f"; did you mean {names[close[0]]!r}?" if close else ""

@@ -137,7 +137,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         env = host_env()
     except HostEnvError as err:
-        print(f"glider-cosim: error: {err}", file=sys.stderr)
+        print(f"glider-cosim host-env: error: {err}", file=sys.stderr)
         return 2
     for name, value in env.items():
         print(f"export {name}={shlex.quote(value)}")

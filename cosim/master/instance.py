@@ -25,7 +25,7 @@ from glider_fmi.compile import PYTHON_CONFIG_FILE
 
 from ..inputs.archives import InputFileError, read_fmu, safe_extract
 from ..inputs.tempdirs import new_temp_dir
-from ..inputs.text import one_line, quote
+from ..inputs.text import did_you_mean, one_line, quote
 from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError
 from .fmi3 import (
     TYPE_AS_FMI2,
@@ -144,6 +144,7 @@ class Instance:
         if v is None:
             raise SystemSpecError(
                 f"instance {self.name} ({self.md.modelName}) has no variable {quote(name)}"
+                + did_you_mean(name, self.vars)
             )
         if causality is not None and v.causality not in causality:
             raise SystemSpecError(

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..inputs.text import quote
+from ..inputs.text import did_you_mean, quote
 from .errors import SystemSpecError
 from .fastloop import FastLoop
 from .instance import Instance
@@ -59,6 +59,7 @@ def resolve(instances: dict[str, Instance], ref: str, causality: Iterable[str] |
     if inst is None:
         raise SystemSpecError(
             f"{quote(ref)}: no instance {quote(r.instance)} (instances: {', '.join(instances)})"
+            + did_you_mean(r.instance, instances)
         )
     return inst, inst.var(r.variable, causality)
 

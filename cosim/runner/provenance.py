@@ -177,18 +177,79 @@ def run_record(scenario: Any, sim: Any, options: dict[str, Any] | None = None) -
     }
 
 
+#: options that change what a run computes (the others change only what it writes)
+_RESULT_OPTIONS_SKIPPED = ("--no-plots", "--format", "--max-steps", "--max-extract-mb",
+                           "--fmu-dir", "--flavor", "--fmi")  # fmt: skip
+
+
+def settings_of(run: dict[str, Any]) -> dict[str, Any]:
+    """What made a run's results, from its ``run`` record: the scenario (name and
+    SHA-256), the overrides, the options that change results, and each FMU's flavor and
+    FMI version. Two runs with the same settings give the same results."""
+    fmus = run.get("fmus") or {}
+    return {
+        "scenario": run.get("scenario"),
+        "scenario_sha256": run.get("scenario_sha256"),
+        "overrides": run.get("overrides") or {},
+        "options": {
+            k: v for k, v in (run.get("options") or {}).items() if k not in _RESULT_OPTIONS_SKIPPED
+        },  # fmt: skip
+        "flavors": sorted({str(f.get("flavor")) for f in fmus.values()}),
+        "fmi": sorted({str(f.get("fmi_version")) for f in fmus.values()}),
+    }
+
+
+def describe_settings(run: dict[str, Any], sha: bool = False) -> str:
+    """``"scenario default, controller.K_c=6, python FMUs, FMI 2.0"``: a run's settings
+    (:func:`settings_of`) in one line (``sha``: with the scenario's SHA-256, shortened)."""
+    st = settings_of(run)
+    parts = [f"scenario {st['scenario']}"]
+    parts += _overrides(st["overrides"]) or ["no overrides"]
+    parts += [k if v is True else f"{k} {_short(v)}" for k, v in st["options"].items()]
+    parts.append(f"{'/'.join(st['flavors']) or '?'} FMUs, FMI {'/'.join(st['fmi']) or '?'}")
+    if sha and st["scenario_sha256"]:
+        parts.append(f"scenario sha256 {str(st['scenario_sha256'])[:12]}")
+    return ", ".join(parts)
+
+
+def replaced_note(out: Path, run: dict[str, Any]) -> str | None:
+    """The note for a run into ``out`` whose ``metrics.json`` was made with other settings
+    (:func:`settings_of`) than ``run``: what the replaced results were made with, in one
+    line; ``None`` if there is none, it is unreadable, or the settings are the same."""
+    try:
+        old = json.loads((Path(out) / "metrics.json").read_text(encoding="utf-8")).get("run")
+    except (OSError, ValueError, AttributeError):
+        return None
+    if not isinstance(old, dict) or settings_of(old) == settings_of(run):
+        return None
+    sha = old.get("scenario_sha256") != run.get("scenario_sha256")  # the file was edited
+    return (
+        f"replacing the results in {out} made with other settings: "
+        f"{describe_settings(old, sha)} (this run: {describe_settings(run, sha)})"
+    )
+
+
 def _short(value: Any) -> str:
     value = _plain(value)
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def _overrides(overrides: dict[str, Any]) -> list[str]:
+    return [
+        f"{k}={LAW_NAMES.get(v, v) if k.endswith('controller.law') else _short(v)}"
+        for k, v in overrides.items()
+    ]
+
+
+def overrides_text(metrics: dict[str, Any]) -> str:
+    """``"controller.K_c=6, plant.theta_g_0=-30 deg"``: a run's overrides ("" if none)."""
+    return ", ".join(_overrides((metrics.get("run") or {}).get("overrides", {})))
+
+
 def settings_text(metrics: dict[str, Any]) -> str:
     """``"scenario default; controller.K_c=6, --step 0.01"``: what a plot's subtitle says."""
     run = metrics.get("run") or {}
-    parts = [
-        f"{k}={LAW_NAMES.get(v, v) if k.endswith('controller.law') else _short(v)}"
-        for k, v in run.get("overrides", {}).items()
-    ]
+    parts = _overrides(run.get("overrides", {}))
     parts += [k if v is True else f"{k} {_short(v)}" for k, v in run.get("options", {}).items()]
     text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
     return text + ("; " + ", ".join(parts) if parts else "; no overrides")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,11 +27,12 @@ from ..master.errors import (
 )
 from ..master.spec import DEFAULT_MAX_STEPS, count_steps
 from ..realtime.pacing import Pacer, RealTime, TooLate, paced_run
+from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, system_for
 from .metrics import compute_metrics
-from .provenance import clear_owned, marked_events, run_record
+from .provenance import clear_owned, marked_events, replaced_note, run_record
 from .recorders import ArrayRecorder, CsvRecorder
 
 log = logging.getLogger(__name__)
@@ -127,6 +128,7 @@ def simulate(
     scenario: Scenario | str | Path | None = None,
     out: str | Path | None = None,
     *,
+    overrides: Mapping[str, Any] | None = None,
     fmu_dir: str | Path | None = DEFAULT_FMU_DIR,
     build: bool = True,
     coupling: str | None = None,
@@ -147,8 +149,16 @@ def simulate(
         ``None`` runs the default (paper Sec. 3.3) scenario; a ``.ssp``/``.ssd`` path
         runs an SSP.
     out : path, optional
-        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots. Without
-        it, nothing is written and the rows are kept in memory.
+        Folder for ``results.csv`` (streamed), ``metrics.json`` and PNG plots, written
+        straight into it (what an earlier run wrote there is replaced; one made with
+        other settings is named in a warning first). Without it, nothing is written and
+        the rows are kept in memory.
+    overrides : mapping, optional
+        ``{"controller.K_c": 6, "plant.theta_g_0": "-30 deg", "plant.V_0": "0.2 m/s"}``:
+        what ``--set`` takes, as numbers, booleans or strings (a value in the variable's
+        declared unit, ``deg`` for an angle, a law name for ``controller.law``), checked
+        as ``--set`` is before anything is built; recorded in ``metrics.json``
+        (``run.overrides``). Not for an SSP.
     fmu_dir : path, optional
         Where the FMUs are (built there first if missing or stale, when ``build``).
         Default: the per-user cache (:func:`glider_cosim.fmus.folders.cache_dir`), so nothing is
@@ -187,7 +197,7 @@ def simulate(
     ------
     ScenarioError, SSPError, SystemSpecError, ValueError
         Bad arguments (scenario, SSP or FMU files, names, value types and units, step
-        and stop time): raised before any FMU is instantiated.
+        and stop time, ``overrides``): raised before any FMU is instantiated.
     OSError
         ``out`` cannot be created or written.
     glider_cosim.master.Interrupted
@@ -219,6 +229,10 @@ def simulate(
                             stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    if overrides:
+        if ssp_system is not None:
+            raise ValueError("overrides do not apply to an SSP (edit its parameter values)")
+        scenario = override_scenario(scenario, overrides)
     h = step if step is not None else scenario.step
     stop = stop_time if stop_time is not None else scenario.stop_time
     try:
@@ -257,9 +271,16 @@ def simulate(
         raise SystemSpecError(f"{scenario.source}: {err}") from None
     for note in notes:  # only for a system that loaded: a refused one gets one line
         log.warning(note)
+    if options is None:
+        options = {k: v for k, v in (("coupling", coupling), ("step", step),
+                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
+    record = run_record(scenario, sim, options)
     files: dict[str, Path] = {}
     if out is not None:
         out = Path(out)
+        note = replaced_note(out, record)  # earlier results made otherwise: say so, once
+        if note is not None:
+            log.warning(note)
         out.mkdir(parents=True, exist_ok=True)
         clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
         if results_format == "parquet":
@@ -316,15 +337,12 @@ def simulate(
         columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
     metrics = compute_metrics(columns, data, scenario, sim, status)
     metrics.update(status=status, message=message)
-    if options is None:
-        options = {k: v for k, v in (("coupling", coupling), ("step", step),
-                                     ("stop_time", stop_time)) if v is not None}  # fmt: skip
     ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
     if ext:
         metrics["external"] = ext
     if pacer is not None:
         metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
-    metrics["run"] = run_record(scenario, sim, options)
+    metrics["run"] = record
     metrics["events"] = marked_events(sim, status, failure)
     result = RunResult(scenario, columns, data, metrics, status, message, files)
     if out is not None:

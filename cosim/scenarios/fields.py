@@ -6,13 +6,10 @@ import math
 import re
 from typing import Any
 
-from ..inputs.text import quote
-from ..inputs.values import Degrees
+from ..inputs.text import did_you_mean, quote
+from ..inputs.values import Quantity, parse_quantity
 
 LAWS = {"open-loop": 0, "passivity": 1, "p": 2, "pi": 3}
-
-
-_DEG = re.compile(r"^\s*([-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?)\s*deg\s*$")
 
 
 class ScenarioError(ValueError):
@@ -20,22 +17,22 @@ class ScenarioError(ValueError):
 
 
 def parse_number(value: Any, where: str, ref: str | None = None) -> float | int | bool:
-    """A TOML value as a number; ``"X deg"`` becomes a :class:`Degrees` (in rad).
+    """A TOML value as a number; ``"NUMBER UNIT"`` becomes a
+    :class:`~glider_cosim.inputs.values.Quantity` (``"X deg"`` a
+    :class:`~glider_cosim.inputs.values.Degrees`, in rad).
 
     Types are kept (an int stays an int, a boolean a boolean): the variable's type and
-    unit are checked against its FMU before the run. ``ref`` (``instance.variable``)
+    unit are checked against its FMU before the run
+    (:func:`glider_cosim.inputs.values.check_unit`). ``ref`` (``instance.variable``)
     selects the unit hint of the message.
     """
-    expect = _expect_number(ref)
     if isinstance(value, bool | int | float):
         return value
     if isinstance(value, str):
-        m = _DEG.match(value)
-        if m:
-            rad = math.radians(float(m.group(1)))
-            if math.isfinite(rad):
-                return Degrees(rad, value.strip())
-    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected {expect}")
+        q = parse_quantity(value)
+        if q is not None:
+            return q
+    raise ScenarioError(f"{where}: {quote(value)} is not a number: expected {_expect_number(ref)}")
 
 
 def _expect_number(ref: str | None) -> str:
@@ -46,7 +43,7 @@ def _expect_number(ref: str | None) -> str:
     if unit == "rad":
         return "a number (rad) or 'X deg'"
     if unit and unit != "1":
-        return f"a number ({unit})"
+        return f"a number ({unit}) or 'X {unit}'"
     return "a number"
 
 
@@ -68,9 +65,10 @@ def parse_float(
     non_negative: bool = False,
     angle: bool = False,
 ) -> float:
-    """A finite float (``angle``: ``"X deg"`` accepted, checked against the unit later)."""
+    """A finite float (``angle``: a value for a variable, so a unit such as ``"X deg"``
+    is accepted here and checked against the variable's unit later)."""
     v = parse_number(value, where)
-    if isinstance(v, Degrees) and not angle:
+    if isinstance(v, Quantity) and not angle:
         raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number without a unit")
     try:
         finite = not isinstance(v, bool) and math.isfinite(float(v))
@@ -82,7 +80,7 @@ def parse_float(
         raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number > 0")
     if non_negative and v < 0:
         raise ScenarioError(f"{where}: {quote(value)} is invalid: expected a number >= 0")
-    return v if isinstance(v, Degrees) else float(v)
+    return v if isinstance(v, Quantity) else float(v)
 
 
 def _choices(names: Any) -> str:
@@ -104,7 +102,9 @@ def parse_law(value: Any, where: str) -> Any:
             return int(key)
     elif not isinstance(value, bool) and isinstance(value, int) and value in LAWS.values():
         return value
-    raise ScenarioError(f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}")
+    raise ScenarioError(
+        f"{where}: {quote(value)} is invalid: expected {LAW_CHOICES}" + did_you_mean(value, LAWS)
+    )
 
 
 def parse_choice(value: Any, choices: tuple[str, ...], where: str) -> str:
@@ -113,6 +113,7 @@ def parse_choice(value: Any, choices: tuple[str, ...], where: str) -> str:
         return value.strip().lower()
     raise ScenarioError(
         f"{where}: {quote(value)} is invalid: expected {_choices(choices)} (any case)"
+        + did_you_mean(value, choices)
     )
 
 

@@ -5,7 +5,8 @@ in it is executed. Angles may be given in radians (numbers) or as ``"-35 deg"``.
 
 Keys (all optional; defaults give the paper's Sec. 3.3 case)::
 
-    name, description, notes  strings
+    name, summary, description, notes  strings (summary: one line, what
+                              ``glider-cosim scenarios`` prints)
     stop_time = 60.0          s, > 0
     step = 0.02               communication step, s, > 0
     coupling = "gauss-seidel" or "jacobi"
@@ -32,8 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from ..inputs.archives import InputFileError, regular_file
-from ..inputs.text import quote, shown_path
-from ..inputs.values import Degrees
+from ..inputs.text import did_you_mean, quote, shown_path
+from ..inputs.values import Quantity
 from ..master.spec import Disturbance, Event
 from .fields import ScenarioError, parse_choice, parse_float, parse_law, parse_number, parse_table
 
@@ -47,8 +48,8 @@ FEEDBACKS = ("observer", "state")
 
 
 _TOP = {
-    "name", "description", "notes", "stop_time", "step", "coupling", "feedback", "with_observer",
-    "record",
+    "name", "summary", "description", "notes", "stop_time", "step", "coupling", "feedback",
+    "with_observer", "record",
     "fmus", "external", "inputs", "disturbance", "event", *INSTANCES,
 }  # fmt: skip
 
@@ -68,6 +69,8 @@ class Scenario:
     """A parsed scenario (see the module docstring for the keys)."""
 
     name: str = "default"
+    #: one line: what ``glider-cosim scenarios`` prints
+    summary: str = ""
     description: str = ""
     notes: str = ""
     source: str = "<defaults>"
@@ -98,13 +101,16 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         if key not in _TOP:
             raise ScenarioError(
                 f"{source}: unknown key {quote(key)}: expected one of {', '.join(sorted(_TOP))}"
+                + did_you_mean(key, _TOP)
             )
     sc = Scenario(source=source)
-    for key in ("name", "description", "notes"):
+    for key in ("name", "summary", "description", "notes"):
         if key in data:
             if not isinstance(data[key], str):
                 raise ScenarioError(f"{source}: key '{key}': expected a string")
             setattr(sc, key, data[key])
+    if "\n" in sc.summary:
+        raise ScenarioError(f"{source}: key 'summary': expected one line")
     if "name" in data:
         check_name(sc.name, f"{source}: key 'name'")
     if "stop_time" in data:
@@ -173,9 +179,11 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     for i, d in enumerate(dist):
         where = f"{source}: key disturbance[{i}]"
         d = parse_table(d, where)
-        extra = set(d) - {"target", "kind", "time", "value", "duration"}
+        keys = ("target", "kind", "time", "value", "duration")
+        extra = set(d) - set(keys)
         if extra:
-            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
+            key = sorted(extra)[0]
+            raise ScenarioError(f"{where}: unknown key {quote(key)}" + did_you_mean(key, keys))
         kind = d.get("kind", "step")
         if kind not in ("step", "pulse"):
             raise ScenarioError(
@@ -202,7 +210,10 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         e = parse_table(e, where)
         extra = set(e) - {"when", "delay", "set"}
         if extra:
-            raise ScenarioError(f"{where}: unknown key {quote(sorted(extra)[0])}")
+            key = sorted(extra)[0]
+            raise ScenarioError(
+                f"{where}: unknown key {quote(key)}" + did_you_mean(key, ("when", "delay", "set"))
+            )
         when = e.get("when", "")
         m = _COND.match(when) if isinstance(when, str) and len(when) < 1000 else None
         if not m:
@@ -225,10 +236,13 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
             raise ScenarioError(
                 f"{where}.when: threshold {quote(m.group(3))} is invalid: expected a finite number"
             )
-        if isinstance(threshold, Degrees) and m.group(1) == "time":
-            raise ScenarioError(
-                f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not deg"
-            )
+        if isinstance(threshold, Quantity) and m.group(1) == "time":
+            if threshold.unit != "s":
+                raise ScenarioError(
+                    f"{where}.when: {quote(m.group(3))} is invalid: time is in s, not "
+                    f"{threshold.unit}"
+                )
+            threshold = float(threshold)
         sc.events.append(
             Event(
                 variable=m.group(1),
@@ -260,7 +274,7 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         if not p.exists():
             raise ScenarioError(
                 f"{shown}: scenario file does not exist (shipped scenarios: "
-                f"{', '.join(shipped_scenarios())})"
+                f"{', '.join(shipped_scenarios())})" + did_you_mean(str(path), shipped_scenarios())
             )
         try:
             regular_file(p, shown, "scenario file")
@@ -304,6 +318,17 @@ def check_name(name: str, where: str) -> str:
             "'-' (at most 100, not a path)"
         )
     return name
+
+
+def one_line_summary(sc: Scenario, width: int = 80) -> str:
+    """What a scenario is, in one line: its ``summary``, else its description's first
+    sentence, cut at a word to about ``width`` characters."""
+    text = " ".join((sc.summary or sc.description).split())
+    if not sc.summary:
+        text = text.split(". ")[0].removesuffix(".")
+    if len(text) > width:
+        text = text[: width - 3].rsplit(" ", 1)[0] + "..."
+    return text
 
 
 def shipped_scenarios() -> list[str]:

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from ..inputs.text import did_you_mean
+from ..inputs.values import parse_quantity
 from ..scenarios.scenario import INSTANCES, Scenario
 from ..scenarios.system import FMU_NAMES, system_for
 
@@ -36,6 +38,11 @@ class ParamSpec:
     values: tuple[float, ...] = ()
     dist: str = ""  # "uniform" | "normal"
     args: tuple[tuple[float, bool], ...] = ()  # (value, is_percent)
+    #: the values as written (numbers, :class:`~glider_cosim.inputs.values.Quantity`):
+    #: a list's values, a range's ends, absolute bounds; checked like ``--set``
+    given: tuple[float, ...] = ()
+    #: the ``--param`` argument, for messages
+    item: str = ""
 
     @property
     def random(self) -> bool:
@@ -53,14 +60,24 @@ class ParamSpec:
 
 
 def _value(text: str, where: str) -> float:
+    """A number, or a number with a unit (:func:`~glider_cosim.inputs.values.parse_quantity`,
+    as ``--set`` reads it: checked against the variable's unit before any run)."""
     text = text.strip()
-    m = re.fullmatch(rf"({_NUM})\s*deg", text)
-    if m:
-        return math.radians(float(m.group(1)))
+    q = parse_quantity(text)
+    if q is not None:
+        return q
+    if re.fullmatch(r"[-+]?\d{1,18}", text):
+        return int(text)  # shown as written in messages
     try:
-        return float(text)
+        v = float(text)
     except ValueError:
-        raise SweepSpecError(f"{where}: {text!r} is not a number (or 'X deg')") from None
+        v = math.nan
+    if not math.isfinite(v):
+        raise SweepSpecError(
+            f"{where}: {text!r} is not a number: expected a finite number (or one with the "
+            "variable's unit, e.g. 'X deg')"
+        )
+    return v
 
 
 def parse_param(item: str) -> ParamSpec:
@@ -71,6 +88,7 @@ def parse_param(item: str) -> ParamSpec:
     if not sep or not dot or inst not in INSTANCES or not name:
         raise SweepSpecError(
             f"{where}: expected INSTANCE.NAME=SPEC with INSTANCE one of {', '.join(INSTANCES)}"
+            + (did_you_mean(inst, INSTANCES) if dot and inst not in INSTANCES else "")
         )
     spec = spec.strip()
     target = f"{inst}.{name}"
@@ -91,7 +109,8 @@ def parse_param(item: str) -> ParamSpec:
             args.append((float(pm.group(1)), pm.group(2) == "%"))
         if m.group(1) == "normal" and args[0][0] < 0:
             raise SweepSpecError(f"{where}: the standard deviation must be >= 0")
-        return ParamSpec(target, dist=m.group(1), args=tuple(args))
+        bounds = tuple(v for v, pct in args if not pct) if m.group(1) == "uniform" else ()
+        return ParamSpec(target, dist=m.group(1), args=tuple(args), given=bounds, item=item)
     if ":" in spec:
         parts = spec.split(":")
         if len(parts) != 3:
@@ -103,11 +122,12 @@ def parse_param(item: str) -> ParamSpec:
             raise SweepSpecError(f"{where}: NUM {parts[2]!r} must be a whole number") from None
         if num < 1:
             raise SweepSpecError(f"{where}: NUM must be >= 1")
-        return ParamSpec(target, values=tuple(float(v) for v in np.linspace(start, stop, num)))
-    values = tuple(_value(v, where) for v in spec.split(",") if v.strip())
-    if not values:
+        values = tuple(float(v) for v in np.linspace(start, stop, num))
+        return ParamSpec(target, values=values, given=(start, stop), item=item)
+    given = tuple(_value(v, where) for v in spec.split(",") if v.strip())
+    if not given:
         raise SweepSpecError(f"{where}: no values")
-    return ParamSpec(target, values=values)
+    return ParamSpec(target, values=tuple(float(v) for v in given), given=given, item=item)
 
 
 def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop: float) -> str:
@@ -116,24 +136,57 @@ def run_id(params: dict[str, float], seed: int | None, scenario: Scenario, stop:
     return hashlib.sha1(key.encode()).hexdigest()[:16]
 
 
-def check_targets(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> None:
-    """Check that every swept ``instance.name`` is a parameter or input of its FMU.
+def check_ranges_of(specs: Sequence[ParamSpec], scenario: Scenario) -> None:
+    """Check every value written in ``specs`` against our FMUs' variable tables (unit and
+    valid range), as ``run --set`` does, before anything is built or run.
+
+    Raises
+    ------
+    SweepSpecError
+        ``--param 'ITEM': VALUE is invalid: expected ...`` for the first value refused.
+    """
+    from ..inputs.check import check_ranges
+    from ..inputs.values import ValueCheckError
+
+    for spec in specs:
+        inst, _, name = spec.target.partition(".")
+        for value in spec.given:
+            try:
+                check_ranges({inst: {name: value}}, lambda ref, s=spec: f"--param {s.item!r}",
+                             set(scenario.fmus))  # fmt: skip
+            except ValueCheckError as err:
+                raise SweepSpecError(str(err)) from None
+
+
+def check_targets(
+    scenario: Scenario,
+    fmu_dir: Path,
+    targets: Iterable[str],
+    specs: Sequence[ParamSpec] = (),
+) -> None:
+    """Check that every swept ``instance.name`` is a parameter or input of its FMU, and
+    every value written in ``specs`` fits it (type, unit, ``min``/``max``), as for
+    ``run --set``.
 
     The model descriptions of the scenario's FMUs (``fmu_dir`` unless swapped) are the
-    source, as for ``run --set``; raises :class:`SweepSpecError` naming the first
-    target that is not there, before any work is sent.
+    source; raises :class:`SweepSpecError` naming the first target or value that is
+    refused, before any work is sent.
     """
     from fmpy import read_model_description
+
+    from ..inputs.values import ValueCheckError, check_value
 
     fmus = system_for(scenario, fmu_dir).fmus
     variables: dict[str, dict[str, str]] = {}
     models: dict[str, str] = {}
+    descriptions: dict[str, Any] = {}
+    targets = [*targets, *(s.target for s in specs)]
     for t in targets:
         inst, _, name = t.partition(".")
         if inst not in fmus:
             raise SweepSpecError(
                 f"--param {t}: the scenario {scenario.name} has no instance '{inst}' "
-                f"(instances: {', '.join(fmus)})"
+                f"(instances: {', '.join(fmus)})" + did_you_mean(inst, fmus)
             )
         if inst not in variables:
             try:
@@ -143,14 +196,27 @@ def check_targets(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> 
                                      f"({err})") from None  # fmt: skip
             variables[inst] = {v.name: v.causality for v in md.modelVariables}
             models[inst] = md.modelName
+            descriptions[inst] = md
         causality = variables[inst].get(name)
         if causality is None:
             raise SweepSpecError(
                 f"--param {t}: instance {inst} ({models[inst]}) has no variable '{name}'"
+                + did_you_mean(
+                    name, [n for n, c in variables[inst].items() if c in ("parameter", "input")]
+                )  # fmt: skip
             )
         if causality not in ("parameter", "input"):
             raise SweepSpecError(f"--param {t}: {t} has causality {causality}: expected one of "
                                  "parameter, input")  # fmt: skip
+    for spec in specs:
+        inst, _, name = spec.target.partition(".")
+        md = descriptions[inst]
+        var = next(v for v in md.modelVariables if v.name == name)
+        for value in spec.given:
+            try:
+                check_value(value, md, var, f"--param {spec.item!r}")
+            except ValueCheckError as err:
+                raise SweepSpecError(str(err)) from None
 
 
 def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
@@ -200,5 +266,5 @@ def expand(
     return runs
 
 
-__all__ = ["ParamSpec", "SweepSpecError", "check_targets", "expand", "nominal_values",
-           "parse_param", "run_id"]  # fmt: skip
+__all__ = ["ParamSpec", "SweepSpecError", "check_ranges_of", "check_targets", "expand",
+           "nominal_values", "parse_param", "run_id"]  # fmt: skip

@@ -160,5 +160,63 @@ class SweepStore:
         ids = self.rows if run_ids is None else set(run_ids) & self.rows.keys()
         return sum(self.rows[i].get(STATUS_COLUMN) != "ok" for i in ids)
 
+    def failed_rows(self, run_ids: Iterable[str], most: int) -> list[dict[str, str]]:
+        """The first ``most`` rows among ``run_ids`` (in their order) whose status is not
+        ``ok``, as read back (strings)."""
+        out = []
+        for rid in run_ids:
+            row = self.rows.get(rid)
+            if row is not None and row.get(STATUS_COLUMN) != "ok":
+                out.append(dict(row))
+                if len(out) >= most:
+                    break
+        return out
 
-__all__ = ["SweepStore"]
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file beside it (a kill leaves the
+    old file or the new one, never half of one)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+#: failed runs the console names after a sweep (the rest: in sweep.csv)
+SHOWN_FAILURES = 3
+
+
+def describe_failures(
+    failures: Sequence[Mapping[str, Any]], failed_total: int, path: Path,
+    param_names: Sequence[str],
+) -> list[str]:  # fmt: skip
+    """One line per failed run in ``failures`` (rows of ``sweep.csv``: its parameters,
+    seed, status and message, shortened to 200 characters), and a last one counting the
+    other ``failed_total`` runs that failed; empty if none failed."""
+    from ..inputs.text import one_line
+
+    lines = []
+    for row in failures:
+        params = [f"{k}={_short(row.get(k, ''))}" for k in param_names if k in row]
+        if row.get("seed") not in (None, ""):
+            params.append(f"seed {row['seed']}")
+        message = one_line(row.get("message") or "")
+        message = message if len(message) <= 200 else message[:197] + "..."
+        what = ", ".join(params) or f"run {row[KEY_COLUMN]}"
+        lines.append(f"  failed: {what}: {row.get(STATUS_COLUMN)}: {message}")
+    if failed_total > len(failures):
+        lines.append(f"  and {failed_total - len(failures)} more failed (each with its status "
+                     f"and message in {path})")  # fmt: skip
+    return lines
+
+
+def _short(text: Any) -> str:
+    try:
+        return f"{float(text):.6g}"
+    except (TypeError, ValueError):
+        return str(text)
+
+
+__all__ = ["SHOWN_FAILURES", "SweepStore", "describe_failures", "write_atomically"]

@@ -2,7 +2,8 @@
 
 Parameter specs (``--param INSTANCE.NAME=SPEC``, repeatable):
 
-- ``6,8,10,15``: a list of values (numbers or ``"X deg"``);
+- ``6,8,10,15``: a list of values (numbers, ``"X deg"`` for an angle, or in the
+  variable's declared unit, ``"0.2 m/s"``), each checked like ``run --set`` before any run;
 - ``0.5:2.5:5``: ``num`` values from ``start`` to ``stop`` inclusive (linspace);
 - ``uniform(-20%,+20%)`` or ``uniform(LOW,HIGH)``: uniform random draws, relative to the
   nominal value (the scenario's, else the FMU's default) or absolute;
@@ -32,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,13 +61,14 @@ from .plots import write_plots
 from .spec import (
     ParamSpec,
     SweepSpecError,
+    check_ranges_of,
     check_targets,
     expand,
     nominal_values,
     parse_param,
     run_id,
 )
-from .store import SweepStore
+from .store import SHOWN_FAILURES, SweepStore, describe_failures, write_atomically
 
 METRIC_KEYS = (
     "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
@@ -200,7 +202,9 @@ class SweepResult:
     """Summary of a sweep: counts and the results file.
 
     ``failed`` counts the runs that failed in this call, ``failed_total`` every run of
-    the sweep recorded as failed in the file (earlier calls included: the exit code).
+    the sweep recorded as failed in the file (earlier calls included: the exit code);
+    ``failures`` holds the first :data:`~glider_cosim.sweeps.store.SHOWN_FAILURES` of
+    those rows (parameters, seed, status, message), which the CLI names.
     """
 
     total: int
@@ -210,19 +214,11 @@ class SweepResult:
     seconds: float
     path: Path
     failed_total: int = 0
+    failures: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def runs_per_s(self) -> float:
         return self.done / self.seconds if self.seconds > 0 else 0.0
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def run_sweep(
@@ -280,7 +276,7 @@ def run_sweep(
                 if row["run_id"] in store.rows:
                     continue  # recorded already (a run listed twice)
                 if traj is not None and text is not None:
-                    _write_atomically(traj / f"{row['run_id']}.csv", text)
+                    write_atomically(traj / f"{row['run_id']}.csv", text)
                 store.add(row)
                 done += 1
                 failed += row.get("status") != "ok"
@@ -288,8 +284,9 @@ def run_sweep(
             if progress:
                 progress(done, len(todo), failed, time.perf_counter() - t0)
         failed_total = store.failed(ids)
+        failures = store.failed_rows(ids, SHOWN_FAILURES)
     return SweepResult(len(unique), done, len(unique) - len(todo), failed,
-                       time.perf_counter() - t0, store.path, failed_total)  # fmt: skip
+                       time.perf_counter() - t0, store.path, failed_total, failures)  # fmt: skip
 
 
 def add_parser(sub: Any) -> None:
@@ -335,11 +332,12 @@ def main(args: argparse.Namespace) -> int:
         except ImportError:
             raise SweepSpecError("--format parquet needs pyarrow (pip install pyarrow)") from None
     scenario = load_scenario(args.scenario)
+    specs = [parse_param(p) for p in args.param]
+    check_ranges_of(specs, scenario)  # units and valid ranges, as run --set: before any run
     fmu_dir = Path(args.fmu_dir).resolve()
     build_all(fmu_dir, only_stale=True)
-    specs = [parse_param(p) for p in args.param]
     seeds = list(range(args.seeds)) if args.seeds is not None else None
-    check_targets(scenario, fmu_dir, [s.target for s in specs] + ["plant.noise_seed"] * bool(seeds))
+    check_targets(scenario, fmu_dir, ["plant.noise_seed"] * bool(seeds), specs)
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
 
@@ -369,6 +367,9 @@ def main(args: argparse.Namespace) -> int:
     print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
           f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; {res.failed_total} of "
           f"{res.total} failed overall; results in {res.path}")  # fmt: skip
+    for line in describe_failures(res.failures, res.failed_total, res.path,
+                                  [s.target for s in specs]):  # fmt: skip
+        print(line)
     return 1 if res.failed_total else 0
 
 

@@ -65,7 +65,7 @@ def run_command(args: argparse.Namespace) -> int:
     too."""
     if args.write_references or args.export:
         if args.fmu is not None:
-            raise VerifyInputError("verify: give an FMU or --write-references/--export, not both")
+            raise VerifyInputError("give an FMU or --write-references/--export, not both")
         if args.write_references:
             files = write_references(args.fmu_dir)
             print(f"wrote {len(files)} files under {kit_root()}")
@@ -73,7 +73,7 @@ def run_command(args: argparse.Namespace) -> int:
             print(f"wrote {export(args.export, args.fmu_dir)}")
         return 0
     if args.fmu is None:
-        raise VerifyInputError("verify: expected an FMU (or --write-references, --export DIR)")
+        raise VerifyInputError("expected an FMU (or --write-references, --export DIR)")
     try:
         report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
     except VerifyInputError as err:

@@ -175,7 +175,7 @@ def detect_component(md: Any, root: Path | None = None) -> str:
     best = max(scores, key=lambda c: scores[c])
     if scores[best] == 0:
         raise VerifyInputError(
-            f"verify: FMU {quote(md.modelName)} has none of the inputs and outputs of a "
+            f"FMU {quote(md.modelName)} has none of the inputs and outputs of a "
             f"component ({', '.join(COMPONENTS)}): expected e.g. the {best} interface"
         )
     return best
@@ -352,7 +352,7 @@ def verify(
     missing = _missing(md, CORE[component])
     if missing:
         raise VerifyInputError(
-            f"verify: FMU {quote(path.name)} ({md.modelName}) lacks the {component} core "
+            f"FMU {quote(path.name)} ({md.modelName}) lacks the {component} core "
             f"interface: missing {', '.join(missing)}"
         )
     report = _describe(path, md, component)
@@ -366,7 +366,7 @@ def verify(
     if not runnable:
         needs = "; ".join(f"{n} needs {', '.join(m)}" for n, m in report.skipped)
         raise VerifyInputError(
-            f"verify: FMU {quote(path.name)} ({md.modelName}) can run none of the "
+            f"FMU {quote(path.name)} ({md.modelName}) can run none of the "
             f"{component} cases: {needs}"
         )
     runner = RUNNERS[md.fmiVersion]

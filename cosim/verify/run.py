@@ -132,7 +132,7 @@ def open_fmu(fmu: str | Path) -> Any:
         version = _fmi_version(path)
         if version is not None and version not in RUNNERS:
             raise VerifyInputError(
-                f"verify: FMU {quote(path.name)} is an FMI {version} FMU: this build runs "
+                f"FMU {quote(path.name)} is an FMI {version} FMU: this build runs "
                 f"FMI {', '.join(RUNNERS)} co-simulation FMUs"
             )
         return read_fmu(path, "verify")

@@ -11,6 +11,7 @@ import shutil
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from glider_cosim.cli import main
@@ -31,11 +32,11 @@ def run_cli(capsys, *argv: str) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def assert_one_line_error(code: int, err: str, *expected: str) -> None:
+def assert_one_line_error(code: int, err: str, *expected: str, command: str = "run") -> None:
     assert code == 2, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
-    assert lines[0].startswith("glider-cosim: error: "), err
+    assert lines[0].startswith(f"glider-cosim {command}: error: "), err
     assert "Traceback" not in err
     for text in expected:
         assert text in lines[0], lines[0]
@@ -61,7 +62,8 @@ SCENARIO_FINDINGS = [
     ("[plant]\nnoise_seed = -inf", "key 'plant.noise_seed'", "expected an integer"),
     ("[plant]\nnoise_seed = 1.5", "key 'plant.noise_seed'", "expected an integer"),
     ("[plant]\nnoise_seed = 4294967296", "key 'plant.noise_seed'", "expected an integer in [0,"),
-    ("[plant]\nnoise_seed = \"1 deg\"", "key 'plant.noise_seed'", "integer without a unit"),
+    ("[plant]\nnoise_seed = \"1 deg\"", "key 'plant.noise_seed'",
+     "'1 deg' is invalid: noise_seed has no unit: expected a plain number"),
     ("[plant]\nnoise_seed = true", "key 'plant.noise_seed'", "not a boolean"),
     ('record = ["plant.nosuch"]', "record 'plant.nosuch'", "has no variable 'nosuch'"),
     ('record = ["foo.bar"]', "record 'foo.bar'", "no instance 'foo'"),
@@ -71,7 +73,12 @@ SCENARIO_FINDINGS = [
     ("[controller]\nlaw = true", "key 'controller.law'", "true is invalid"),
     ("[plant]\nalpha_0 = true", "key 'plant.alpha_0'", "not a boolean"),
     ("[plant]\nV_0 = -1.0", "key 'plant.V_0'", "expected a finite value in (0, inf) (m/s)"),
-    ("[plant]\nV_0 = \"3 deg\"", "key 'plant.V_0'", "'deg' only applies to angles"),
+    ("[plant]\nV_0 = \"3 deg\"", "key 'plant.V_0'",
+     "'3 deg' is invalid: V_0 is in m/s: expected a number in m/s"),
+    ("[controller]\nK_c = \"6 deg\"", "key 'controller.K_c'",
+     "'6 deg' is invalid: K_c has no unit: expected a plain number"),
+    ("[observer]\nf_cutoff = \"10 kHz\"", "key 'observer.f_cutoff'",
+     "'10 kHz' is invalid: f_cutoff is in Hz: expected a number in Hz"),
     ("[controller]\nK_c = -5", "key 'controller.K_c'", "expected a finite value in (0, inf)"),
     ("[plant]\nnosuch = 1", "key 'plant.nosuch'", "has no variable 'nosuch'"),
     ("[plant]\nV = 1", "key 'plant.V'", "it cannot be set"),
@@ -83,14 +90,15 @@ SCENARIO_FINDINGS = [
     ('[[event]]\nwhen = "time >= 5 deg"\nset = {"controller.K_c" = 3}', "event[0].when",
      "time is in s"),
     ('[[event]]\nwhen = "plant.z >= 1 deg"\nset = {"controller.K_c" = 3}', "event[0].when",
-     "'deg' only applies to angles; plant.z is in m"),
+     "'1 deg' is invalid: z is in m: expected a number in m"),
     ('[[event]]\nwhen = "plant.nosuch >= 1"\nset = {"controller.K_c" = 3}', "event[0]",
      "has no variable 'nosuch'"),
     ('[[event]]\nwhen = "time >= 1"\nset = {"controller.K_c" = -3}', "event[0].set",
      "expected a finite value in (0, inf)"),
     ('[[event]]\nwhen = "time >= 1"\nset = {"controller.law" = 7}', "event[0].set",
      "integer 0..3"),
-    ('[inputs]\n"plant.F_z" = "2 deg"', "key 'inputs.plant.F_z'", "'deg' only applies"),
+    ('[inputs]\n"plant.F_z" = "2 deg"', "key 'inputs.plant.F_z'",
+     "'2 deg' is invalid: F_z is in N: expected a number in N"),
     ('name = "../../x"', "key 'name'", "is not a name"),
     ('name = "/tmp/abs"', "key 'name'", "is not a name"),
     ('name = ".."', "key 'name'", "is not a name"),
@@ -124,7 +132,9 @@ SET_FINDINGS = [
     ("controller.law=4294967299", "or an integer 0..3"),
     ("controller.nosuch=3", "has no variable 'nosuch'"),
     ("controller.K_c=-5", "expected a finite value in (0, inf)"),
-    ("plant.z_0=1 deg", "'deg' only applies to angles; z_0 is in m"),
+    ("plant.z_0=1 deg", "'1 deg' is invalid: z_0 is in m: expected a number in m"),
+    ("controller.K_c=6 deg", "'6 deg' is invalid: K_c has no unit: expected a plain number"),
+    ("plant.V_0=0.2 km/s", "'0.2 km/s' is invalid: V_0 is in m/s: expected a number in m/s"),
     ("plant.V_0=nan", "expected a finite value"),
     ("plant.x=" + "9" * 100_000, "(100008 characters)"),
 ]
@@ -167,20 +177,37 @@ def test_bad_argument_is_refused(capsys, fmu_dir, tmp_path, no_instantiation, ar
     assert_one_line_error(code, err, expected)
 
 
+def test_values_in_their_declared_units_run(capsys, fmu_dir, tmp_path):
+    """'0.2 m/s' for plant.V_0 and '10 Hz' for observer.f_cutoff are those variables' own
+    units (issue 28); the run records them as written."""
+    out = tmp_path / "out"
+    code = main(["run", "--set", "plant.V_0=0.2 m/s", "--set", "observer.f_cutoff=10 Hz",
+                 "--set", "plant.theta_g_0=-30 deg", "--stop-time", "0.1", "--no-plots",
+                 "--fmu-dir", str(fmu_dir), "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    run = json.loads((out / "metrics.json").read_text())["run"]
+    assert run["overrides"] == {"plant.V_0": "0.2 m/s", "observer.f_cutoff": "10 Hz",
+                                "plant.theta_g_0": "-30 deg"}  # fmt: skip
+    data = np.loadtxt(out / "results.csv", delimiter=",", skiprows=1, ndmin=2)
+    cols = (out / "results.csv").read_text().splitlines()[0].split(",")
+    assert data[0, cols.index("plant.V")] == pytest.approx(0.2)
+    assert data[0, cols.index("plant.theta_g")] == pytest.approx(np.radians(-30))
+
+
 def test_os_errors_name_the_option(capsys, fmu_dir, tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("x")
     cases = [
-        (["run", "--out", str(afile), "--fmu-dir", str(fmu_dir)], f"--out '{afile}'"),
-        (["run", "--out", str(afile / "sub"), "--fmu-dir", str(fmu_dir)], "--out"),
-        (["run", "--out", "/proc/x", "--fmu-dir", str(fmu_dir)], "--out '/proc/x'"),
-        (["export-ssp", str(tmp_path), "--fmu-dir", str(fmu_dir)], "export-ssp OUT"),
-        (["export-fmu", str(tmp_path), "--fmu-dir", str(fmu_dir)], "export-fmu OUT"),
-        (["build", "--out", str(afile)], "build --out"),
+        (["run", "--out", str(afile), "--fmu-dir", str(fmu_dir)], f"error: --out '{afile}'"),
+        (["run", "--out", str(afile / "sub"), "--fmu-dir", str(fmu_dir)], "error: --out"),
+        (["run", "--out", "/proc/x", "--fmu-dir", str(fmu_dir)], "error: --out '/proc/x'"),
+        (["export-ssp", str(tmp_path), "--fmu-dir", str(fmu_dir)], "error: OUT"),
+        (["export-fmu", str(tmp_path), "--fmu-dir", str(fmu_dir)], "error: OUT"),
+        (["build", "--out", str(afile)], "error: --out"),
     ]
     for argv, expected in cases:
         code, err = run_cli(capsys, *argv)
-        assert_one_line_error(code, err, expected)
+        assert_one_line_error(code, err, expected, command=argv[0])
         assert not err.split("error: ", 1)[1].startswith("[Errno"), err
 
 
@@ -487,3 +514,43 @@ def test_api_argument_errors_are_typed(fmu_dir, kwargs, error, message, no_insta
     kwargs = {"scenario": "default", **kwargs}
     with pytest.raises(error, match=re.escape(message)):
         simulate(out=None, fmu_dir=fmu_dir, build=False, **kwargs)
+
+
+# ------------------------------------------------------------------ issue 28, point 6
+def test_api_overrides_take_what_set_takes(fmu_dir):
+    r = simulate(None, overrides={"controller.K_c": 6, "plant.theta_g_0": "-30 deg",
+                                  "plant.V_0": "0.2 m/s"}, stop_time=0.1,
+                 fmu_dir=fmu_dir)  # fmt: skip
+    assert r.status == "ok", r.message
+    assert r.metrics["run"]["overrides"] == {"controller.K_c": 6, "plant.theta_g_0": "-30 deg",
+                                             "plant.V_0": "0.2 m/s"}  # fmt: skip
+    assert r.column("plant.theta_g")[0] == pytest.approx(np.radians(-30))
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"controller.K_c": "6 deg"}, "overrides['controller.K_c']: '6 deg' is invalid: K_c has "
+         "no unit: expected a plain number"),
+        ({"controller.K_x": 6}, "overrides['controller.K_x']: instance controller "
+         "(GliderController) has no variable 'K_x'"),
+    ],
+)  # fmt: skip
+def test_api_overrides_are_refused_before_instantiation(fmu_dir, no_instantiation, overrides,
+                                                        message):  # fmt: skip
+    with pytest.raises(ValueError) as err:
+        simulate(None, overrides=overrides, stop_time=0.1, fmu_dir=fmu_dir)
+    assert str(err.value).startswith(message)
+
+
+def test_a_failed_run_names_the_command(fmu_dir, tmp_path, capsys):
+    """The run's failure line has the one prefix form too (exit 1)."""
+    code = main(["run", "--set", "controller.K_c=0.05", "--stop-time", "3", "--no-plots",
+                 "--fmu-dir", str(fmu_dir), "--out", str(tmp_path)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.startswith(
+        "glider-cosim run: error: run stopped: observer: fmi2DoStep at t = 2.58 s returned "
+        "fmi2Discard: "
+    ), err
+    assert err.count("\n") == 1

@@ -351,7 +351,7 @@ def test_a_missing_compiler_is_one_line(tmp_path):
                        capture_output=True, text=True, timeout=120)  # fmt: skip
     assert p.returncode == 2
     assert p.stderr == (
-        "glider-cosim: error: --compiler no-such-cc: not found on PATH (the default, zig, "
+        "glider-cosim build: error: --compiler no-such-cc: not found on PATH (the default, zig, "
         "comes with 'pip install': python -m ziglang cc)\n"
     )
     assert not list(Path(tmp_path).glob("fmus/*.fmu"))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 from importlib import metadata, resources
+from pathlib import Path
 
 import pytest
 
@@ -113,3 +114,41 @@ def test_plots_mark_the_events(fmu_dir, tmp_path, name, doc, kinds):
             assert [ln.get_gid() for ln in lines] == [f"event:{e['kind']}" for e in events]
         labels = fig.axes[0].get_legend_handles_labels()[1]
         assert all(any(e["label"] in lab for lab in labels) for e in events)
+
+
+# ------------------------------------------------------------------ issue 28: --out
+def test_out_is_written_straight_into_for_every_spelling(fmu_dir, tmp_path, monkeypatch, capsys):
+    """``--out out``, ``--out ./out`` and an absolute path all write into that folder;
+    without ``--out``, ``out/<scenario>``."""
+    monkeypatch.chdir(tmp_path)
+    common = ["run", "--stop-time", "0.1", "--no-plots", "--fmu-dir", str(fmu_dir)]
+    for spelling, folder in (("out", "out"), ("./dot", "dot"), (str(tmp_path / "abs"), "abs")):
+        assert main([*common, "--out", spelling]) == 0
+        assert (tmp_path / folder / "metrics.json").is_file(), spelling
+        assert not (tmp_path / folder / "default").exists(), spelling
+    assert main(common) == 0
+    assert (tmp_path / "out" / "default" / "metrics.json").is_file()
+    assert f"wrote {Path('out') / 'default' / 'results.csv'}" in capsys.readouterr().out
+
+
+def test_replacing_results_made_otherwise_says_what_they_were(fmu_dir, tmp_path, capsys):
+    out = tmp_path / "out"
+    common = ["run", "--stop-time", "0.1", "--no-plots", "--fmu-dir", str(fmu_dir), "--out",
+              str(out)]  # fmt: skip
+    assert main(common) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert captured.out.startswith("scenario default (<shipped>/default.toml): 6 rows")
+    assert main([*common, "--set", "controller.K_c=6"]) == 0
+    captured = capsys.readouterr()
+    # the summary names the overrides; the note, what the replaced results were made with
+    assert captured.out.startswith(
+        "scenario default (<shipped>/default.toml) with controller.K_c=6: 6 rows"
+    )
+    assert captured.err == (
+        f"glider-cosim: note: replacing the results in {out} made with other settings: "
+        "scenario default, no overrides, --stop-time 0.1, python FMUs, FMI 2.0 (this run: "
+        "scenario default, controller.K_c=6, --stop-time 0.1, python FMUs, FMI 2.0)\n"
+    )
+    assert main([*common, "--set", "controller.K_c=6"]) == 0  # the same settings: no note
+    assert capsys.readouterr().err == ""

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from glider_cosim.inputs.values import ValueCheckError
 from glider_cosim.master import CoSimulation, Disturbance, System
 from glider_cosim.runner import simulate
 from glider_cosim.runner.recorders import ArrayRecorder
@@ -21,7 +22,9 @@ from glider_plant.params import GliderParams
 pytestmark = pytest.mark.integration
 SRC = Path(__file__).parent / "fmus_src"
 THETA_GE = equilibrium(GliderParams()).theta_g
-SEC33_START = {"V_0": 0.2, "theta_g_0": "-35 deg", "alpha_0": "1 deg", "omega2_0": 0.0}
+#: the foreign plant declares no units: its angles are plain numbers (rad)
+SEC33_START = {"V_0": 0.2, "theta_g_0": math.radians(-35), "alpha_0": math.radians(1),
+               "omega2_0": 0.0}  # fmt: skip
 DISTURBANCES = ("plant.F_x", "plant.F_z", "plant.M_y")
 
 
@@ -92,6 +95,17 @@ def test_our_observer_and_controller_around_a_foreign_plant(fmu_dir, foreign):
     assert r.metrics["settling_time_s"] is not None and r.metrics["settling_time_s"] < 30.0
     # the estimate follows the foreign plant's true state
     assert abs(r.column("observer.theta_g_hat")[-1] - th[-1]) < math.radians(0.2)
+
+
+def test_a_unit_on_a_foreign_variable_without_one_is_refused(fmu_dir, foreign):
+    """The foreign plant's theta_g_0 declares no unit: '-35 deg' is refused (issue 28)."""
+    sc = parse_scenario({
+        "fmus": {"plant": str(foreign["SwapTestPlant"])},
+        "plant": {**SEC33_START, "theta_g_0": "-35 deg"},
+    }, "s.toml")  # fmt: skip
+    with pytest.raises(ValueCheckError, match=r"^s.toml: key 'plant.theta_g_0': '-35 deg' is "
+                       r"invalid: theta_g_0 has no unit: expected a plain number$"):  # fmt: skip
+        simulate(sc, None, fmu_dir=fmu_dir, build=False)
 
 
 def test_our_plant_with_a_foreign_controller(fmu_dir, foreign):

@@ -123,6 +123,24 @@ def test_unknown_targets_are_refused_before_any_work(fmu_dir, tmp_path, capsys, 
     assert not out.exists()  # nothing was sent, nothing written
 
 
+@pytest.mark.parametrize(
+    ("param", "message"),
+    [
+        ("controller.K_c=-1,5", "glider-cosim sweep: error: --param 'controller.K_c=-1,5': -1 is "
+         "invalid: expected a finite value in (0, inf)"),
+        ("controller.K_c=6 deg,8", "glider-cosim sweep: error: --param 'controller.K_c=6 deg,8': "
+         "'6 deg' is invalid: K_c has no unit: expected a plain number"),
+    ],
+)  # fmt: skip
+def test_bad_values_are_refused_before_any_run(fmu_dir, tmp_path, capsys, param, message):
+    """Every --param value is checked like --set: exit 2, one line, no run (issue 28)."""
+    out = tmp_path / "out"
+    code = cli_main(["sweep", "--param", param, "--fmu-dir", str(fmu_dir), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert (code, captured.err, captured.out) == (2, message + "\n", "")
+    assert not out.exists()
+
+
 def test_workers_are_checked_for_the_clients_version(client):
     mine = package_version()
     assert mine and set(check_workers(client).values()) == {mine}
@@ -202,10 +220,15 @@ def test_the_scheduler_is_checked_too(client, monkeypatch):
 
 
 def test_the_exit_code_after_a_resume_counts_earlier_failures(fmu_dir, tmp_path, capsys):
-    args = ["sweep", "--param", "controller.K_c=10,-1", "--stop-time", "1", "--workers", "1",
+    # K_c = 0.05: the observer's estimate stalls at 2.58 s (a run that fails, not a bad value)
+    args = ["sweep", "--param", "controller.K_c=10,0.05", "--stop-time", "3", "--workers", "1",
             "--fmu-dir", str(fmu_dir), "--out", str(tmp_path), "--no-plots"]  # fmt: skip
     assert cli_main(args) == 1
-    assert "2 run now, 1 failed" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "2 run now, 1 failed" in out
+    # the console names the failed run and why (issue 28)
+    assert re.search(r"^  failed: controller.K_c=0.05: stopped: observer: fmi2DoStep at "
+                     r"t = 2.58 s returned fmi2Discard: .*stalled", out, re.M), out  # fmt: skip
     assert cli_main(args) == 1  # nothing run now, the failure is in sweep.csv
     assert "(2 already done), 0 run now, 0 failed, 0.00 runs/s; 1 of 2 failed overall" in (
         capsys.readouterr().out

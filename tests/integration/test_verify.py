@@ -272,7 +272,7 @@ def test_a_partial_interface_runs_the_cases_it_can_and_lists_the_others(broken, 
     # one case asked for that it cannot run: nothing ran, exit 2 with what it needs
     assert main(["verify", str(broken["CorePlant"]), "--case", "release"]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'CorePlant.fmu' (CorePlant) can run none of the "
+        "glider-cosim verify: error: FMU 'CorePlant.fmu' (CorePlant) can run none of the "
         "plant cases: release needs F_x, F_z, M_y\n"
     )
     assert_matches_reference(broken["CorePlant"], "plant")  # the core case passes
@@ -299,20 +299,20 @@ def test_json_is_the_whole_result_in_one_object(fmu_dir, broken, capsys):
     captured = capsys.readouterr()
     doc = json.loads(captured.out)
     assert doc["exit_code"] == 2 and "lacks the plant core interface" in doc["error"]
-    assert captured.err.startswith("glider-cosim: error: verify: FMU 'HalfPlant.fmu'")
+    assert captured.err.startswith("glider-cosim verify: error: FMU 'HalfPlant.fmu'")
 
 
 def test_missing_variables_are_named_in_one_line(fmu_dir, broken, capsys):
     assert main(["verify", str(broken["HalfPlant"])]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'HalfPlant.fmu' (HalfPlant) lacks the plant core "
+        "glider-cosim verify: error: FMU 'HalfPlant.fmu' (HalfPlant) lacks the plant core "
         "interface: missing theta_meas (output)\n"
     )
     assert main(["verify", str(broken["HalfPlant"]), "--case", "servo_jump"]) == 2
     assert "missing theta_meas (output)" in capsys.readouterr().err
     assert main(["verify", str(fmu_dir / "GliderPlant.fmu"), "--component", "observer"]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: verify: FMU 'GliderPlant.fmu' (GliderPlant) lacks the observer "
+        "glider-cosim verify: error: FMU 'GliderPlant.fmu' (GliderPlant) lacks the observer "
         "core interface: missing theta_meas (is output, expected input), V_hat (output), "
         "theta_g_hat (output)\n"
     )
@@ -321,7 +321,7 @@ def test_missing_variables_are_named_in_one_line(fmu_dir, broken, capsys):
 def test_an_unknown_case_is_one_line(fmu_dir, capsys):
     assert main(["verify", str(fmu_dir / "GliderObserver.fmu"), "--case", "nope"]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim: error: case 'nope' is unknown for the observer: expected one of "
+        "glider-cosim verify: error: case 'nope' is unknown for the observer: expected one of "
         "filter_step, core, late_start, noisy_pitch, wrong_start\n"
     )
     with pytest.raises(VerifyInputError, match="^case 'nope' is unknown for the observer"):
