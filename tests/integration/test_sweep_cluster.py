@@ -224,7 +224,8 @@ def test_a_sigkilled_worker_has_its_runs_retried(cluster, fmu_dir):
 
 def test_a_killed_client_resumes_without_redoing_runs(cluster, fmu_dir):
     out = cluster.out / "client-kill"
-    kc = ",".join(["-1", *(str(k) for k in range(5, 44))])  # 40 runs, K_c = -1 fails
+    # 40 runs; K_c = 0.05 fails (the observer's estimate stalls at 2.58 s)
+    kc = ",".join(["0.05", *(str(k) for k in range(5, 44))])
     args = ["sweep", "--scheduler", cluster.address, "--param", f"controller.K_c={kc}",
             "--stop-time", "20", "--fmu-dir", str(fmu_dir), "--out", str(out),
             "--no-plots"]  # fmt: skip
@@ -252,6 +253,6 @@ def test_a_killed_client_resumes_without_redoing_runs(cluster, fmu_dir):
     assert after[:k] == before  # the rows of the first call are kept as they were
     ids = [r["run_id"] for r in after]
     assert len(ids) == len(set(ids)) == 40
-    # K_c = -1 fails (in the first call or the second): the exit code counts it
-    assert [r["controller.K_c"] for r in after if r["status"] != "ok"] == ["-1.0"]
+    # K_c = 0.05 fails (in the first call or the second): the exit code counts it
+    assert [r["controller.K_c"] for r in after if r["status"] != "ok"] == ["0.05"]
     assert again.returncode == 1 and "1 of 40 failed overall" in stdout
