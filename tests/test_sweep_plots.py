@@ -67,3 +67,8 @@ def test_runs_are_named_by_every_swept_value():
     )
     many = [{"a.K_c": str(k)} for k in range(9)]
     assert runs_named(many, ["a.K_c"]) == "K_c = 0, 1, 2, 3, 4, 5, ..."
+
+
+def test_runs_are_named_in_the_order_of_their_values():
+    rows = [{"controller.K_c": "6"}, {"controller.K_c": "4"}, {"controller.K_c": "10"}]
+    assert runs_named(rows, ["controller.K_c"]) == "K_c = 4, 6, 10"

@@ -20,9 +20,24 @@ def _value(text: str) -> str:
         return str(text)
 
 
+def _is_number(text: object) -> bool:
+    try:
+        float(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def runs_named(rows: list[dict], params: list[str], most: int = 6) -> str:
     """The swept values of ``rows``, e.g. ``K_c = 4, 6`` (one parameter) or
-    ``K_c = 4, V_0 = 0.2; K_c = 6, V_0 = 0.3``; at most ``most`` runs, then ``...``."""
+    ``K_c = 4, V_0 = 0.2; K_c = 6, V_0 = 0.3``, in the order of the values (not of
+    ``sweep.csv``, which is the order the runs ended); at most ``most`` runs, then ``...``."""
+
+    def key(r: dict) -> tuple:
+        return tuple((0, float(v), "") if _is_number(v) else (1, 0.0, str(v))
+                     for v in (r.get(p) for p in params))  # fmt: skip
+
+    rows = sorted(rows, key=key)
     if len(params) == 1:
         text = ", ".join(_value(r.get(params[0])) for r in rows[:most])
         text = f"{_short(params[0], params)} = {text}"
