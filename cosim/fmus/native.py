@@ -192,7 +192,11 @@ def vars_header(c: NativeComponent) -> str:
             f"{int(v.tunable)}, {int(v.name in computed)}, offsetof({c.name}Vars, {v.name}), "
             f"{_c_double(float(v.start))}, {rng}}},"
         )
-    lines += ["};", "", "#endif", ""]
+    inputs = [str(vr) for vr, v in pairs if v.causality == "input" and v.type == "Real"]
+    up = c.name.upper()
+    lines += ["};", "", "/* the Real inputs' value references (checked finite at each step) */",
+              f"static const unsigned {up}_REAL_INPUTS[] = {{{', '.join(inputs or ['0'])}}};",
+              f"#define {up}_NREAL_INPUTS {len(inputs)}", "", "#endif", ""]  # fmt: skip
     return "\n".join(lines)
 
 

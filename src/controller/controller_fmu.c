@@ -58,4 +58,5 @@ static int step(void *data, double t, double time, double h, char *msg, size_t s
 const NativeModel GLIDER_NATIVE_MODEL = {
     MODEL_IDENTIFIER,     GLIDERCONTROLLER_VARS, GLIDERCONTROLLER_NVARS, GLIDERCONTROLLER_TYPES,
     GLIDERCONTROLLER_NAMES, sizeof(ControllerData), initialize, step, update, NULL,
+    GLIDERCONTROLLER_REAL_INPUTS, GLIDERCONTROLLER_NREAL_INPUTS,
 };

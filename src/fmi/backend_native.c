@@ -48,13 +48,6 @@ static int nat_start(const char *resources, char *err, size_t errsize) {
     return 1;
 }
 
-static Status nat_enter(Ctx *x) {
-    x->have_token = 1;
-    return ST_OK;
-}
-
-static void nat_leave(Ctx *x) { (void)x; }
-
 static int nat_alive(void) { return 1; }
 
 static void *value_at(NativeInstance *ni, const NativeVar *v) {
@@ -201,9 +194,9 @@ static Status nat_step(Ctx *x, double t, double h, int *go_on) {
         py_float_repr(ni->time, b, sizeof b);
         return FAIL(x, "doStep at t = %s s is invalid: expected the current time %s s", a, b);
     }
-    for (i = 0; i < M.nvars; ++i) {
-        const NativeVar *v = &M.vars[i];
-        if (v->causality == NV_INPUT && v->type == T_REAL && !isfinite(number(ni, v))) {
+    for (i = 0; i < M.nreal_inputs; ++i) {
+        const NativeVar *v = &M.vars[M.real_inputs[i]];
+        if (!isfinite(*(const double *)value_at(ni, v))) {
             py_float_repr(number(ni, v), a, sizeof a);
             return FAIL(x, "input %s = %s at t = %g s is invalid: expected a finite value",
                         v->name, a, ni->time);
@@ -270,7 +263,7 @@ static Status nat_state_from_bytes(Ctx *x, FmuState *s, const char *data, size_t
 }
 
 const Backend GLIDER_BACKEND = {
-    nat_model_identifier, nat_start,        nat_enter,           nat_leave,      nat_create,
+    nat_model_identifier, nat_start,        NULL,                NULL,           nat_create,
     nat_reset,            nat_destroy,      nat_alive,           nat_setup,      nat_transition,
     nat_get,              nat_set,          nat_step,            nat_state_get,  nat_state_set,
     nat_state_release,    nat_state_bytes,  nat_state_from_bytes,

@@ -9,7 +9,8 @@
  * only getters, FMU-state functions, fmi2Reset and fmi2FreeInstance are accepted. A
  * forged or freed instance or state pointer gets a status, never a crash.
  *
- * C99, libc only; the registry lock is a pthread mutex (an SRW lock on Windows). Written
+ * C99, libc only; the registry lock is a pthread mutex (an SRW lock on Windows), taken
+ * only when an instance is not in the table of slots (FAST_SLOTS). Written
  * from the FMI 2.0.4 standard and the FMI headers that fmpy ships.
  */
 #if !defined(_WIN32) && !defined(_POSIX_C_SOURCE)
@@ -35,6 +36,22 @@ static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
 #define UNLOCK() pthread_mutex_unlock(&g_lock)
 #endif
 
+/* Instances are found without the lock in a small table of live ones (FAST_SLOTS),
+ * compared by address with atomic loads: a loop calling a few instances takes no lock.
+ * More instances than slots, or compilers without atomics, use the list under the lock. */
+#if defined(__GNUC__) || defined(__clang__)
+#define FAST_SLOTS 64
+#define SLOT_LOAD(p) __atomic_load_n((p), __ATOMIC_ACQUIRE)
+#define SLOT_STORE(p, v) __atomic_store_n((p), (v), __ATOMIC_RELEASE)
+#elif defined(_MSC_VER)
+#define FAST_SLOTS 64
+#define SLOT_LOAD(p)                                                                       \
+    ((Instance *)InterlockedCompareExchangePointer((PVOID volatile *)(p), NULL, NULL))
+#define SLOT_STORE(p, v) InterlockedExchangePointer((PVOID volatile *)(p), (v))
+#else
+#define FAST_SLOTS 0
+#endif
+
 #define B GLIDER_BACKEND
 #define INSTANCE_MAGIC 0x474c4944u /* "GLID" */
 #define STATE_MAGIC 0x53544154u    /* "STAT" */
@@ -58,9 +75,35 @@ static const char *state_name(unsigned s) {
 
 /* ------------------------------------------------------------------ instances */
 static Instance *g_instances;
+#if FAST_SLOTS
+static Instance *g_slots[FAST_SLOTS]; /* live instances (NULL: free), written under the lock */
+#endif
+
+/* Under the lock: an instance joins or leaves the table of slots (it may find none). */
+static void fast_slot(Instance *joining, Instance *leaving) {
+#if FAST_SLOTS
+    int k;
+    for (k = 0; k < FAST_SLOTS; ++k) {
+        if (g_slots[k] == leaving) {
+            SLOT_STORE(&g_slots[k], joining);
+            return;
+        }
+    }
+#else
+    (void)joining, (void)leaving;
+#endif
+}
 
 static Instance *lookup(void *c) {
     Instance *found = NULL, *i;
+#if FAST_SLOTS
+    int k;
+    if (!c) return NULL;
+    for (k = 0; k < FAST_SLOTS; ++k) {
+        Instance *s = SLOT_LOAD(&g_slots[k]);
+        if ((void *)s == c) return s->magic == INSTANCE_MAGIC ? s : NULL;
+    }
+#endif
     LOCK();
     for (i = g_instances; i; i = i->next) {
         if ((void *)i == c) {
@@ -187,6 +230,20 @@ static void emit(const HostLogger *logger, const char *name, int status, const c
 }
 
 /* ------------------------------------------------------------------ call framing */
+/* Enter the back end for a call (a back end without enter has nothing to take). */
+static Status enter(Ctx *x) {
+    if (!B.enter) {
+        x->have_token = 1;
+        return ST_OK;
+    }
+    return B.enter(x);
+}
+
+static void leave(Ctx *x) {
+    if (B.leave) B.leave(x);
+    x->have_token = 0;
+}
+
 static Status begin(Ctx *x, void *c, int call) {
     Instance *inst;
     Status st;
@@ -194,7 +251,7 @@ static Status begin(Ctx *x, void *c, int call) {
     x->call = call;
     x->inst = inst = lookup(c);
     if (!inst) return ST_ERROR; /* not an instance of this FMU: nobody to log to */
-    if ((st = B.enter(x)) != ST_OK) return st;
+    if ((st = enter(x)) != ST_OK) return st;
     if (inst->state == S_FATAL) {
         glider_add_msg(x, ST_FATAL, inst->cat_error, "%s: %s: the instance failed fatally earlier",
                        inst->name, glider_call_name(x));
@@ -225,8 +282,7 @@ static Status end(Ctx *x, Status status) {
         }
     }
     /* leave the back end (release the GIL) before the host's logger is called */
-    if (x->have_token) B.leave(x);
-    x->have_token = 0;
+    if (x->have_token) leave(x);
     for (i = 0; i < x->nmsgs; ++i) {
         int ci = x->msgs[i].category;
         const char *category = ci >= 0 && ci < inst->ncat ? inst->cat_names[ci] : "logAll";
@@ -387,7 +443,7 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
     memset(&x, 0, sizeof x);
     x.call = C_INSTANTIATE;
     x.inst = inst;
-    st = B.enter(&x);
+    st = enter(&x);
     if (st == ST_OK) st = B.create(&x);
     inst->cat_on = inst->logging_on ? all_categories(inst) : 0;
     if (st != ST_OK) {
@@ -406,6 +462,7 @@ void *glider_op_instantiate(const char *name, const char *resources, int visible
     LOCK();
     inst->next = g_instances;
     g_instances = inst;
+    fast_slot(inst, NULL);
     UNLOCK();
     return inst;
 }
@@ -418,6 +475,7 @@ void glider_op_free(void *c) {
     for (p = &g_instances; *p; p = &(*p)->next) {
         if (*p == inst) {
             *p = inst->next;
+            fast_slot(NULL, inst); /* no thread finds it without the lock any more */
             break;
         }
     }
@@ -427,10 +485,10 @@ void glider_op_free(void *c) {
     memset(&x, 0, sizeof x);
     x.call = C_FREE;
     x.inst = inst;
-    if (B.alive() && B.enter(&x) == ST_OK) {
+    if (B.alive() && enter(&x) == ST_OK) {
         free_instance(inst, 1);
         x.inst = NULL;
-        B.leave(&x);
+        leave(&x);
     } else {
         free_instance(inst, 0);
     }
@@ -560,7 +618,7 @@ int glider_op_access(void *c, int call, char type, const unsigned vr[], size_t n
     if ((st = check_refs(&x, vr, nvr, out ? out : in, type, out == NULL)) != ST_OK)
         return end(&x, st);
     if (!out) return end(&x, B.set(&x, type, vr, nvr, in));
-    for (i = 0; i < nvr; ++i)
+    for (i = 0; x.inst->has_time && i < nvr; ++i)
         if (is_time(x.inst, vr[i])) return end(&x, get_with_time(&x, vr, nvr, out));
     return end(&x, B.get(&x, type, vr, nvr, out));
 }

@@ -223,7 +223,8 @@ typedef struct {
      * which fmi2Instantiate reports as fmi2Fatal */
     int (*start)(const char *resources, char *err, size_t errsize);
     /* take and give back what a call needs (the GIL); enter fails with a message when
-     * the back end cannot be called any more (Python finalizing) */
+     * the back end cannot be called any more (Python finalizing). NULL, both: nothing to
+     * take (the native back end), every call is entered */
     Status (*enter)(Ctx *x);
     void (*leave)(Ctx *x);
     /* instantiate: create the model, fill inst->nvars, var_type, var_names and the

@@ -55,6 +55,10 @@ typedef struct {
     void (*update)(void *data, double time, int initialized);
     /* 1 if data (e.g. from a deserialized state) is one the model can run from */
     int (*valid)(const void *data);
+    /* value references of the Real inputs, checked finite before each step (generated:
+     * <MODEL>_REAL_INPUTS, <MODEL>_NREAL_INPUTS) */
+    const unsigned *real_inputs;
+    size_t nreal_inputs;
 } NativeModel;
 
 extern const NativeModel GLIDER_NATIVE_MODEL;

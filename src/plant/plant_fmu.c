@@ -83,4 +83,5 @@ static int valid(const void *data) {
 const NativeModel GLIDER_NATIVE_MODEL = {
     MODEL_IDENTIFIER, GLIDERPLANT_VARS, GLIDERPLANT_NVARS, GLIDERPLANT_TYPES, GLIDERPLANT_NAMES,
     sizeof(PlantData), initialize, step, NULL, valid,
+    GLIDERPLANT_REAL_INPUTS, GLIDERPLANT_NREAL_INPUTS,
 };

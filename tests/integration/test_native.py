@@ -372,3 +372,79 @@ def test_mingw_chosen_builds_win64_and_zig_the_rest(tmp_path):
                           capture_output=True, text=True, check=True).stdout  # fmt: skip
     imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}
     assert imports == {"KERNEL32.dll", "msvcrt.dll"}
+
+
+def test_many_instances_in_one_process_each_keep_their_own_values(native_dir):
+    """More live instances than the layer's lock-free table holds (64): every one is found
+    (table or list), keeps its own values, and a freed one is refused, in any order."""
+    import random
+
+    r = RawFMU(native_dir / "GliderController.fmu")
+
+    def run(c, k: int) -> float:
+        assert r.set_real(c, V_hat=0.22, theta_g_hat=-0.45 + 0.002 * k) == 0
+        assert r.DoStep(c, 0.0, 0.02, 1) == 0
+        st, (u,) = r.get_real(c, "delta_cmd")
+        assert st == 0
+        return u
+
+    alone = []
+    for k in range(100):
+        c = r.instantiate(f"alone{k}")
+        assert c and r.initialize(c) == 0
+        alone.append(run(c, k))
+        r.FreeInstance(c)
+    assert len(set(alone)) > 90  # the inputs matter: a mix-up between instances shows
+    live = {}
+    for k in range(100):
+        live[k] = c = r.instantiate(f"c{k}")
+        assert c and r.initialize(c) == 0
+    assert [run(live[k], k) for k in range(100)] == alone
+    order = list(live)
+    random.Random(3).shuffle(order)
+    for k in order[:70]:
+        gone = live.pop(k)
+        r.FreeInstance(gone)
+        if gone not in live.values():  # the address may be reused by a later instance
+            assert r.get_real(gone, "delta_cmd")[0] == 3  # fmi2Error, not a crash
+    for k in range(100, 130):  # new ones take the freed slots
+        live[k] = c = r.instantiate(f"c{k}")
+        assert c and r.initialize(c) == 0
+        assert run(c, k - 100) == alone[k - 100]
+    for k, c in live.items():  # the 30 left of the first 100 still hold their values
+        st, (u,) = r.get_real(c, "delta_cmd")
+        assert st == 0 and u == alone[k % 100]
+    for c in live.values():
+        r.FreeInstance(c)
+
+
+def test_instances_made_and_freed_on_many_threads_stay_apart(native_dir):
+    """Threads instantiating, stepping and freeing at once (ctypes drops the GIL in each
+    call, so the calls overlap): the lock-free lookup never mixes instances up."""
+    import threading
+
+    r = RawFMU(native_dir / "GliderController.fmu")
+
+    def run(k: int) -> float:
+        c = r.instantiate(f"t{k}")
+        assert c and r.initialize(c) == 0
+        assert r.set_real(c, V_hat=0.22, theta_g_hat=-0.45 + 0.002 * (k % 50)) == 0
+        assert r.DoStep(c, 0.0, 0.02, 1) == 0
+        st, (u,) = r.get_real(c, "delta_cmd")
+        r.FreeInstance(c)
+        assert st == 0
+        return u
+
+    expected = [run(k) for k in range(50)]
+    got: dict[int, list[float]] = {}
+
+    def worker(w: int) -> None:
+        got[w] = [run(k) for k in range(w, w + 400)]
+
+    threads = [threading.Thread(target=worker, args=(w,)) for w in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for w in range(4):
+        assert got[w] == [expected[k % 50] for k in range(w, w + 400)]
