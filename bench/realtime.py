@@ -2,15 +2,24 @@
 trip per step, the highest real-time factor lockstep sustains).
 
 Usage: python bench/realtime.py [--json] [--stop-time S] [--endpoint serve|onboard]
+                                [--floor-only]
 Default scenario, native FMUs, real time (rtf 1): ``--stop-time`` s of wall clock per
 paced run (default 60, the scenario's), two paced runs (in process, then with the
 controller outside), then libcosim's real-time mode on the SSP of the same system (when
 libcosimpy is installed: the real-time factor it achieves). The last line
 with --json is one JSON object.
+
+The machine's floor, measured right after the in-process run: the same pacing in C with
+no Python and no FMU (``bench/pacing_floor.c``: absolute ``clock_nanosleep`` to 1.5 ms
+before each deadline, then a spin), as many points; and the share of CPU time the
+hypervisor took from this virtual machine (``steal`` of /proc/stat) during each of the
+two, percent. ``--floor-only``: these two runs alone.
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -70,18 +79,56 @@ def libcosim_real_time(fmus: Path, tmp: Path, seconds: float) -> dict | None:
             "rtf_reported": round(status.real_time_factor, 5)}  # fmt: skip
 
 
+def cpu_jiffies() -> tuple[int, int]:
+    """(steal, total) jiffies of every CPU so far (/proc/stat's first line)."""
+    with open("/proc/stat") as f:
+        fields = [int(v) for v in f.readline().split()[1:]]
+    return fields[7], sum(fields[:8])
+
+
+def steal_percent(before: tuple[int, int]) -> float:
+    """The hypervisor's share of the CPU time since ``before`` (:func:`cpu_jiffies`), %."""
+    steal, total = cpu_jiffies()
+    return round(100.0 * (steal - before[0]) / max(1, total - before[1]), 2)
+
+
+def c_pacer(points: int, tmp: Path) -> dict:
+    """``bench/pacing_floor.c`` compiled here (zig's cc, else the system's) and run for
+    ``points`` points at 50 Hz: its lateness, ms, and the steal during it, %."""
+    try:
+        import ziglang  # noqa: F401
+
+        cc = [sys.executable, "-m", "ziglang", "cc"]
+    except ImportError:
+        cc = [shutil.which("cc") or "gcc"]
+    exe = tmp / "pacing_floor"
+    src = Path(__file__).with_name("pacing_floor.c")
+    subprocess.run([*cc, "-std=c99", "-O2", str(src), "-o", str(exe)], check=True)
+    before = cpu_jiffies()
+    p = subprocess.run([str(exe), str(points), "1500"], capture_output=True, text=True,
+                       check=True)  # fmt: skip
+    return {**json.loads(p.stdout), "steal_pct": steal_percent(before)}
+
+
 def main() -> None:
     args = parse_args(
         __doc__,
         ("--stop-time", {"type": float, "default": 60.0}),
         ("--endpoint", {"choices": ("serve", "onboard"), "default": "onboard"}),
+        ("--floor-only", {"action": "store_true"}),
     )
     fmus = prepare_fmus(None, "native")
     run = {"fmu_dir": fmus, "build": False, "plots": False}
     out: dict = {"stop_time_s": args.stop_time, "step_s": 0.02, "endpoint": args.endpoint}
+    before = cpu_jiffies()
     paced = simulate("default", None, stop_time=args.stop_time, real_time=RealTime(1.0), **run)
     out["in_process_lateness_ms"] = lateness(paced)
+    out["in_process_steal_pct"] = steal_percent(before)
     with tempfile.TemporaryDirectory(prefix="glider-bench-rt-") as tmp:
+        out["c_pacer_lateness_ms"] = c_pacer(round(args.stop_time / 0.02), Path(tmp))
+        if args.floor_only:
+            emit(out, args.json)
+            return
         srv = endpoint(args.endpoint, fmus, Path(tmp))
         try:
             url = srv.stdout.readline().split()[-1]
