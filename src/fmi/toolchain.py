@@ -87,6 +87,14 @@ class Compiler:
             return ("-shared",) if self.is_zig else ("-shared", "-static-libgcc")
         return ("-fPIC", "-shared", "-fvisibility=hidden")
 
+    def link_extra(self, platform: Platform) -> tuple[str, ...]:
+        """Flags a shared library's link adds: for zig but on Windows, no compiler_rt
+        (``-rtlib=none``). Our libraries call nothing of it on Linux and macOS (the same
+        bytes with and without it), and zig would first build it for each target into an
+        empty cache (a fresh machine), 5-10 s each; Windows' stack probe
+        (``___chkstk_ms``) is in it."""
+        return ("-rtlib=none",) if self.is_zig and platform.os != "windows" else ()
+
 
 def zig_available() -> bool:
     return importlib.util.find_spec("ziglang") is not None
@@ -246,4 +254,4 @@ def host_command(chain: Toolchain | None = None) -> list[str]:
         raise ToolchainError(f"no compiler for this machine ({key}) in --compiler {chain.spec}")
     platform = PLATFORMS[key]
     shared = [f for f in compiler.shared_flags(platform) if f != "-fvisibility=hidden"]
-    return [*compiler.argv(platform), *shared]  # every function exported
+    return [*compiler.argv(platform), *shared, *compiler.link_extra(platform)]  # all exported
