@@ -57,7 +57,7 @@ def timed(python: str, args: list[str], zig_cold: bool) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=3, help="runs per figure (median)")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per figure (median; 0 skips)")
     ap.add_argument("--zig-cold-repeat", type=int, default=1, help="runs per zig-cold figure")
     ap.add_argument("--no-zig-cold", action="store_true", help="skip the zig-cold figures")
     ap.add_argument("--python", default=sys.executable, help="interpreter running glider-cosim")
@@ -65,7 +65,7 @@ def main() -> None:
     args = ap.parse_args()
     result: dict[str, object] = {"python": args.python, "load_before": os.getloadavg()[0]}
     variants = [(False, args.repeat)] + [(True, args.zig_cold_repeat)] * (not args.no_zig_cold)
-    for zig_cold, repeat in variants:
+    for zig_cold, repeat in (v for v in variants if v[1] > 0):  # 0: skip
         for name, cmd in COMMANDS.items():
             times = [timed(args.python, cmd, zig_cold) for _ in range(repeat)]
             key = f"{name}{'_zig_cold' if zig_cold else ''}_s"

@@ -22,6 +22,7 @@ import hashlib
 import logging
 import os
 import re
+import shutil
 import uuid
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -93,7 +94,8 @@ def object_key(target: Target, cflags: tuple[str, ...], source: Path, fmi_digest
     the flags, the FMI headers (``fmi_digest``), and the content of the file and of every
     header it includes."""
     c = target.compiler
-    h = hashlib.sha256("\0".join((c.identity, *c.argv(target.platform))).encode())
+    argv = c.argv(target.platform)[len(c.command) :] if c.is_zig else c.argv(target.platform)
+    h = hashlib.sha256("\0".join((c.identity, *argv)).encode())  # zig: any install of it
     h.update("\0".join(compile_flags(target, cflags)).encode())
     h.update(fmi_digest.encode())
     for p in (source, *local_includes(source)):
@@ -106,6 +108,8 @@ def _object_folder(fallback: Path) -> Path:
     folder = cache_root() / package_version() / OBJECT_DIR
     try:
         folder.mkdir(parents=True, exist_ok=True)
+        if not os.access(folder, os.W_OK):
+            raise PermissionError(folder)
     except OSError:  # a cache that cannot be written: objects for this build only
         folder = fallback / OBJECT_DIR
         folder.mkdir(parents=True, exist_ok=True)
@@ -113,8 +117,11 @@ def _object_folder(fallback: Path) -> Path:
 
 
 def _compile(target: Target, cflags: tuple[str, ...], source: Path, obj: Path) -> None:
-    obj.parent.mkdir(parents=True, exist_ok=True)
-    part = obj.with_name(f".{obj.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part.o")
+    # written in a folder of this call's, under the object's own name (zig's cache keys
+    # on the output's name too: a warm zig cache serves an empty FMU cache), then moved
+    tmp = obj.parent / f".{os.getpid()}.{uuid.uuid4().hex[:8]}.part"
+    tmp.mkdir(parents=True)
+    part = tmp / obj.name
     cmd = [
         *target.compiler.argv(target.platform),
         *compile_flags(target, cflags),
@@ -138,7 +145,7 @@ def _compile(target: Target, cflags: tuple[str, ...], source: Path, obj: Path) -
             raise toolchain.ToolchainError(f"compiling {source.name} ({target.key}) wrote no file")
         part.replace(obj)  # complete or absent: another build may read it meanwhile
     finally:
-        part.unlink(missing_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _link(target: Target, cflags: tuple[str, ...], objects: list[Path], output: Path) -> None:
