@@ -227,7 +227,7 @@ def _serve(args: argparse.Namespace) -> int:
         name = {"plant": "GliderPlant", "observer": "GliderObserver"}.get(
             args.component, "GliderController"
         )
-        fmu = prepare_fmus(None, args.flavor) / f"{name}.fmu"
+        fmu = prepare_fmus(None, args.flavor, host_only=True) / f"{name}.fmu"
         what = f"{fmu.name}, {args.flavor}"
 
     def ready(addr: tuple[str, int]) -> None:
@@ -270,6 +270,13 @@ def _analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def runs_here(args: argparse.Namespace) -> bool:
+    """True if the command runs our FMUs on this machine alone (a run, a sweep or a
+    report without a Dask scheduler elsewhere): the cache's host-only set serves it.
+    Exports hand the FMUs on: every platform's binary."""
+    return args.command in ("run", "sweep", "report") and not getattr(args, "scheduler", None)
+
+
 def dispatch(args: argparse.Namespace) -> int:
     """Run the parsed subcommand; its exit code."""
     # --fmu-dir/--flavor: the folder (default: the per-user cache), built in the flavor
@@ -285,7 +292,8 @@ def dispatch(args: argparse.Namespace) -> int:
                         "FMUs is built there")  # fmt: skip
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         try:
-            args.fmu_dir = str(prepare_fmus(folder, args.flavor, getattr(args, "fmi", None)))
+            fmi, here = getattr(args, "fmi", None), runs_here(args)
+            args.fmu_dir = str(prepare_fmus(folder, args.flavor, fmi, host_only=here))
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":

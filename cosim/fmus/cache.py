@@ -2,8 +2,11 @@
 the sets of other glider-cosim versions.
 
 Layout: ``<cache_root>/<version>/<entry>``, where an entry is an FMU set
-``<flavor>[-fmi3]-<sources key>`` (:func:`glider_cosim.fmus.folders.cache_dir`), the
-compiled fast loop ``fastloop-<key>`` or the native sources' build ``native-src``.
+``<flavor>[-fmi3]-<sources key>`` (:func:`glider_cosim.fmus.folders.cache_dir`), a
+native set with this machine's binary alone, to run here
+``native[-fmi3]-only-<platform>-<sources key>``, the compiled fast loop
+``fastloop-<key>``, the native sources ``native-src`` or their objects ``native-obj``
+(:mod:`glider_cosim.fmus.objects`).
 ``--prune`` removes every version folder but the installed version's. The installed
 version's sets built from other sources (an edited checkout, another branch) are kept
 and listed as such: switching back to those sources reuses them.
@@ -58,9 +61,14 @@ def _describe(version: str, name: str, keys: dict[str, str]) -> str:
     kind, _, key = name.rpartition("-")
     if name == "native-src":
         return "native sources' builds"
+    if name == "native-obj":
+        return "native objects (each C file compiled per platform)"
+    kind, only, host = kind.partition("-only-")
     if kind in FMU_KINDS:
         flavor, _, fmi = kind.partition("-")
         label = f"{flavor} FMUs, FMI {'3.0' if fmi else '2.0'}"
+        if only:
+            label += f", {host} only (to run here)"
         if version != package_version():
             return f"{label}, other version"
         return f"{label}, {'current sources' if keys.get(kind) == key else 'other sources'}"

@@ -80,11 +80,14 @@ def _repackage(fmu2: Path, out: Path, binary: dict[str, Path]) -> Path:
     return fmu
 
 
-def build_fmi3(out: Path | str, flavor: str = "python", only_stale: bool = False) -> dict:
-    """Build the three FMI 3.0 FMUs of a flavor into ``out``; model identifier -> path."""
+def build_fmi3(
+    out: Path | str, flavor: str = "python", only_stale: bool = False, host_only: bool | None = None
+) -> dict:
+    """Build the three FMI 3.0 FMUs of a flavor into ``out``; model identifier -> path
+    (``host_only``: see :func:`glider_cosim.fmus.native.build_native`)."""
     out = Path(out)
     if flavor == "native":
-        return native.build_native(out, only_stale, fmi=3)
+        return native.build_native(out, only_stale, fmi=3, host_only=host_only)
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     todo = [c for c in COMPONENTS if not (only_stale and is_current(result[c.name], c.name))]
     if not todo:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from glider_fmi import compile as runtime
+from glider_fmi.toolchain import host_platform
 
 from . import osp
 from .files import CACHE_ENV, cache_root, fmu_flavor, package_version  # noqa: F401 (re-exported)
@@ -26,6 +27,9 @@ from .python import (
 FLAVORS = ("python", "native")
 
 
+#: the infix of a host-only set's cache folder (:func:`cache_dir`)
+HOST_ONLY = "-only-"
+
 #: where ``glider-cosim build`` writes each flavor unless ``--out`` is given (the
 #: project's export folder); runs use the per-user cache instead (:func:`cache_dir`)
 DEFAULT_DIRS = {"python": Path("fmus"), "native": Path("fmus") / "native"}
@@ -41,14 +45,20 @@ def sources_key(flavor: str = "python") -> str:
     return hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:16]
 
 
-def cache_dir(flavor: str = "python", fmi: int = 2) -> Path:
+def cache_dir(flavor: str = "python", fmi: int = 2, host_only: bool = False) -> Path:
     """The cache folder of the flavor's FMUs (of FMI ``fmi``) built from the current
     sources: ``<cache_root>/<version>/<flavor>[-fmi3]-<sources_key>``. Other sources
-    (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale."""
+    (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale.
+
+    ``host_only`` (native flavor): the folder of the set built to run on this machine
+    alone, ``<flavor>[-fmi3]-only-<platform>-<sources_key>`` (:data:`HOST_ONLY`), apart
+    from the full set so that it is never taken for one."""
 
     if flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
     kind = flavor if fmi == 2 else f"{flavor}-fmi{fmi}"
+    if host_only and flavor == "native":
+        kind += f"{HOST_ONLY}{host_platform()}"
     return cache_root() / package_version() / f"{kind}-{sources_key(flavor)}"
 
 
@@ -103,6 +113,7 @@ def build_all(
     only_stale: bool = False,
     flavor: str | None = None,
     fmi: int | None = None,
+    host_only: bool | None = None,
 ) -> dict[str, Path]:
     """Build GliderPlant, GliderObserver and GliderController into ``out``.
 
@@ -118,6 +129,11 @@ def build_all(
     fmi : {2, 3} or None
         FMI version: None keeps the one the FMUs already in ``out`` declare (a folder of
         FMI 3.0 FMUs stays FMI 3.0), 2 if there are none.
+    host_only : bool or None
+        Native flavor: True builds this machine's binary alone (a set to run here; a
+        current full set is kept), False every platform's (a set to hand out: exports),
+        None keeps what the FMUs in ``out`` hold with ``only_stale``, else every
+        platform's (:func:`glider_cosim.fmus.native.build_native`).
 
     Returns
     -------
@@ -134,11 +150,11 @@ def build_all(
     if fmi not in FMI_VERSIONS:
         raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
     if fmi == 3:
-        return build_fmi3(out, flavor, only_stale)
+        return build_fmi3(out, flavor, only_stale, host_only)
     if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
-        return _with_osp(build_native(out, only_stale))
+        return _with_osp(build_native(out, only_stale, host_only=host_only))
     todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
     if todo:
@@ -184,17 +200,38 @@ def add_fmu_options(parser: Any, fmi: bool = False) -> None:
         )
 
 
-def prepare_fmus(fmu_dir: str | Path | None, flavor: str | None, fmi: int | None = None) -> Path:
+def prepare_fmus(
+    fmu_dir: str | Path | None,
+    flavor: str | None,
+    fmi: int | None = None,
+    host_only: bool = False,
+) -> Path:
     """The FMU folder a command's ``--fmu-dir``/``--flavor``/``--fmi`` name. Without a
     folder: the per-user cache's (:func:`cache_dir`), built there first if missing or
     stale. With a folder and ``--flavor`` or ``--fmi``: the FMUs there are built in that
-    flavor and FMI version first if missing, stale or of another flavor or version."""
+    flavor and FMI version first if missing, stale or of another flavor or version.
+
+    ``host_only``: the FMUs are run on this machine and nowhere else (a run, a local
+    sweep): from the cache, the native flavor's full set if it is current, else a set
+    with this machine's binary alone, built in its own folder (``cache_dir(...,
+    host_only=True)``). Whatever hands FMUs on (exports) keeps the default, False:
+    every platform's binary. A folder given is built with every platform's binary (its
+    FMUs may be handed on), or kept host-only if it holds a host-only set."""
     if fmu_dir is None:
         flavor = flavor or "python"
         folder = cache_dir(flavor, fmi or 2)
-        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2)
+        if host_only and flavor == "native" and not _current_native(folder, fmi or 2):
+            folder = cache_dir(flavor, fmi or 2, host_only=True)
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2, host_only=host_only)
         return folder
     folder = Path(fmu_dir)
     if flavor is not None or fmi is not None:
-        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi)
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi)  # kept as it is
     return folder
+
+
+def _current_native(folder: Path, fmi: int) -> bool:
+    """True if ``folder`` holds the full native set of FMI ``fmi``, current."""
+    from .native import is_current
+
+    return all(is_current(folder / f"{c.name}.fmu", c, fmi) for c in NATIVE_COMPONENTS)

@@ -16,18 +16,14 @@ with every C file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can 
 
 from __future__ import annotations
 
-import concurrent.futures
 import hashlib
 import logging
 import math
-import os
 import tempfile
-import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree as ET
 
 import glider_controller
 import glider_fmi
@@ -35,15 +31,18 @@ import glider_observer
 import glider_plant
 from glider_fmi import toolchain
 
-from . import osp, platforms
+from . import objects, osp, platforms
 from .files import FLAVOR_FILE, package_version, replacing
-from .platforms import binary_entries, compile_for, zip_member
+from .native_description import build_description, model_description
+from .platforms import binary_entries, zip_member
 
 log = logging.getLogger(__name__)
 
 #: resource naming the flavor of an FMU ("python" or "native")
 #: resource holding the hash of the sources a native FMU was built from
 NATIVE_HASH_FILE = "resources/glider_cosim_native.sha256"
+#: resource listing the platforms a native FMU has binaries for, one a line
+PLATFORMS_FILE = "resources/glider_cosim_platforms.txt"
 #: flags of every native compile (the same on both platforms)
 CFLAGS = (
     "-std=c99",
@@ -226,124 +225,108 @@ def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | N
 
 
 def is_current(
-    fmu: Path, c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | None = None
+    fmu: Path,
+    c: NativeComponent,
+    fmi: int = 2,
+    chain: toolchain.Toolchain | None = None,
+    need: list[str] | None = None,
 ) -> bool:
     """True if ``fmu`` is a native FMU of FMI ``fmi`` built from the current sources (by
-    the compilers of ``chain``)."""
+    the compilers of ``chain``) with a binary for each platform of ``need`` (default:
+    every platform ``chain`` builds, :func:`wanted_platforms`)."""
     try:
         with zipfile.ZipFile(fmu) as z:
-            return z.read(NATIVE_HASH_FILE).decode().strip() == native_hash(c, fmi, chain)
-    except (OSError, KeyError, zipfile.BadZipFile):
+            if z.read(NATIVE_HASH_FILE).decode().strip() != native_hash(c, fmi, chain):
+                return False
+            has = set(z.read(PLATFORMS_FILE).decode().split())
+        return has >= set(need if need is not None else wanted_platforms(chain, False))
+    except (OSError, KeyError, zipfile.BadZipFile, toolchain.ToolchainError):
         return False
 
 
-# ---------------------------------------------------------------- compiling
-# ---------------------------------------------------------------- model description
-def model_description(
-    c: NativeComponent, sources: list[str], chain: toolchain.Toolchain | None = None
-) -> bytes:
-    """The Python slave's model description, for a native FMU: same variables, units and
-    structure; a new GUID, our generation tool, no execution tool, and ``<SourceFiles>``."""
-    cls = c.slave_class()
-    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
-        slave = cls(instance_name="codegen", resources=tmp)
-        root = slave.to_xml(
-            {
-                "needsExecutionTool": "false",
-                "canHandleVariableCommunicationStepSize": "true",
-                "canBeInstantiatedOnlyOncePerProcess": "false",
-                "canGetAndSetFMUstate": "true",
-                "canSerializeFMUstate": "true",
-            }
-        )
-    root.set(
-        "guid",
-        "{"
-        + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + native_hash(c, 2, chain)))
-        + "}",
-    )
-    root.set("generationTool", f"glider-cosim {package_version()} (native C99)")
-    root.set("version", package_version())
-    cs = root.find("CoSimulation")
-    cs.set("needsExecutionTool", "false")
-    cs.set("canGetAndSetFMUstate", "true")
-    cs.set("canSerializeFMUstate", "true")
-    for child in list(cs):
-        cs.remove(child)
-    files = ET.SubElement(cs, "SourceFiles")
-    for name in sources:
-        ET.SubElement(files, "File", name=name)
-    ET.indent(root, "\t")
-    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+def built_platforms(fmu: Path) -> frozenset[str]:
+    """The platforms a native FMU of ours has binaries for (empty: none recorded)."""
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            return frozenset(z.read(PLATFORMS_FILE).decode().split())
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return frozenset()
 
 
-def build_description(c: NativeComponent, sources: list[str]) -> bytes:
-    """``sources/buildDescription.xml`` (FMI 3.0 layout, allowed in FMI 2.0.4)."""
-    root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
-    config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=c.name)
-    # contraction off (no fused multiply-add), as in the sources themselves (glider_fp.h)
-    files = ET.SubElement(config, "SourceFileSet", language="C99",
-                          compilerOptions="-ffp-contract=off")  # fmt: skip
-    for name in sources:
-        ET.SubElement(files, "SourceFile", name=name)
-    ET.SubElement(config, "Library", name="m", description="libm (POSIX platforms)")
-    ET.indent(root, "\t")
-    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+def wanted_platforms(chain: toolchain.Toolchain | None, host_only: bool) -> list[str]:
+    """The platforms a build makes: every one ``chain`` (default
+    :func:`glider_fmi.toolchain.select`) builds; with ``host_only``, this machine's alone
+    (every one when ``chain`` does not build this machine's)."""
+    chain = chain or toolchain.select()
+    every = [k for k in toolchain.PLATFORMS if chain.for_platform(k) is not None]
+    host = toolchain.host_platform()
+    return [host] if host_only and host in every else every
+
+
+def holds_host_only(folder: Path, chain: toolchain.Toolchain | None = None) -> bool:
+    """True if a native FMU of ours in ``folder`` has binaries for fewer platforms than a
+    full build (a run's host-only set, :func:`build_native`)."""
+    every = set(wanted_platforms(chain, False))
+    for c in NATIVE_COMPONENTS:
+        has = built_platforms(folder / f"{c.name}.fmu")
+        if has and not has >= every:
+            return True
+    return False
 
 
 # ---------------------------------------------------------------- building
-def build_native_component(
-    c: NativeComponent, out: Path, chain: toolchain.Toolchain | None = None, fmi: int = 2
-) -> Path:
-    """Build one native FMU of FMI ``fmi`` (2 or 3) into ``out``: a binary for every
-    platform the toolchain ``chain`` builds (default: :func:`glider_fmi.toolchain.select`)."""
-    chain = chain or toolchain.select()
-    with tempfile.TemporaryDirectory(prefix=f"{c.name}_native_") as tmp:
-        stage = Path(tmp)
-        src = staged_sources(fmi, chain, stage)
-        own = {f.name for f in source_files(c, fmi)} | {f"{c.name}_vars.h"}
-        files = sorted(src / n for n in own)
-        c_names = [p.name for p in files if p.suffix == ".c"]
-        jobs, outputs = {}, {}
-        for key, platform in toolchain.PLATFORMS.items():
-            compiler = chain.for_platform(key)
-            if compiler is None:
-                continue
-            (stage / key).mkdir()  # zig writes .pdb/.lib beside a DLL: only the DLL is kept
-            jobs[key] = (compiler, platform)
-            outputs[key] = stage / key / f"{c.name}{platform.suffix}"
-        workers = max(1, min(len(jobs), os.cpu_count() or 1))
-        with concurrent.futures.ThreadPoolExecutor(workers) as pool:
-            try:
-                texts = pool.map(lambda k: compile_for(*jobs[k], files, outputs[k], CFLAGS), jobs)
-                printed = dict(zip(jobs, texts))
-            except toolchain.ToolchainError as err:
-                raise NativeBuildError(str(err)) from None
-        for key, text in printed.items():
-            if text:
-                raise NativeBuildError(f"{c.name} ({key}): not warning-free: {text[:300]}")
-        built = outputs
-        if not built:
-            raise NativeBuildError(f"{c.name}: --compiler {chain.spec} builds no platform")
-        out.mkdir(parents=True, exist_ok=True)
-        fmu = out / f"{c.name}.fmu"
-        md = model_description(c, c_names, chain)
-        if fmi == 3:
-            from .fmi3_description import fmi3_model_description
+def _package(c: NativeComponent, out: Path, chain: toolchain.Toolchain, fmi: int,
+             src: Path, built: dict[str, Path]) -> Path:  # fmt: skip
+    """Write ``<out>/<name>.fmu`` with the libraries ``built`` (platform key -> file)."""
+    own = {f.name for f in source_files(c, fmi)} | {f"{c.name}_vars.h"}
+    files = sorted(src / n for n in own)
+    c_names = [p.name for p in files if p.suffix == ".c"]
+    out.mkdir(parents=True, exist_ok=True)
+    fmu = out / f"{c.name}.fmu"
+    md = model_description(c, c_names, native_hash(c, 2, chain))
+    if fmi == 3:
+        from .fmi3_description import fmi3_model_description
 
-            md = fmi3_model_description(md)
-        with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", md)
-            z.writestr(osp.extra_path(md), osp.generate(md))
-            for entry, data in binary_entries(c.name, built, fmi).items():
-                z.writestr(zip_member(entry), data)
-            for p in files:
-                z.write(p, f"sources/{p.name}")
-            z.writestr("sources/buildDescription.xml", build_description(c, c_names))
-            z.writestr(FLAVOR_FILE, "native\n")
-            z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi, chain) + "\n")
+        md = fmi3_model_description(md)
+    with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", md)
+        z.writestr(osp.extra_path(md), osp.generate(md))
+        for entry, data in binary_entries(c.name, built, fmi).items():
+            z.writestr(zip_member(entry), data)
+        for p in files:
+            z.write(p, f"sources/{p.name}")
+        z.writestr("sources/buildDescription.xml", build_description(c, c_names))
+        z.writestr(FLAVOR_FILE, "native\n")
+        z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi, chain) + "\n")
+        z.writestr(PLATFORMS_FILE, "".join(f"{k}\n" for k in built))
     osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
+
+
+def build_native_components(
+    todo: list[NativeComponent],
+    out: Path,
+    chain: toolchain.Toolchain,
+    fmi: int = 2,
+    platforms: list[str] | None = None,
+) -> dict[str, Path]:
+    """Build the native FMUs ``todo`` of FMI ``fmi`` into ``out``, each with a binary for
+    every platform of ``platforms`` (default: every one ``chain`` builds): model
+    identifier -> path. The C files are compiled once per platform, in one pool with the
+    links (:func:`glider_cosim.fmus.objects.build_binaries`)."""
+    keys = [k for k in (platforms or toolchain.PLATFORMS) if chain.for_platform(k) is not None]
+    if not keys:
+        raise NativeBuildError(f"--compiler {chain.spec} builds no platform")
+    targets = [objects.Target(k, toolchain.PLATFORMS[k], chain.for_platform(k)) for k in keys]
+    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
+        stage = Path(tmp)
+        src = staged_sources(fmi, chain, stage)
+        sources = {c.name: [src / f.name for f in source_files(c, fmi)] for c in todo}
+        try:
+            built = objects.build_binaries(sources, targets, CFLAGS, stage)
+        except toolchain.ToolchainError as err:
+            raise NativeBuildError(str(err)) from None
+        return {c.name: _package(c, out, chain, fmi, src, built[c.name]) for c in todo}
 
 
 def staged_sources(fmi: int, chain: toolchain.Toolchain, fallback: Path) -> Path:
@@ -367,32 +350,41 @@ def missing_platforms(chain: toolchain.Toolchain) -> list[str]:
 
 
 def build_native(
-    out: Path | str, only_stale: bool = False, fmi: int = 2, compiler: str | None = None
+    out: Path | str,
+    only_stale: bool = False,
+    fmi: int = 2,
+    compiler: str | None = None,
+    host_only: bool | None = None,
 ) -> dict[str, Path]:
     """Build the three native FMUs of FMI ``fmi`` into ``out``; model identifier -> path.
 
     ``compiler`` is ``--compiler`` (None: ``$GLIDER_COSIM_COMPILER``, else zig). When the
     compilers chosen cannot build some platforms (zig not installed), those are left out
-    and a one-line warning names them.
+    and a one-line warning names them. ``host_only``: True builds this machine's binary
+    alone (a set to run here, never to hand out; a current full set is kept), False
+    every platform's, None keeps what the FMUs in ``out`` hold with ``only_stale`` (a
+    host-only set stays host-only), else every platform's.
     """
     out = Path(out)
     try:
         chain = toolchain.select(compiler)
     except toolchain.ToolchainError as err:
         raise NativeBuildError(str(err)) from None
+    if host_only is None:
+        host_only = only_stale and holds_host_only(out, chain)
+    wanted = wanted_platforms(chain, host_only)
     result = {c.name: out / f"{c.name}.fmu" for c in NATIVE_COMPONENTS}
     todo = [c for c in NATIVE_COMPONENTS
-            if not (only_stale and is_current(result[c.name], c, fmi, chain))]  # fmt: skip
+            if not (only_stale and is_current(result[c.name], c, fmi, chain, wanted))]  # fmt: skip
     if not todo:
         return result
     missing = missing_platforms(chain)
-    if missing:
+    if missing and not host_only:
         log.warning(
             "--compiler %s builds no %s: the native FMUs leave those out (zig, the "
             "default, builds every platform)",
             chain.spec,
             ", ".join(missing),
         )
-    for c in todo:
-        result[c.name] = build_native_component(c, out, chain, fmi)
+    result.update(build_native_components(todo, out, chain, fmi, wanted))
     return result

@@ -1,5 +1,5 @@
-"""The native FMUs' platforms: compiling for each, FMI 2's and FMI 3's binary folders,
-macOS' universal file, and the staged sources zig's cache reuses."""
+"""The native FMUs' platforms: FMI 2's and FMI 3's binary folders, macOS' universal
+file, and the staged sources (compiling: :mod:`glider_cosim.fmus.objects`)."""
 
 from __future__ import annotations
 
@@ -9,48 +9,9 @@ import time
 import zipfile
 from pathlib import Path
 
-from glider_fmi import compile as runtime
 from glider_fmi import macho, toolchain
 
 from .files import cache_root, package_version
-
-#: libraries each OS links (macOS' libm is in libSystem; Windows' in the C runtime)
-OS_LIBS = {"linux": ("-lm",), "windows": (), "darwin": ()}
-
-
-def _run_compiler(cmd: list[str], output: Path) -> str:
-    printed = toolchain.run(cmd, output.name)
-    if not output.is_file():
-        raise toolchain.ToolchainError(f"compiling {output.name} wrote no file")
-    return printed
-
-
-def compile_for(compiler: toolchain.Compiler, platform: toolchain.Platform,
-                sources: list[Path], output: Path, cflags: tuple[str, ...]) -> str:  # fmt: skip
-    """Compile the FMU ``sources`` for ``platform`` into ``output`` with ``compiler`` and
-    ``cflags``; what it printed (empty when warning-free).
-
-    Raises
-    ------
-    glider_fmi.toolchain.ToolchainError
-        The compiler failed (its first lines quoted).
-    """
-    cmd = [
-        *compiler.argv(platform),
-        *cflags,
-        *compiler.shared_flags(platform),
-        # the importer's headers: clang warns on a prototype-less declaration in fmpy's
-        # fmi3FunctionTypes.h, which is not ours to fix
-        "-isystem",
-        str(runtime.fmi_headers()),
-        f"-I{sources[0].parent}",
-        *(str(s) for s in sources if s.suffix == ".c"),
-        "-o",
-        str(output),
-        *OS_LIBS[platform.os],
-    ]
-    return _run_compiler(cmd, output)
-
 
 #: FMI 2's binary folders: its standard ``linux64``, ``win64`` and ``darwin64`` (one
 #: universal file for both macOS architectures), and ``aarch64-linux`` (no standard

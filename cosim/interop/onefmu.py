@@ -156,7 +156,7 @@ def export_one_fmu(
             f"{quote(str(fmu_dir))} holds FMI 3.0 FMUs: the one-FMU export takes FMI 2.0 ones "
             "(the container is an FMI 2.0 FMU); use --fmu-dir with an FMI 2 folder"
         )
-    built = build_all(fmu_folder(fmu_dir), only_stale=True)
+    built = build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False)  # handed on
     files = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if sc.observer or i != "observer"}
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -69,7 +69,8 @@ def export_ssp(
             "export a scenario without them"
         )
     insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
-    built = build_all(fmu_folder(fmu_dir), only_stale=True) if set(insts) - set(sc.fmus) else {}
+    ours = set(insts) - set(sc.fmus)  # handed on: every platform's binary
+    built = build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False) if ours else {}
     fmus: dict[str, Path] = {}
     for inst in insts:
         fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]

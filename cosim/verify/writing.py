@@ -85,7 +85,7 @@ def export(out: str | Path, fmu_dir: str | Path | None = None, platform: str = "
     """
     from ..fmus.folders import build_all, fmu_folder
 
-    fmus = build_all(fmu_folder(fmu_dir), only_stale=True)
+    fmus = build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False)  # handed on
     base = Path(out) / "fmus" / "2.0" / "cs" / platform / "glider-cosim" / package_version()
     for component, model in COMPONENTS.items():
         folder = base / model

@@ -87,6 +87,14 @@ class Compiler:
             return ("-shared",) if self.is_zig else ("-shared", "-static-libgcc")
         return ("-fPIC", "-shared", "-fvisibility=hidden")
 
+    def link_extra(self, platform: Platform) -> tuple[str, ...]:
+        """Flags a shared library's link adds: for zig but on Windows, no compiler_rt
+        (``-rtlib=none``). Our libraries call nothing of it on Linux and macOS (the same
+        bytes with and without it), and zig would first build it for each target into an
+        empty cache (a fresh machine), 5-10 s each; Windows' stack probe
+        (``___chkstk_ms``) is in it."""
+        return ("-rtlib=none",) if self.is_zig and platform.os != "windows" else ()
+
 
 def zig_available() -> bool:
     return importlib.util.find_spec("ziglang") is not None
@@ -100,7 +108,14 @@ def zig_version() -> str:
 
 
 def zig_command() -> tuple[str, ...]:
-    """``python -m ziglang cc`` with this interpreter."""
+    """zig's C compiler from the ziglang package: its ``zig`` binary with ``cc`` (what
+    ``python -m ziglang cc`` starts, without an interpreter started first for each of a
+    build's 60 compiles and links), else ``python -m ziglang cc`` with this interpreter."""
+    spec = importlib.util.find_spec("ziglang")
+    if spec is not None and spec.origin is not None:
+        binary = os.path.join(os.path.dirname(spec.origin), "zig.exe" if os.name == "nt" else "zig")
+        if os.access(binary, os.X_OK):
+            return (binary, "cc")
     return (sys.executable, "-m", "ziglang", "cc")
 
 
@@ -246,4 +261,4 @@ def host_command(chain: Toolchain | None = None) -> list[str]:
         raise ToolchainError(f"no compiler for this machine ({key}) in --compiler {chain.spec}")
     platform = PLATFORMS[key]
     shared = [f for f in compiler.shared_flags(platform) if f != "-fvisibility=hidden"]
-    return [*compiler.argv(platform), *shared]  # every function exported
+    return [*compiler.argv(platform), *shared, *compiler.link_extra(platform)]  # all exported

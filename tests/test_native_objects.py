@@ -1,0 +1,112 @@
+"""The native build's objects (keys, includes, link flags) and which FMU set a command
+gets from the cache (host-only for runs, every platform's for exports), without a
+compiler."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from glider_cosim.cli.commands import runs_here
+from glider_cosim.fmus import cache, folders, objects
+from glider_fmi import toolchain
+
+ZIG = toolchain.Compiler("zig", ("zig", "cc"), frozenset(toolchain.PLATFORMS), "ziglang 0.0")
+GCC = toolchain.Compiler("gcc", ("/usr/bin/gcc",), frozenset({"x86_64-linux"}), "gcc 13")
+LINUX = objects.Target("x86_64-linux", toolchain.PLATFORMS["x86_64-linux"], ZIG)
+FLAGS = ("-O2", "-Wall")
+
+
+@pytest.fixture
+def src(tmp_path) -> Path:
+    (tmp_path / "a.h").write_text('#include "b.h"\n#include <math.h>\n')
+    (tmp_path / "b.h").write_text("int b;\n")
+    (tmp_path / "other.h").write_text("int o;\n")
+    c = tmp_path / "a.c"
+    c.write_text('#include "a.h"\n  #  include "missing.h"\nint f(void) { return b; }\n')
+    return c
+
+
+def test_local_includes_are_followed_into_headers(src):
+    assert [p.name for p in objects.local_includes(src)] == ["a.h", "b.h"]
+
+
+def test_an_object_key_follows_the_file_its_headers_the_flags_and_the_compiler(src):
+    key = objects.object_key(LINUX, FLAGS, src, "fmi")
+    (src.parent / "other.h").write_text("int changed;\n")  # included by nothing
+    assert objects.object_key(LINUX, FLAGS, src, "fmi") == key
+    changed = []
+    (src.parent / "b.h").write_text("int b2;\n")  # included by a.h
+    changed.append(objects.object_key(LINUX, FLAGS, src, "fmi"))
+    src.write_text(src.read_text() + "\n")
+    changed.append(objects.object_key(LINUX, FLAGS, src, "fmi"))
+    changed.append(objects.object_key(LINUX, ("-O3", "-Wall"), src, "fmi"))
+    changed.append(objects.object_key(LINUX, FLAGS, src, "other fmi headers"))
+    arm = objects.Target("aarch64-linux", toolchain.PLATFORMS["aarch64-linux"], ZIG)
+    changed.append(objects.object_key(arm, FLAGS, src, "fmi"))
+    gcc = objects.Target("x86_64-linux", toolchain.PLATFORMS["x86_64-linux"], GCC)
+    changed.append(objects.object_key(gcc, FLAGS, src, "fmi"))
+    assert len({key, *changed}) == 1 + len(changed)
+
+
+def test_zig_links_without_compiler_rt_but_on_windows():
+    flags = {k: objects.link_flags(objects.Target(k, p, ZIG), ("-std=c99", "-O2"))
+             for k, p in toolchain.PLATFORMS.items()}  # fmt: skip
+    assert flags["x86_64-linux"] == ["-O2", "-fPIC", "-shared", "-fvisibility=hidden",
+                                     "-rtlib=none"]  # fmt: skip
+    assert flags["aarch64-darwin"][-1] == "-rtlib=none"
+    assert flags["x86_64-windows"] == ["-O2", "-shared"]
+    gcc = objects.Target("x86_64-linux", toolchain.PLATFORMS["x86_64-linux"], GCC)
+    assert "-rtlib=none" not in objects.link_flags(gcc, FLAGS)
+    assert objects.compile_flags(LINUX, FLAGS) == ["-O2", "-Wall", "-fPIC", "-fvisibility=hidden"]
+
+
+def test_the_cache_lists_a_host_only_set_and_the_objects(tmp_path, monkeypatch):
+    for name in ("native-only-x86_64-linux-0123456789abcdef", "native-fmi3-only-aarch64-linux-0123",
+                 "native-obj"):  # fmt: skip
+        (tmp_path / "0.0.1" / name).mkdir(parents=True)
+    what = {e.name: e.what for e in cache.cache_entries(tmp_path)}
+    assert what == {
+        "native-fmi3-only-aarch64-linux-0123": "native FMUs, FMI 3.0, aarch64-linux only (to run "
+        "here), other version",
+        "native-obj": "native objects (each C file compiled per platform)",
+        "native-only-x86_64-linux-0123456789abcdef": "native FMUs, FMI 2.0, x86_64-linux only "
+        "(to run here), other version",
+    }
+
+
+@pytest.mark.parametrize(
+    ("host_only", "full_current", "expected"),
+    [(True, False, "host"), (True, True, "full"), (False, False, "full"), (False, True, "full")],
+)
+def test_a_run_takes_the_full_set_if_current_else_a_host_only_one(
+    tmp_path, monkeypatch, host_only, full_current, expected
+):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
+    monkeypatch.setattr(folders, "sources_key", lambda flavor="python": "k")
+    monkeypatch.setattr(folders, "_current_native", lambda folder, fmi: full_current)
+    calls = []
+    monkeypatch.setattr(folders, "build_all", lambda out, **kw: calls.append((Path(out), kw)))
+    got = folders.prepare_fmus(None, "native", host_only=host_only)
+    want = folders.cache_dir("native", host_only=expected == "host")
+    assert got == want
+    assert got.name == (
+        "native-k" if expected == "full" else f"native-only-{toolchain.host_platform()}-k"
+    )
+    assert calls == [(want, {"only_stale": True, "flavor": "native", "fmi": 2,
+                             "host_only": host_only})]  # fmt: skip
+    assert folders.prepare_fmus(None, "python", host_only=host_only) == folders.cache_dir("python")
+
+
+def test_runs_run_here_and_exports_hand_on():
+    def ns(command: str, **kw: object) -> argparse.Namespace:
+        return argparse.Namespace(command=command, **kw)
+
+    assert runs_here(ns("run"))
+    assert runs_here(ns("sweep", scheduler=None))
+    assert not runs_here(ns("sweep", scheduler="tcp://elsewhere:8786"))  # workers elsewhere
+    assert runs_here(ns("report", scheduler=None))
+    assert not runs_here(ns("export-ssp"))
+    assert not runs_here(ns("export-fmu"))
