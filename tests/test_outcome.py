@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from outcome_reference import crossings_loop
 
 from glider_cosim.runner.metrics import describe_outcome, glide_metrics
 from glider_cosim.runner.outcome import (
@@ -143,28 +144,6 @@ def test_glide_metrics_reports_the_outcome_and_stops():
     assert m["outcome"] == "stopped" and m["settling_time_s"] is None
 
 
-def _crossings_loop(t, e, hyst, jump=math.inf):
-    """The sample-by-sample loop ``_crossings`` replaced (0.1.0): the reference."""
-    times = []
-    state = 0
-    last_change = None
-    for i in range(len(e)):
-        if i > 0 and np.sign(e[i]) != np.sign(e[i - 1]) and e[i - 1] != 0.0:
-            if abs(e[i] - e[i - 1]) > jump:
-                state = 0
-                continue
-            last_change = i
-        s = 1 if e[i] > hyst else (-1 if e[i] < -hyst else 0)
-        if s == 0:
-            continue
-        if state != 0 and s != state and last_change is not None:
-            j = last_change
-            a, b = e[j - 1], e[j]
-            times.append(t[j - 1] + (t[j] - t[j - 1]) * a / (a - b) if a != b else t[j])
-        state = s
-    return np.array(times)
-
-
 def _signals(rng, count):
     """Random error signals: noise, damped and growing waves, values on a few levels
     (zeros and exact hysteresis values included), wrapped angles."""
@@ -189,7 +168,7 @@ def test_crossings_are_bit_for_bit_those_of_the_loop():
     from glider_cosim.runner.outcome import _crossings
 
     for t, e, hyst, jump in _signals(np.random.default_rng(7), 2000):
-        want, got = _crossings_loop(t, e, hyst, jump), _crossings(t, e, hyst, jump)
+        want, got = crossings_loop(t, e, hyst, jump), _crossings(t, e, hyst, jump)
         assert got.dtype == want.dtype and got.shape == want.shape, (hyst, jump, e)
         assert got.tobytes() == want.tobytes(), (hyst, jump, e)
 
