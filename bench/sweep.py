@@ -3,13 +3,35 @@ and 2 worker processes, and on a cluster started the Dask way in the same run
 (``dask scheduler`` + 2 ``dask worker`` processes in private mount namespaces, FMUs sent
 through Dask, as on other machines); the scheduler's per-task overhead (no-op tasks, and
 the scheduler's CPU time per task of the sweep); the client's CPU time per run, with and
-without ``--trajectories``.
+without ``--trajectories``. The FMUs are the native flavor's unless ``--flavor python``.
+
+The per-core figures (one round each, medians over the rounds):
+
+- ``runs_per_s_per_core``: runs/s of the local cluster of 1 worker process (one thread;
+  the scheduler and the client run in this process, beside it).
+- ``in_memory_run_ms``: the in-memory run time of one run, measured in this process in
+  the same round: the default scenario (60 s, 3000 macro steps, the bench's flavor) as
+  ``simulate(scenario, out=None)`` runs it, ``CoSimulation.run`` into an
+  ``ArrayRecorder`` recording every column (instantiation, parameters, initialisation
+  and the 3000 steps) and the recorder's array; not timed: reading the FMUs (unzip, model
+  description, loading the library, ``CoSimulation.load``), the metrics, freeing. The
+  median of ``--repeats`` runs.
+- ``sweep_efficiency``: ``runs_per_s_per_core`` times ``in_memory_run_ms`` / 1000 of
+  the same round: the share of a core a sweep spends running the loop (1.0: no overhead
+  per run or per task; the sweep records 3 columns instead of all, so it can exceed 1).
+  Per round in ``sweep_efficiency_per_round``, with ``load_avg_1min_per_round``.
+- The same in CPU time, which other work on the machine disturbs less:
+  ``in_memory_run_cpu_ms`` (this process's CPU time of the in-memory run),
+  ``worker_cpu_ms_per_run_1_worker`` (the worker process's CPU time over the timed sweep,
+  per run: its event loop and heartbeats included) and ``sweep_efficiency_cpu``, the
+  first over the second.
 
 The paths run interleaved for ``--rounds`` rounds (the machine's load drifts); the
 scheduler's CPU time is read from /proc: its idle rate (no workers; 2 workers and a client)
 is measured and subtracted from the no-op tasks' figure.
 
-Usage: python bench/sweep.py [--runs 48] [--rounds 3] [--noop 2000] [--json]
+Usage: python bench/sweep.py [--runs 48] [--rounds 3] [--noop 2000] [--repeats 20]
+       [--flavor native|python] [--fmu-dir DIR] [--json]
 """
 
 from __future__ import annotations
@@ -26,9 +48,12 @@ from pathlib import Path
 from _cluster import DaskCluster
 from _common import emit
 
-from glider_cosim.fmus.folders import build_all
+from glider_cosim.fmus.folders import FLAVORS, prepare_fmus
+from glider_cosim.master.cosimulation import CoSimulation
+from glider_cosim.runner.recorders import ArrayRecorder
 from glider_cosim.scenarios.scenario import load_scenario
-from glider_cosim.sweeps.sweep import expand, make_client, parse_param, run_sweep
+from glider_cosim.scenarios.system import system_for
+from glider_cosim.sweeps.sweep import expand, make_client, parse_param, run_sweep, task_size
 
 
 def _noop(i: int) -> int:
@@ -46,17 +71,38 @@ def rate(client, workers: int, runs: int, fmu_dir: Path, trajectories: bool = Fa
         warm = expand([parse_param(f"controller.K_c=9:11:{4 * workers}")], sc, fmu_dir,
                       stop_time=1.0)  # fmt: skip
         run_sweep(sc, warm, Path(tmp) / "warm", client, fmu_dir, stop_time=1.0, chunk=1)
+        w0 = client.run(time.process_time)
         cpu0, s0 = time.process_time(), scheduler_cpu()
         res = run_sweep(sc, points, Path(tmp) / "timed", client, fmu_dir,
                         trajectories=trajectories)  # fmt: skip
         cpu, sched = time.process_time() - cpu0, scheduler_cpu() - s0
+        w1 = client.run(time.process_time)
         if res.failed or res.done != runs:
             raise RuntimeError(f"{res.failed} of {runs} runs failed, see {res.path}: "
                                + res.path.read_text()[:1000])  # fmt: skip
-    tasks = -(-runs // min(4, -(-runs // (2 * workers))))  # as run_sweep chunks them
+    tasks = -(-runs // task_size(runs, workers))  # as run_sweep chunks them
     return {"runs_per_s": res.runs_per_s, "client_cpu_ms_per_run": 1e3 * cpu / runs,
             "scheduler_cpu_ms_per_task": 1e3 * sched / tasks, "tasks": tasks,
-            "seconds": res.seconds}  # fmt: skip
+            "seconds": res.seconds,
+            "worker_cpu_ms_per_run": 1e3 * sum(w1[a] - w0[a] for a in w1) / runs}  # fmt: skip
+
+
+def in_memory_run_s(fmu_dir: Path, repeats: int) -> tuple[float, float]:
+    """The in-memory run time of one default run and its CPU time, s (medians of
+    ``repeats``; see the module docstring for what is timed)."""
+    sc = load_scenario(None)
+    times, cpu = [], []
+    for _ in range(repeats):
+        sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
+        sim.load()  # reading the FMUs: not timed
+        rec = ArrayRecorder()
+        t0, c0 = time.perf_counter(), time.process_time()
+        sim.run(sc.stop_time, rec)
+        rec.array()
+        times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+        sim.close()
+    return statistics.median(times), statistics.median(cpu)
 
 
 def _idle(cpu_seconds, seconds: float = 6.0) -> float:
@@ -77,40 +123,59 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=48)
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of each path")
     ap.add_argument("--noop", type=int, default=2000, help="no-op tasks for the overhead")
-    ap.add_argument("--fmu-dir", default="fmus")
+    ap.add_argument("--repeats", type=int, default=20, help="in-memory runs per round")
+    ap.add_argument("--flavor", choices=FLAVORS, default="native", help="which FMUs")
+    ap.add_argument("--fmu-dir", default=None, help="FMU folder (default: the per-user cache)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     # SIGTERM leaves through the context managers, which kill the cluster's processes
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    fmu_dir = Path(args.fmu_dir).resolve()
-    build_all(fmu_dir, only_stale=True)
+    fmu_dir = prepare_fmus(args.fmu_dir, args.flavor).resolve()
+    run_ms: list[float] = []
+    efficiency: list[float] = []
+    run_cpu_ms: list[float] = []
+    worker_ms: list[float] = []
+    loads: list[float] = []
     rates: dict[str, list[float]] = {"local1": [], "local2": [], "ext": [], "ext_traj": []}
     client_ms: dict[str, list[float]] = {"ext": [], "ext_traj": []}
     sched_pct: list[float] = []
     with DaskCluster(0, hidden=[]) as alone:  # the scheduler's own idle load
         idle0 = _idle(lambda: alone.cpu_seconds(alone.scheduler.pid))
-    with DaskCluster(2, hidden=[fmu_dir]) as cluster, Client(cluster.address) as ext:
+    with DaskCluster(2, hidden=[fmu_dir]) as cluster:
         cpu = lambda: cluster.cpu_seconds(cluster.scheduler.pid)  # noqa: E731
-        ext.wait_for_workers(2, timeout=60)
-        idle = _idle(cpu)  # with 2 workers and a client: + their heartbeats
+        with Client(cluster.address) as ext:
+            ext.wait_for_workers(2, timeout=60)
+            idle = _idle(cpu)  # with 2 workers and a client: + their heartbeats
         for _ in range(args.rounds):  # interleaved: the machine's load drifts
+            # no other client in this process meanwhile: the local clusters' results
+            # reached it in bursts, seconds late, while the external one's was connected
             for n in (1, 2):  # the local cluster's scheduler runs in this process: started
                 local = make_client(n)  # and closed here, so the client's CPU time below
                 try:  # is the client's alone
-                    rates[f"local{n}"].append(rate(local, n, args.runs, fmu_dir)["runs_per_s"])
+                    r = rate(local, n, args.runs, fmu_dir)
+                    rates[f"local{n}"].append(r["runs_per_s"])
                 finally:
                     local.close()
                     local.cluster.close()
-            r = rate(ext, 2, args.runs, fmu_dir, scheduler_cpu=cpu)
-            rates["ext"].append(r["runs_per_s"])
-            client_ms["ext"].append(r["client_cpu_ms_per_run"])
-            sched_pct.append(r["scheduler_cpu_ms_per_task"] * r["tasks"] / (10 * r["seconds"]))
-            r = rate(ext, 2, args.runs, fmu_dir, trajectories=True)
-            rates["ext_traj"].append(r["runs_per_s"])
-            client_ms["ext_traj"].append(r["client_cpu_ms_per_run"])
-        s0, t0 = cpu(), time.perf_counter()
-        wait(ext.map(_noop, range(args.noop), pure=False))
-        wall = time.perf_counter() - t0
+                if n == 1:  # the run time of one run, in the same round
+                    wall, cpu_s = in_memory_run_s(fmu_dir, args.repeats)
+                    run_ms.append(1e3 * wall)
+                    run_cpu_ms.append(1e3 * cpu_s)
+                    worker_ms.append(r["worker_cpu_ms_per_run"])
+                    efficiency.append(rates["local1"][-1] * wall)
+                    loads.append(os.getloadavg()[0])
+            with Client(cluster.address) as ext:
+                r = rate(ext, 2, args.runs, fmu_dir, scheduler_cpu=cpu)
+                rates["ext"].append(r["runs_per_s"])
+                client_ms["ext"].append(r["client_cpu_ms_per_run"])
+                sched_pct.append(r["scheduler_cpu_ms_per_task"] * r["tasks"] / (10 * r["seconds"]))
+                r = rate(ext, 2, args.runs, fmu_dir, trajectories=True)
+                rates["ext_traj"].append(r["runs_per_s"])
+                client_ms["ext_traj"].append(r["client_cpu_ms_per_run"])
+        with Client(cluster.address) as ext:
+            s0, t0 = cpu(), time.perf_counter()
+            wait(ext.map(_noop, range(args.noop), pure=False))
+            wall = time.perf_counter() - t0
         noop_ms = 1e3 * (cpu() - s0 - idle * wall) / args.noop
         namespaced = cluster.namespaced
     best = {k: max(v) for k, v in rates.items()}
@@ -118,6 +183,15 @@ def main() -> None:
         "runs": args.runs,
         "rounds": args.rounds,
         "scenario": "default, 60 s (3000 macro steps)",
+        "flavor": args.flavor,
+        "runs_per_s_per_core": round(_median(rates["local1"]), 2),
+        "in_memory_run_ms": round(_median(run_ms), 3),
+        "sweep_efficiency": round(_median(efficiency), 3),
+        "sweep_efficiency_per_round": [round(x, 3) for x in efficiency],
+        "in_memory_run_cpu_ms": round(_median(run_cpu_ms), 3),
+        "worker_cpu_ms_per_run_1_worker": round(_median(worker_ms), 3),
+        "sweep_efficiency_cpu": round(_median(run_cpu_ms) / _median(worker_ms), 3),
+        "load_avg_1min_per_round": [round(x, 2) for x in loads],
         "runs_per_s_1_worker": [round(x, 2) for x in rates["local1"]],
         "runs_per_s_2_workers": [round(x, 2) for x in rates["local2"]],
         "runs_per_s_external_2_workers": [round(x, 2) for x in rates["ext"]],

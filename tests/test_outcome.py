@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from outcome_reference import crossings_loop
 
 from glider_cosim.runner.metrics import describe_outcome, glide_metrics
 from glider_cosim.runner.outcome import (
@@ -141,3 +142,56 @@ def test_glide_metrics_reports_the_outcome_and_stops():
     assert describe_outcome(m) == "limit cycle: amplitude 2.01 deg, period 1.80 s"
     m = glide_metrics(T, theta, cmd, theta_ge, 0.0, completed=False)
     assert m["outcome"] == "stopped" and m["settling_time_s"] is None
+
+
+def _signals(rng, count):
+    """Random error signals: noise, damped and growing waves, values on a few levels
+    (zeros and exact hysteresis values included), wrapped angles."""
+    for k in range(count):
+        n = int(rng.integers(0, 300))
+        t = np.cumsum(rng.uniform(0.001, 0.1, n))
+        kind = k % 4
+        if kind == 0:
+            e = rng.normal(0.0, 1.0, n)
+        elif kind == 1:
+            e = np.sin(t * rng.uniform(0.1, 5.0)) * np.exp(-t * rng.uniform(-0.1, 0.5))
+            e += rng.normal(0.0, 0.05, n)
+        elif kind == 2:
+            e = rng.choice([-3.0, -1.0, -0.5, 0.0, 0.3, 0.5, 1.0, 3.0], n)
+        else:
+            e = np.mod(np.cumsum(rng.normal(0.0, 0.7, n)) + math.pi, 2 * math.pi) - math.pi
+        yield t, e, float(rng.choice([0.0, 0.3, 1.0])), float(rng.choice([math.inf, math.pi, 0.5]))
+
+
+def test_crossings_are_bit_for_bit_those_of_the_loop():
+    """The vectorised zero crossings: the same times, bit for bit, as the loop."""
+    from glider_cosim.runner.outcome import _crossings
+
+    for t, e, hyst, jump in _signals(np.random.default_rng(7), 2000):
+        want, got = crossings_loop(t, e, hyst, jump), _crossings(t, e, hyst, jump)
+        assert got.dtype == want.dtype and got.shape == want.shape, (hyst, jump, e)
+        assert got.tobytes() == want.tobytes(), (hyst, jump, e)
+
+
+def test_classify_does_not_loop_in_python_over_the_samples():
+    """A 60 s run's classification runs a bounded number of Python lines (the zero
+    crossings were a Python loop over the 3000 samples, twice)."""
+    import sys
+
+    e = 0.2 * np.exp(0.02 * T) * np.cos(W * T)  # not settled: both crossing searches run
+    lines = 0
+
+    def tracer(frame, event, arg):
+        nonlocal lines
+        if frame.f_code.co_filename.endswith("outcome.py"):
+            lines += event == "line"
+            return tracer
+        return None
+
+    sys.settrace(tracer)
+    try:
+        o = classify(T, e, 0.004)
+    finally:
+        sys.settrace(None)
+    assert o.status == DIVERGING
+    assert lines < 1000, f"{lines} Python lines for {len(T)} samples"

@@ -96,25 +96,40 @@ class Outcome:
 def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf) -> np.ndarray:
     """Times at which ``e`` changes sign, counted only between excursions beyond
     ``+-hyst`` (linear interpolation of the last sign change); a sign change by a step
-    larger than ``jump`` (a wrapped angle passing +-180 deg) is not a crossing."""
-    times = []
-    state = 0
-    last_change = None
-    for i in range(len(e)):
-        if i > 0 and np.sign(e[i]) != np.sign(e[i - 1]) and e[i - 1] != 0.0:
-            if abs(e[i] - e[i - 1]) > jump:
-                state = 0  # through the wrap, not through zero
-                continue
-            last_change = i
-        s = 1 if e[i] > hyst else (-1 if e[i] < -hyst else 0)
-        if s == 0:
-            continue
-        if state != 0 and s != state and last_change is not None:
-            j = last_change
-            a, b = e[j - 1], e[j]
-            times.append(t[j - 1] + (t[j] - t[j - 1]) * a / (a - b) if a != b else t[j])
-        state = s
-    return np.array(times)
+    larger than ``jump`` (a wrapped angle passing +-180 deg) is not a crossing.
+
+    Vectorised (no loop over the samples); the rule, sample by sample: a sign change
+    from a non-zero value is the last change (a jump instead forgets the side the
+    signal was on and the sample is skipped); a sample beyond ``+-hyst`` on the other
+    side than the last one beyond it is a crossing, at the last change."""
+    t = np.asarray(t, dtype=float)
+    e = np.asarray(e, dtype=float)
+    n = len(e)
+    if n == 0:
+        return np.array([])
+    idx = np.arange(n)
+    sign = np.sign(e)
+    change = np.zeros(n, dtype=bool)
+    change[1:] = (sign[1:] != sign[:-1]) & (e[:-1] != 0.0)
+    jumped = np.zeros(n, dtype=bool)
+    jumped[1:] = change[1:] & (np.abs(e[1:] - e[:-1]) > jump)
+    change &= ~jumped
+    # the last sign change at or before each sample (-1: none yet)
+    last = np.maximum.accumulate(np.where(change, idx, -1))
+    side = np.where(e > hyst, 1, np.where(e < -hyst, -1, 0))
+    side[jumped] = 0  # a jump's sample is skipped
+    # the side before each sample: that of the last sample beyond +-hyst, 0 after a jump
+    sets = (side != 0) | jumped
+    at = np.maximum.accumulate(np.where(sets, idx, -1))
+    before = np.zeros(n, dtype=side.dtype)
+    prev = at[:-1]
+    before[1:] = np.where(prev >= 0, side[np.maximum(prev, 0)], 0)
+    hit = (side != 0) & (before != 0) & (side != before) & (last >= 0)
+    j = last[hit]
+    a, b = e[j - 1], e[j]
+    t0, t1 = t[j - 1], t[j]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(a != b, t0 + (t1 - t0) * a / (a - b), t1)
 
 
 def oscillation_period(

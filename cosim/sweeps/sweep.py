@@ -16,43 +16,33 @@ parameters and seed, so an interrupted sweep resumes where it stopped.
 
 Each Dask worker keeps one co-simulation per scenario and resets it between runs
 (pythonfmu's reset restores the defaults, so every run sets its full parameter set); an
-instance that failed is discarded and replaced. A failed run is recorded with its status
-and message; tasks of a worker that dies are retried elsewhere by Dask.
+instance that failed is discarded and replaced. Runs go to the workers in tasks of up to
+32 runs (4 tasks per worker at least). A failed run is recorded with its status and
+message; tasks of a worker that dies are retried elsewhere by Dask.
 
-Modules by purpose: :mod:`.sweep_spec` (specs, the list of runs, the up-front name
-check), :mod:`.sweep_store` (``sweep.csv``, safe to kill), :mod:`.sweep_cluster`
-(clients, version check, FMUs sent to workers), :mod:`.sweep_plots`; this module holds
-the worker-side run, the client loop and the CLI.
+Modules by purpose: :mod:`.spec` (specs, the list of runs, the up-front name check),
+:mod:`.store` (``sweep.csv``, safe to kill), :mod:`.cluster` (clients, version check,
+FMUs sent to workers), :mod:`.worker` (the runs of a task, on the worker), :mod:`.plots`;
+this module holds the client loop and the CLI.
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
 import math
-import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..master.cosimulation import CoSimulation
-from ..master.errors import FMUCallError, FMUStopped, MasterError
-from ..runner.metrics import compute_metrics, wrap_angle
-from ..runner.recorders import ArrayRecorder, csv_lines
 from ..scenarios.fields import ScenarioError
-from ..scenarios.sampling import has_our_observer, with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import system_for
 from .cluster import (
-    DIST,
     FmuBlob,
     SweepClusterError,
     check_workers,
-    local_fmu,
     make_client,
     package_version,
     scatter_fmus,
@@ -69,131 +59,10 @@ from .spec import (
     run_id,
 )
 from .store import SHOWN_FAILURES, SweepStore, describe_failures, write_atomically
+from .worker import METRIC_KEYS, _csv_text, run_many, run_one  # noqa: F401 (re-exported)
 
-METRIC_KEYS = (
-    "settling_time_s", "rise_time_s", "overshoot_rad", "overshoot_pct", "control_effort",
-    "max_abs_delta_cmd_rad", "final_error_rad", "estimation_rms_rad", "end_time_s",
-    "outcome", "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s", "in_band_s",
-)  # fmt: skip
-METRIC_COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd")
-
-
-# ----------------------------------------------------------------- worker side
-_SIMS: dict[tuple, CoSimulation] = {}
-
-
-def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    params = {k: dict(v) for k, v in scenario.parameters.items()}
-    for target, value in run["params"].items():
-        inst, _, name = target.partition(".")
-        params.setdefault(inst, {})[name] = int(value) if name in ("law", "noise_seed") else value
-    if run["seed"] is not None:
-        params.setdefault("plant", {})["noise_seed"] = int(run["seed"])
-    return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
-
-
-def _csv_text(columns: Sequence[str], data: np.ndarray) -> bytes:
-    """A trajectory as the CSV bytes ``run`` writes (each value as ``repr``)."""
-    return (",".join(columns) + "\n").encode() + (csv_lines(data) if len(data) else b"")
-
-
-def run_one(
-    scenario: Scenario, run: dict[str, Any], fmus: Mapping[str, FmuBlob | str | Path],
-    stop_time: float | None = None, trajectories: bool = False,
-) -> dict[str, Any]:  # fmt: skip
-    """Run one sweep point in this process, reusing a cached co-simulation.
-
-    Parameters
-    ----------
-    scenario : Scenario
-    run : dict
-        ``{"run_id", "params", "seed"}`` (see :func:`expand`).
-    fmus : mapping
-        Instance -> FMU: an :class:`FmuBlob` (written once into this worker's cache) or a
-        path of this process.
-    stop_time : float, optional
-        Stop time, s (default the scenario's).
-    trajectories : bool
-        Record every output and return the trajectory as CSV bytes under
-        ``"trajectory"`` (written by the client).
-
-    Returns
-    -------
-    dict
-        The result row (parameters, seed, status, message, metrics).
-    """
-    local = {inst: local_fmu(f) for inst, f in fmus.items()}
-    key = (tuple(sorted((i, str(p)) for i, p in local.items())), scenario.source, scenario.name,
-           scenario.feedback, scenario.observer, bool(trajectories))  # fmt: skip
-    params = _full_parameters(scenario, run)
-    stop = stop_time or scenario.stop_time
-    row: dict[str, Any] = {"run_id": run["run_id"], "seed": run["seed"], **run["params"]}
-    rec = ArrayRecorder()
-    sim = _SIMS.pop(key, None)
-    status, message = "ok", ""
-    try:
-        if sim is None:
-            here = copy.copy(scenario)
-            here.fmus = {inst: str(p) for inst, p in local.items()}
-            system = system_for(here, Path("."))
-            if not trajectories:  # only what the metrics need
-                system.record = [
-                    c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c
-                ]
-            sim = CoSimulation(system, step=scenario.step, coupling=scenario.coupling)
-            sim.system.parameters = params
-            sim.initialize()
-        else:
-            sim.reset(params, replace=True)  # the previous run's values must not linger
-        n = round(stop / sim.step_size)
-        rec.start(sim.columns)
-        rec.row(sim.communication_point())
-        sim.advance(n, rec)
-    except FMUStopped as err:
-        status, message = "stopped", str(err)
-    except (FMUCallError, MasterError, ValueError) as err:
-        status, message = "error", str(err)
-    if sim is not None and status == "ok":
-        _SIMS[key] = sim  # reuse: reset next time
-    elif sim is not None:
-        sim.close()  # frees what is not fatal; a fatal instance is never called again
-    cols, data = rec.columns, rec.array() if len(rec) else None
-    row.update(status=status, message=message)
-    if data is not None and len(data) and sim is not None:
-        m = compute_metrics(cols, data, scenario, sim, status)
-        if "observer.theta_g_hat" in cols:
-            err = wrap_angle(data[:, cols.index("observer.theta_g_hat")]
-                             - data[:, cols.index("plant.theta_g")])  # fmt: skip
-            m["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
-        row.update({k: m.get(k) for k in METRIC_KEYS})
-    if trajectories and cols:  # recording started: the rows up to a failure too
-        row["trajectory"] = _csv_text(cols, data if data is not None else np.empty((0, 0)))
-    return row
-
-
-def run_many(
-    scenario: Scenario, runs: Sequence[dict[str, Any]], fmus: Mapping[str, FmuBlob | str | Path],
-    stop_time: float | None = None, trajectories: bool = False, version: str | None = None,
-) -> list[dict[str, Any]]:  # fmt: skip
-    """Several sweep points in one task (amortises the scheduling overhead).
-
-    ``version``: the client's glider-cosim version; a worker with another one (one that
-    joined after the check at connect) refuses the task with :class:`SweepClusterError`.
-    """
-    if version is not None and (mine := package_version()) != version:
-        raise SweepClusterError(
-            f"worker {_worker_address()} has {DIST} {mine}, the client {DIST} {version}"
-        )
-    return [run_one(scenario, r, fmus, stop_time, trajectories) for r in runs]
-
-
-def _worker_address() -> str:
-    try:
-        from distributed import get_worker
-
-        return get_worker().address
-    except (ImportError, ValueError):
-        return f"process {os.getpid()}"
+#: runs per Dask task at most (:func:`run_sweep`'s ``chunk``): about 0.1 s of native runs
+CHUNK = 32
 
 
 # ----------------------------------------------------------------- client side
@@ -221,6 +90,14 @@ class SweepResult:
         return self.done / self.seconds if self.seconds > 0 else 0.0
 
 
+def task_size(runs: int, workers: int, chunk: int = CHUNK) -> int:
+    """Runs per task of a sweep of ``runs`` runs on ``workers`` workers: up to ``chunk``
+    (a task costs the scheduler, the client and the worker about 1 ms each: 32 native
+    runs of 3 ms make it 1 %), fewer so that each worker gets 4 tasks at least (the
+    last tasks end together; progress and retries are per task)."""
+    return max(1, min(chunk, math.ceil(runs / (4 * max(1, workers)))))
+
+
 def run_sweep(
     scenario: Scenario,
     runs: Sequence[dict[str, Any]],
@@ -232,7 +109,7 @@ def run_sweep(
     trajectories: bool = False,
     restart: bool = False,
     progress: Callable[[int, int, int, float], None] | None = None,
-    chunk: int = 4,
+    chunk: int = CHUNK,
 ) -> SweepResult:
     """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
     per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
@@ -256,7 +133,7 @@ def run_sweep(
         done_ids = store.done()
         todo = [r for r in unique if r["run_id"] not in done_ids]
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-        size = max(1, min(chunk, math.ceil(len(todo) / (2 * n_workers))))
+        size = task_size(len(todo), n_workers, chunk)
         chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
         fmus = scatter_fmus(client, system_for(scenario, Path(fmu_dir)).fmus) if todo else {}
         futures = {

@@ -233,3 +233,127 @@ def test_the_exit_code_after_a_resume_counts_earlier_failures(fmu_dir, tmp_path,
     assert "(2 already done), 0 run now, 0 failed, 0.00 runs/s; 1 of 2 failed overall" in (
         capsys.readouterr().out
     )
+
+
+# ------------------------------------------------------------- bit for bit, reuse
+#: sweep points of the default scenario: settled, a limit cycle with noise, a run the
+#: observer stops (K_c = 0.05 stalls at 2.58 s), one the controller refuses (K_c = -1),
+#: and one that sets a parameter the others leave at the FMU's default (noise_std)
+POINTS = {
+    "A": ({"controller.K_c": 10.0}, None),
+    "B": ({"controller.K_c": 4.0, "plant.noise_std": 0.01}, 3),
+    "C": ({"controller.K_c": 0.05}, None),
+    "D": ({"controller.K_c": -1.0}, None),
+}
+
+
+def _separate(fmu_dir, name, out=None):
+    """The point as a separate ``simulate`` run (a fresh co-simulation)."""
+    from glider_cosim.runner import simulate
+    from glider_cosim.scenarios.overrides import apply_overrides
+
+    params, seed = POINTS[name]
+    over = dict(params, **({"plant.noise_seed": seed} if seed is not None else {}))
+    return simulate(apply_overrides(load_scenario(None), over), out, fmu_dir=fmu_dir,
+                    build=False, plots=False)  # fmt: skip
+
+
+def _same(a, b) -> bool:
+    """Equal, bit for bit for floats (NaN too), None only for None."""
+    import struct
+
+    if isinstance(a, float) and isinstance(b, float):
+        return struct.pack("<d", a) == struct.pack("<d", b)
+    return type(a) is type(b) and a == b
+
+
+def _task(fmu_dir, order, trajectories=False):
+    """The points in ``order`` as one worker task runs them (one co-simulation, reset
+    between runs), in this process."""
+    from glider_cosim.scenarios.system import system_for
+    from glider_cosim.sweeps.worker import _SIMS
+
+    _SIMS.clear()
+    sc = load_scenario(None)
+    fmus = {k: str(v) for k, v in system_for(sc, fmu_dir).fmus.items()}
+    runs = [{"run_id": f"{i}{n}", "params": POINTS[n][0], "seed": POINTS[n][1]}
+            for i, n in enumerate(order)]  # fmt: skip
+    return run_many(sc, runs, fmus, trajectories=trajectories)
+
+
+def _mismatches(fmu_dir, order, rows_) -> list[str]:
+    import numpy as np
+
+    from glider_cosim.runner.metrics import wrap_angle
+    from glider_cosim.sweeps.worker import METRIC_KEYS
+
+    bad = []
+    for name, row in zip(order, rows_, strict=True):
+        ref = _separate(fmu_dir, name)
+        if (row["status"], row["message"]) != (ref.status, ref.message):
+            bad.append(f"{name}: status {row['status']!r} != {ref.status!r}")
+            continue
+        if ref.status == "error":  # refused at initialisation: no rows, no metrics
+            assert len(ref.data) == 0 and "settling_time_s" not in row
+            continue
+        want = dict(ref.metrics)
+        err = wrap_angle(ref.column("observer.theta_g_hat") - ref.column("plant.theta_g"))
+        want["estimation_rms_rad"] = float(np.sqrt(np.mean(err**2)))
+        bad += [f"{name}: {k} {row[k]!r} != {want.get(k)!r}"
+                for k in METRIC_KEYS if not _same(row[k], want.get(k))]  # fmt: skip
+    return bad
+
+
+ORDER = ("A", "B", "C", "A", "D", "B", "A", "C")
+
+
+@pytest.mark.parametrize("flavor", ["native", "python"])
+def test_a_tasks_runs_are_bit_for_bit_separate_runs(flavor, fmu_dir, native_dir):
+    """A, B, A, ... in one task (one co-simulation reset between runs; a stopped run and
+    a refused one in between replace it): every row's status, message and metrics are
+    those of a separate run of the point, bit for bit."""
+    folder = native_dir if flavor == "native" else fmu_dir
+    rows_ = _task(folder, ORDER)
+    assert [r["status"] for r in rows_] == ["ok", "ok", "stopped", "ok", "error", "ok", "ok",
+                                            "stopped"]  # fmt: skip
+    assert rows_[0]["outcome"] == "settled" and rows_[1]["outcome"] != "settled"
+    assert _mismatches(folder, ORDER, rows_) == []
+
+
+def test_the_reuse_check_sees_a_leaking_reset(native_dir, monkeypatch):
+    """The check above fails when a reset keeps the previous run's parameters."""
+    from glider_cosim.master.cosimulation import CoSimulation
+
+    real = CoSimulation.reset
+    monkeypatch.setattr(CoSimulation, "reset", lambda self, p=None, replace=False:
+                        real(self, p, replace=False))  # fmt: skip
+    order = ("B", "A")
+    bad = _mismatches(native_dir, order, _task(native_dir, order))
+    assert bad and all(b.startswith("A: ") for b in bad), bad
+
+
+def test_a_tasks_trajectories_are_the_bytes_of_separate_runs(native_dir, tmp_path):
+    order = ("A", "C", "B", "A")
+    rows_ = _task(native_dir, order, trajectories=True)
+    for i, (name, row) in enumerate(zip(order, rows_, strict=True)):
+        ref = _separate(native_dir, name, tmp_path / f"{i}{name}")
+        assert row["trajectory"] == ref.files["results"].read_bytes(), name
+
+
+def test_sweep_csv_holds_the_metrics_of_separate_runs(client, native_dir, tmp_path):
+    """The metrics in sweep.csv (the text read back) are the separate runs' values."""
+    from glider_cosim.sweeps.worker import METRIC_KEYS
+
+    sc = load_scenario(None)
+    order = ("A", "B", "C", "A")
+    runs = [{"run_id": f"{i}{n}", "params": POINTS[n][0], "seed": POINTS[n][1]}
+            for i, n in enumerate(order)]  # fmt: skip
+    run_sweep(sc, runs, tmp_path, client, native_dir, chunk=2)
+    table = {r["run_id"]: r for r in rows(tmp_path / "sweep.csv")}
+    read = []
+    for r in runs:
+        row = dict(table[r["run_id"]])
+        for k in METRIC_KEYS:
+            row[k] = None if row[k] == "" else (row[k] if k == "outcome" else float(row[k]))
+        read.append(row)
+    assert _mismatches(native_dir, order, read) == []
