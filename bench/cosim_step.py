@@ -1,10 +1,11 @@
 """Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
 against the same sampled loop calling the model code directly (no FMI).
 
-Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only]
+Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only]
 The last line with --json is one JSON object (figures quoted in
 docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
-cold run.
+cold run. --cli-only measures the command line alone: ``glider-cosim run`` with and
+without plots (median of 5 warm runs each, both flavors) and ``glider-cosim --help``.
 """
 
 from __future__ import annotations
@@ -245,6 +246,31 @@ def cold_run_seconds(fmu_dir: Path, out: Path) -> float:
     return time.perf_counter() - t0
 
 
+def _cli_seconds(*args: str) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "from glider_cosim.cli import console_main; "
+                    "console_main()", *args], check=True, capture_output=True)  # fmt: skip
+    return time.perf_counter() - t0
+
+
+def cli_seconds(fmu_dir: Path | None, out: Path, native_dir: Path) -> dict[str, float]:
+    """``glider-cosim run`` of the default scenario with plots and with ``--no-plots``,
+    median of 5 warm runs each (one run first to warm the FMUs and file caches), the
+    Python flavor (with ``fmu_dir``) and the native one; ``glider-cosim --help``."""
+    found = {}
+    for prefix, folder in (("", fmu_dir), ("native_", native_dir)):
+        if folder is None:
+            continue
+        for key, extra in (("cli_run_s", ()), ("cli_run_no_plots_s", ("--no-plots",))):
+            run = ("run", "--out", str(out / f"cli-{prefix}{key}"), "--fmu-dir", str(folder),
+                   *extra)  # fmt: skip
+            _cli_seconds(*run)
+            found[prefix + key] = round(statistics.median(_cli_seconds(*run) for _ in range(5)), 3)
+    _cli_seconds("--help")
+    found["cli_help_s"] = round(statistics.median(_cli_seconds("--help") for _ in range(5)), 3)
+    return found
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object last")
@@ -252,6 +278,7 @@ def main() -> None:
     ap.add_argument("--fmu-dir", default="fmus", help="the Python flavor's FMUs")
     ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
     ap.add_argument("--native-only", action="store_true", help="the native figures alone")
+    ap.add_argument("--cli-only", action="store_true", help="the command line's figures alone")
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
@@ -261,6 +288,10 @@ def main() -> None:
     result: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
+        cli = cli_seconds(None if args.native_only else fmu_dir, out, native_dir)
+        if args.cli_only:
+            emit({**cli, "load_average": os.getloadavg(), "cpus": os.cpu_count()}, args.json)
+            return
         runs = runs_seconds_per_step(
             native_dir,
             {
@@ -315,6 +346,7 @@ def main() -> None:
                 "libcosim_us_per_macro_step": round(libcosim * 1e6, 1),
                 "cold_run_s": round(cold, 2),
             })  # fmt: skip
+        result.update(cli)
     result.update({
         "scenario": "default (60 s, 3 FMUs, 50 Hz; us_per_macro_step and monolithic: both "
         "loops recording the same CSV, step by step; native_*: CoSimulation.run in memory / "

@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from ..inputs.text import one_line
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
-from .commands import dispatch
 from .parser import build_parser
 
 
@@ -82,6 +81,12 @@ def _message(err: BaseException, command: str | None) -> str:
 
 def _main(args: argparse.Namespace) -> int:
     command = getattr(args, "command", None)
+    if command == "run" and not args.no_plots:
+        from ..runner.drawing import prestart
+
+        prestart()  # matplotlib imported in a child while this process imports the master
+    from .commands import dispatch  # after parsing: --help imports none of the commands
+
     error = error_prefix(command)
     old_term = None
     if threading.current_thread() is threading.main_thread():
@@ -110,6 +115,10 @@ def _main(args: argparse.Namespace) -> int:
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
+        if command == "run":
+            from ..runner.drawing import discard_prestarted
+
+            discard_prestarted()
     return code
 
 

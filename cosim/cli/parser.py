@@ -1,11 +1,15 @@
-"""The command line's parser: every subcommand, its options and their defaults."""
+"""The command line's parser: every subcommand, its options and their defaults.
+
+Light: building it imports argparse and our option modules only (no numpy, fmpy,
+matplotlib or Dask), so ``glider-cosim --help`` answers at once
+(tests/test_cli_light.py)."""
 
 from __future__ import annotations
 
 import argparse
 import re
 
-from ..fmus.folders import FLAVORS, FMI_VERSIONS, add_fmu_options
+from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options
 from ..inputs.text import did_you_mean, one_line, quote
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
@@ -244,7 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
 
-    from ..sweeps.sweep import add_parser as add_sweep_parser
+    from ..sweeps.options import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
     from ..verify.command import add_arguments as add_verify_arguments

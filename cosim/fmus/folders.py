@@ -6,7 +6,6 @@ import hashlib
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any
 
 from glider_fmi import compile as runtime
 from glider_fmi.toolchain import host_platform
@@ -15,6 +14,7 @@ from . import osp
 from .files import CACHE_ENV, cache_root, fmu_flavor, package_version  # noqa: F401 (re-exported)
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
+from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
 from .python import (
     COMPONENTS,
     DEFAULT_DIRS_FMI3,
@@ -22,10 +22,6 @@ from .python import (
     is_current,
     source_hash,
 )
-
-#: the flavors of our FMUs: the Python reference (default) and the native C99 build
-FLAVORS = ("python", "native")
-
 
 #: the infix of a host-only set's cache folder (:func:`cache_dir`)
 HOST_ONLY = "-only-"
@@ -65,10 +61,6 @@ def cache_dir(flavor: str = "python", fmi: int = 2, host_only: bool = False) -> 
 def fmu_folder(fmu_dir: str | Path | None, flavor: str | None = None) -> Path:
     """``fmu_dir`` as a path; None is the cache folder of ``flavor`` (python if None)."""
     return Path(fmu_dir) if fmu_dir is not None else cache_dir(flavor or "python")
-
-
-#: the FMI versions we build (``--fmi``)
-FMI_VERSIONS = (2, 3)
 
 
 def default_dir(flavor: str | None = None, fmi: int | None = None) -> Path:
@@ -170,34 +162,6 @@ def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
     for fmu in fmus.values():
         osp.write_beside(fmu)
     return fmus
-
-
-def add_fmu_options(parser: Any, fmi: bool = False) -> None:
-    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
-    with ``fmi``)."""
-    parser.add_argument(
-        "--fmu-dir",
-        default=None,
-        help="FMU folder, built if missing or stale in the flavor it holds; one that does not "
-        "exist gets a fresh set, with a note (default: the per-user cache, e.g. "
-        "~/.cache/glider-cosim, built from the installed sources)",
-    )
-    parser.add_argument(
-        "--flavor",
-        choices=FLAVORS,
-        default=None,
-        help="which FMUs: the Python reference or the native C99 build (default: the "
-        "flavor the FMU folder holds, python if it is empty)",
-    )
-    if fmi:
-        parser.add_argument(
-            "--fmi",
-            type=int,
-            choices=FMI_VERSIONS,
-            default=None,
-            help="FMI version of our FMUs (default: the one the FMU folder holds, 2 if it is "
-            "empty; FMI 3 FMUs are built in the per-user cache, or in --fmu-dir)",
-        )
 
 
 def prepare_fmus(

@@ -3,10 +3,11 @@
 The figures are the PNGs' own matplotlib figures, read back artist by artist
 (:func:`figure_spec`: every line with its label, colour and style, the equilibrium and
 event lines, images, the axes' titles, labels and limits), so what a figure shows is
-defined once, where the PNG is drawn. :func:`write_page` draws them with bokeh into one
-self-contained file: bokeh's JavaScript inline from the installed package, nothing fetched;
-each figure zooms (box and wheel), shows values on hover and hides a series clicked in its
-legend. No data are downsampled.
+defined once, where the PNG is drawn. :func:`write_page` writes them into one
+self-contained file that BokehJS draws in the browser (:mod:`.page_script`: bokeh's
+JavaScript inline from the installed package, nothing fetched, no bokeh imported in
+Python); each figure zooms (box and wheel), shows values on hover and hides a series
+clicked in its legend. No data are downsampled.
 """
 
 from __future__ import annotations
@@ -17,72 +18,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .figure_data import PageError, figure_spec
+from .page_script import page_scripts
 
 #: the ``class`` of each figure's ``<div>`` in a page (a test counts them after load)
 FIGURE_CLASS = "glider-figure"
-#: matplotlib markers -> bokeh's
-_MARKERS = {"o": "circle", "D": "diamond", "X": "x", "x": "x", "^": "triangle",
-            "v": "inverted_triangle", "s": "square", "*": "star"}  # fmt: skip
-
-
-def _panel(spec: dict[str, Any], x_range: Any, label_width: int) -> Any:
-    from bokeh.models import ColumnDataSource, HoverTool, Label, Range1d
-    from bokeh.plotting import figure
-
-    ylo, yhi = spec["ylim"]
-    kw: dict[str, Any] = {"y_axis_type": "log"} if spec["log"] else {}
-    p = figure(title=spec["title"] or None, x_axis_label=spec["xlabel"] or None,
-               y_axis_label=spec["ylabel"] or None, height=320, sizing_mode="stretch_width",
-               tools="xbox_zoom,box_zoom,wheel_zoom,pan,reset,save",
-               active_drag="box_zoom", active_scroll="wheel_zoom",
-               x_range=x_range or Range1d(*spec["xlim"]),
-               y_range=Range1d(yhi, ylo) if spec["inverted"] else Range1d(ylo, yhi),
-               **kw)  # fmt: skip
-    xl, yl = spec["xlabel"] or "x", spec["ylabel"] or "y"
-    for im in spec["images"]:
-        h, w = im["rgba"].shape[:2]
-        src = ColumnDataSource({"image": [im["rgba"].view(np.uint32).reshape(h, w)],
-                                "value": [im["value"]]})  # fmt: skip
-        r = p.image_rgba(image="image", x=im["x"], y=im["y"], dw=im["dw"], dh=im["dh"],
-                         source=src)  # fmt: skip
-        p.add_tools(HoverTool(renderers=[r], tooltips=[(xl, "$x{0.[000]}"),
-                                                       (yl, "$y{0.[000]}"),
-                                                       ("value", "@value")]))  # fmt: skip
-    hovered = []
-    for ln in spec["lines"]:
-        src = ColumnDataSource({"x": ln["x"], "y": ln["y"]})
-        common = {"source": src, "color": ln["color"], "alpha": ln["alpha"], "name": ln["name"]}
-        if ln["legend"]:
-            common["legend_label"] = ln["name"]
-        if ln["lines"]:
-            draw = p.step if ln["step"] else p.line
-            extra = {"mode": "after"} if ln["step"] else {}
-            hovered.append(draw("x", "y", line_width=ln["width"], line_dash=ln["dash"],
-                                **extra, **common))  # fmt: skip
-        if ln["marker"]:
-            shape = _MARKERS.get(ln["marker"], "circle")
-            marks = {**common, "fill_color": ln["color"], "line_color": ln["edge"]}
-            del marks["color"]
-            hovered.append(p.scatter("x", "y", marker=shape, size=max(ln["size"] * 1.5, 2.5),
-                                     **marks))  # fmt: skip
-    if hovered:
-        p.add_tools(HoverTool(renderers=hovered, tooltips=[("", "$name"),
-                                                           (xl, "@x{0.[000]}"),
-                                                           (yl, "@y{0.[0000]}")]))  # fmt: skip
-    for t in spec["texts"]:
-        p.add_layout(Label(x=t["x"], y=t["y"], text=t["text"], text_font_size="8pt"))
-    if not p.legend and label_width:  # as wide a margin as a legend: x axes aligned
-        p.min_border_right = label_width + 70
-    if p.legend:
-        p.legend.click_policy = "hide"
-        p.legend.label_text_font_size = "8pt"
-        p.legend.background_fill_alpha = 0.7
-        p.legend.label_width = label_width  # the same in every panel: x axes aligned
-        p.add_layout(p.legend[0], "right")
-    return p
 
 
 def _legend_width(specs: Sequence[dict[str, Any]]) -> int:
@@ -90,26 +30,6 @@ def _legend_width(specs: Sequence[dict[str, Any]]) -> int:
     of its figures line up."""
     names = [ln["name"] for s in specs for p in s["panels"] for ln in p["lines"] if ln["legend"]]
     return 6 * max((len(n) for n in names), default=0)
-
-
-def _figure_model(spec: dict[str, Any], label_width: int) -> Any:
-    """One figure: its panels on their grid, x ranges shared down each column."""
-    from bokeh.layouts import gridplot
-    from bokeh.models import Range1d
-
-    nrow = 1 + max(p["row"] for p in spec["panels"])
-    ncol = 1 + max(p["col"] for p in spec["panels"])
-    grid: list[list[Any]] = [[None] * ncol for _ in range(nrow)]
-    shared: dict[int, Any] = {}
-    for p in spec["panels"]:
-        if p["images"]:
-            rng = Range1d(*p["xlim"])
-        else:
-            rng = shared.setdefault(p["col"], Range1d(*p["xlim"]))
-        if p["title"] == spec["title"]:  # the page's heading says it already
-            p = {**p, "title": ""}
-        grid[p["row"]][p["col"]] = _panel(p, rng, label_width)
-    return gridplot(grid, sizing_mode="stretch_width", merge_tools=False, toolbar_location=None)
 
 
 def _text(value: Any) -> str:
@@ -166,29 +86,23 @@ def write_page(
         What the page records about the run(s): shown as a table and kept as JSON in
         the ``<script type="application/json" id="run-settings">`` element.
     """
-    from bokeh.embed import components
-    from bokeh.resources import Resources
-
     if not figures:
         raise PageError(f"{path}: no figures to write; expected at least one")
     path = Path(path)
-    width = _legend_width(figures)
-    models = [_figure_model(f, width) for f in figures]
-    script, divs = components(models)
+    scripts = page_scripts(figures, _legend_width(figures))
     body = []
-    for spec, div in zip(figures, divs, strict=True):
+    for i, spec in enumerate(figures):
         body.append(f"<h2>{html.escape(spec['title'])}</h2>")
         if spec["notes"]:
             keys = [(f"<span class='key' style='background:{n['color']}'></span>" if n["color"]
                      else "") + html.escape(n["text"]) for n in spec["notes"]]  # fmt: skip
             body.append(f"<p class='notes'>{' &nbsp; '.join(keys)}</p>")
-        body.append(f"<div class='{FIGURE_CLASS}'>{div}</div>")
+        body.append(f"<div class='{FIGURE_CLASS}'><div id='glider-figure-{i}'></div></div>")
     data = json.dumps(settings, default=str).replace("</", "<\\/")
-    js = Resources(mode="inline", components=["bokeh"]).render_js()  # bokeh.min.js alone
     text = (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
         f"<title>{html.escape(title)}</title><style>{_CSS}</style>"
-        f"{js}{script}</head><body><h1>{html.escape(title)}</h1>"
+        f"{scripts}</head><body><h1>{html.escape(title)}</h1>"
         "<p class='help'>Drag to zoom (toolbar: x-only or box zoom), wheel to zoom, "
         "double-click or reset to restore; hover a curve for its values; click a legend "
         "entry to hide or show that series.</p>"

@@ -31,6 +31,7 @@ from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, system_for
+from .drawing import draw_plots, start_drawer
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
 from .recorders import ArrayRecorder, CsvRecorder
@@ -275,89 +276,93 @@ def simulate(
         options = {k: v for k, v in (("coupling", coupling), ("step", step),
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
     record = run_record(scenario, sim, options)
-    files: dict[str, Path] = {}
-    if out is not None:
-        out = Path(out)
-        note = replaced_note(out, record)  # earlier results made otherwise: say so, once
-        if note is not None:
-            log.warning(note)
-        out.mkdir(parents=True, exist_ok=True)
-        clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
-        if results_format == "parquet":
-            from .parquet import ParquetRecorder
-
-            files["results"] = out / "results.parquet"
-            recorder: Any = ParquetRecorder(files["results"])
-        else:
-            files["results"] = out / "results.csv"
-            recorder = CsvRecorder(files["results"])
-    else:
-        recorder = ArrayRecorder()
-    from .progress import RunProgress, wanted
-
-    if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
-        recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
-    status, message = "ok", ""
-    interrupt: Interrupted | None = None
-    failure: Exception | None = None
+    # the plots' process forks now, before the recorder's writer thread: it imports
+    # matplotlib while the run runs and draws when the results are in (drawing.py)
+    drawer = start_drawer() if plots and out is not None else None
     try:
-        if pacer is not None:
-            paced_run(sim, stop, recorder, pacer)
-        else:
-            sim.run(stop, recorder)
-    except (FMUStopped, TooLate) as err:  # a discard, or later than --max-lateness-ms
-        status, message, failure = "stopped", str(err), err
-    except FMUCallError as err:
-        status, message, failure = "error", str(err), err
-    except SystemSpecError:
-        raise
-    except MasterError as err:
-        status, message, failure = "error", str(err), err
-    except KeyboardInterrupt as err:
-        interrupt = err if isinstance(err, Interrupted) else Interrupted()
-        status, message = "interrupted", interrupt.describe()
-    finally:
-        recorder.close()
-        sim.close()
-    if "results" in files and not files["results"].exists():
-        del files["results"]  # the run failed before its first row
-    if isinstance(recorder, RunProgress):
-        recorder = recorder.inner
-    if hasattr(recorder, "read"):  # Parquet
-        data = recorder.read() if recorder.n_rows else np.empty((0, len(sim.columns)))
-        columns = sim.columns
-    elif isinstance(recorder, CsvRecorder):
-        data = (
-            np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
-            if recorder.n_rows
-            else np.empty((0, len(sim.columns)))
-        )
-        columns = sim.columns
-    else:
-        columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
-    metrics = compute_metrics(columns, data, scenario, sim, status)
-    metrics.update(status=status, message=message)
-    ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
-    if ext:
-        metrics["external"] = ext
-    if pacer is not None:
-        metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
-    metrics["run"] = record
-    metrics["events"] = marked_events(sim, status, failure)
-    result = RunResult(scenario, columns, data, metrics, status, message, files)
-    if out is not None:
-        files["metrics"] = out / "metrics.json"
-        files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
-        if plots and len(data) > 1:
-            from .pages import write_run_page
-            from .plots import write_plots
+        files: dict[str, Path] = {}
+        if out is not None:
+            out = Path(out)
+            note = replaced_note(out, record)  # earlier results made otherwise: say so, once
+            if note is not None:
+                log.warning(note)
+            out.mkdir(parents=True, exist_ok=True)
+            clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
+            if results_format == "parquet":
+                from .parquet import ParquetRecorder
 
-            figures: list = []  # the PNGs' figures, drawn again as plots.html
-            files.update(write_plots(result, out, keep=figures))
-            files.update(write_run_page(result, out, figures))
-    if interrupt is not None:
-        raise interrupt
-    return result
+                files["results"] = out / "results.parquet"
+                recorder: Any = ParquetRecorder(files["results"])
+            else:
+                files["results"] = out / "results.csv"
+                recorder = CsvRecorder(files["results"])
+        else:
+            recorder = ArrayRecorder()
+        from .progress import RunProgress, wanted
+
+        if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
+            recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
+        status, message = "ok", ""
+        interrupt: Interrupted | None = None
+        failure: Exception | None = None
+        try:
+            if pacer is not None:
+                paced_run(sim, stop, recorder, pacer)
+            else:
+                sim.run(stop, recorder)
+        except (FMUStopped, TooLate) as err:  # a discard, or later than --max-lateness-ms
+            status, message, failure = "stopped", str(err), err
+        except FMUCallError as err:
+            status, message, failure = "error", str(err), err
+        except SystemSpecError:
+            raise
+        except MasterError as err:
+            status, message, failure = "error", str(err), err
+        except KeyboardInterrupt as err:
+            interrupt = err if isinstance(err, Interrupted) else Interrupted()
+            status, message = "interrupted", interrupt.describe()
+        finally:
+            recorder.close()
+            sim.close()
+        if "results" in files and not files["results"].exists():
+            del files["results"]  # the run failed before its first row
+        if isinstance(recorder, RunProgress):
+            recorder = recorder.inner
+        if hasattr(recorder, "read"):  # Parquet
+            data = recorder.read() if recorder.n_rows else np.empty((0, len(sim.columns)))
+            columns = sim.columns
+        elif isinstance(recorder, CsvRecorder):
+            data = (
+                np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
+                if recorder.n_rows
+                else np.empty((0, len(sim.columns)))
+            )
+            columns = sim.columns
+        else:
+            columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
+        metrics = compute_metrics(columns, data, scenario, sim, status)
+        metrics.update(status=status, message=message)
+        ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
+        if ext:
+            metrics["external"] = ext
+        if pacer is not None:
+            metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
+        metrics["run"] = record
+        metrics["events"] = marked_events(sim, status, failure)
+        result = RunResult(scenario, columns, data, metrics, status, message, files)
+        if out is not None:
+            files["metrics"] = out / "metrics.json"
+            files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
+            if plots and len(data) > 1:
+                files.update(
+                    draw_plots(result, out) if drawer is None else drawer.draw(result, out)
+                )
+        if interrupt is not None:
+            raise interrupt
+        return result
+    finally:
+        if drawer is not None:
+            drawer.close()
 
 
 def _jsonable(obj: Any) -> Any:

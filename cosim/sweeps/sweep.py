@@ -166,32 +166,6 @@ def run_sweep(
                        time.perf_counter() - t0, store.path, failed_total, failures)  # fmt: skip
 
 
-def add_parser(sub: Any) -> None:
-    """Add the ``sweep`` sub-command to the CLI's sub-parsers."""
-    s = sub.add_parser("sweep", help="parameter sweep / Monte Carlo on Dask",
-                       description=__doc__.split("\n\n")[1])  # fmt: skip
-    s.add_argument("scenario", nargs="?", default=None, help="scenario (default: default)")
-    s.add_argument("--param", action="append", default=[], metavar="INSTANCE.NAME=SPEC",
-                   help="swept parameter (repeatable): 6,8,10 | 2:20:10 | uniform(-20%%,+20%%)"
-                   " | normal(20%%)")  # fmt: skip
-    s.add_argument("--samples", type=int, default=10, help="draws for random specs")
-    s.add_argument("--seeds", type=int, default=None, help="noise seeds 0..N-1 per run")
-    s.add_argument("--rng-seed", type=int, default=0, help="seed of the random draws")
-    s.add_argument("--workers", type=int, default=2, help="local worker processes")
-    s.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
-    s.add_argument("--out", default="out/sweep", help="results folder")
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv",
-                   help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
-    s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
-    s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
-    from ..fmus.folders import add_fmu_options
-
-    add_fmu_options(s)
-    s.add_argument("--restart", action="store_true", help="ignore results already in --out")
-    s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""

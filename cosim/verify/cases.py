@@ -27,10 +27,12 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ..inputs.text import one_line, quote, shown_path
+
+if TYPE_CHECKING:  # numpy is imported where a table is read: the CLI's parser imports this
+    import numpy as np
 
 
 class VerifyInputError(ValueError):
@@ -108,6 +110,8 @@ class Case:
 
 def read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """A cross-check CSV: header ``time,...``, numbers; (columns, rows)."""
+    import numpy as np
+
     try:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))

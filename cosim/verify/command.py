@@ -8,8 +8,6 @@ from collections.abc import Callable
 
 from ..inputs.text import one_line, quote
 from .cases import COMPONENTS, VerifyInputError, kit_root
-from .compare import check_tolerance, verify
-from .writing import export, write_references
 
 
 def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float]) -> None:
@@ -63,6 +61,9 @@ def run_command(args: argparse.Namespace) -> int:
     a case failed; VerifyInputError (bad input, the core interface missing, no case could
     run) -> 2. With ``--json`` a refusal is printed as ``{"error": ..., "exit_code": 2}``
     too."""
+    from .compare import verify
+    from .writing import export, write_references
+
     if args.write_references or args.export:
         if args.fmu is not None:
             raise VerifyInputError("give an FMU or --write-references/--export, not both")
@@ -87,6 +88,8 @@ def run_command(args: argparse.Namespace) -> int:
 
 def tolerance_arg(text: str) -> float:
     """An ``--rtol``/``--atol`` argument as a float (argparse's type)."""
+    from .compare import check_tolerance
+
     try:
         value = check_tolerance(text, "")
     except VerifyInputError:

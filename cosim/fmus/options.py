@@ -1,0 +1,39 @@
+"""The command-line options that pick our FMUs (``--fmu-dir``, ``--flavor``, ``--fmi``)
+and their choices; light (argparse only), for the command line's parser."""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: the flavors of our FMUs: the Python reference (default) and the native C99 build
+FLAVORS = ("python", "native")
+#: the FMI versions we build (``--fmi``)
+FMI_VERSIONS = (2, 3)
+
+
+def add_fmu_options(parser: Any, fmi: bool = False) -> None:
+    """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
+    with ``fmi``)."""
+    parser.add_argument(
+        "--fmu-dir",
+        default=None,
+        help="FMU folder, built if missing or stale in the flavor it holds; one that does not "
+        "exist gets a fresh set, with a note (default: the per-user cache, e.g. "
+        "~/.cache/glider-cosim, built from the installed sources)",
+    )
+    parser.add_argument(
+        "--flavor",
+        choices=FLAVORS,
+        default=None,
+        help="which FMUs: the Python reference or the native C99 build (default: the "
+        "flavor the FMU folder holds, python if it is empty)",
+    )
+    if fmi:
+        parser.add_argument(
+            "--fmi",
+            type=int,
+            choices=FMI_VERSIONS,
+            default=None,
+            help="FMI version of our FMUs (default: the one the FMU folder holds, 2 if it is "
+            "empty; FMI 3 FMUs are built in the per-user cache, or in --fmu-dir)",
+        )

@@ -1,0 +1,184 @@
+"""The results pages' figures drawn in the browser: the figure specs as data and the
+script that builds each with BokehJS's own plotting API (``bokeh-api.min.js``), so that
+writing a page imports no bokeh in Python (about 1 s of CPU a run; issue 31).
+
+:func:`page_scripts` returns the ``<script>`` elements: bokeh's JavaScript inline from the
+installed package (read as files, nothing fetched), the specs (arrays as base64 float64,
+each distinct array once, so every value is exact) and :data:`RENDER`, which draws every
+figure into its ``<div id="glider-figure-N">``: the panels on their grid, x ranges shared
+down each column, box and wheel zoom, hover values, legends that hide a series on click.
+"""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .figure_data import PageError
+
+#: what BokehJS needs: the library and its plotting API, in this order
+BOKEH_FILES = ("bokeh.min.js", "bokeh-api.min.js")
+#: matplotlib markers -> bokeh's
+MARKERS = {"o": "circle", "D": "diamond", "X": "x", "x": "x", "^": "triangle",
+           "v": "inverted_triangle", "s": "square", "*": "star"}  # fmt: skip
+#: bokeh's named dash patterns as the on/off lengths, px, its Python API sends
+DASHES = {"solid": [], "dashed": [6], "dotted": [2, 4], "dotdash": [2, 4, 6, 4],
+          "dashdot": [6, 4, 2, 4]}  # fmt: skip
+
+#: the figures' builder (the same models, options and styles as bokeh's Python API made)
+RENDER = r"""
+(function () {
+const P = Bokeh.Plotting, D = window.GLIDER_PAGE, bin = (i) => D.arrays[i];
+const nd = Bokeh.require("core/util/ndarray");
+function decode(s, Kind) {
+  const b = atob(s), u = new Uint8Array(b.length);
+  for (let i = 0; i < b.length; i++) u[i] = b.charCodeAt(i);
+  return new Kind(u.buffer);
+}
+D.arrays = D.arrays.map((s) => decode(s, Float64Array));
+const range = (lo, hi) => new Bokeh.Range1d({start: lo, end: hi});
+function panel(s, xr, lw) {
+  const [ylo, yhi] = s.ylim, kw = {
+    height: 320, sizing_mode: "stretch_width", active_drag: "box_zoom",
+    active_scroll: "wheel_zoom", tools: "xbox_zoom,box_zoom,wheel_zoom,pan,reset,save",
+    x_range: xr, y_range: s.inverted ? range(yhi, ylo) : range(ylo, yhi)};
+  if (s.title) kw.title = s.title;
+  if (s.xlabel) kw.x_axis_label = s.xlabel;
+  if (s.ylabel) kw.y_axis_label = s.ylabel;
+  if (s.log) kw.y_axis_type = "log";
+  const p = P.figure(kw), xl = s.xlabel || "x", yl = s.ylabel || "y";
+  for (const im of s.images) {
+    const shape = [im.h, im.w], image = nd.ndarray(decode(im.rgba, Uint32Array).buffer,
+                                                    {dtype: "uint32", shape});
+    const value = im.names ? nd.ndarray(im.value, {shape}) : nd.ndarray(
+      decode(im.value, Float64Array).buffer, {dtype: "float64", shape});
+    const src = new Bokeh.ColumnDataSource({data: {image: [image], value: [value]}});
+    const r = p.image_rgba({image: {field: "image"}, x: im.x, y: im.y, dw: im.dw, dh: im.dh,
+                            source: src});
+    p.add_tools(new Bokeh.HoverTool({renderers: [r], tooltips: [[xl, "$x{0.[000]}"],
+                                     [yl, "$y{0.[000]}"], ["value", "@value"]]}));
+  }
+  const hovered = [];
+  for (const ln of s.lines) {
+    const src = new Bokeh.ColumnDataSource({data: {x: bin(ln.x), y: bin(ln.y)}});
+    const common = {source: src, alpha: ln.alpha, name: ln.name};
+    if (ln.legend) common.legend_label = ln.name;
+    const at = {x: {field: "x"}, y: {field: "y"}};
+    if (ln.lines) {
+      const extra = ln.step ? {mode: "after"} : {};
+      hovered.push((ln.step ? p.step : p.line).call(p, {...at, line_width: ln.width,
+        line_dash: ln.dash, color: ln.color, ...extra, ...common}));
+    }
+    if (ln.marker) {
+      hovered.push(p.scatter({...at, marker: ln.marker, size: Math.max(ln.size * 1.5, 2.5),
+        fill_color: ln.color, line_color: ln.edge, ...common}));
+    }
+  }
+  if (hovered.length) {
+    p.add_tools(new Bokeh.HoverTool({renderers: hovered, tooltips: [["", "$name"],
+      [xl, "@x{0.[000]}"], [yl, "@y{0.[0000]}"]]}));
+  }
+  for (const t of s.texts) {
+    p.add_layout(new Bokeh.Label({x: t.x, y: t.y, text: t.text, text_font_size: "8pt"}));
+  }
+  if (s.lines.some((ln) => ln.legend)) {
+    const lg = p.legend;
+    lg.click_policy = "hide";
+    lg.label_text_font_size = "8pt";
+    lg.background_fill_alpha = 0.7;
+    lg.label_width = lw;  // the same in every panel: x axes aligned
+    p.center = p.center.filter((r) => r !== lg);
+    p.add_layout(lg, "right");
+  } else if (lw) {
+    p.min_border_right = lw + 70;  // as wide a margin as a legend: x axes aligned
+  }
+  return p;
+}
+D.figures.forEach((f, i) => {
+  const nrow = 1 + Math.max(...f.panels.map((p) => p.row));
+  const ncol = 1 + Math.max(...f.panels.map((p) => p.col));
+  const grid = Array.from({length: nrow}, () => Array(ncol).fill(null)), shared = {};
+  for (const s of f.panels) {
+    let xr;
+    if (s.images.length) xr = range(...s.xlim);
+    else xr = shared[s.col] || (shared[s.col] = range(...s.xlim));
+    grid[s.row][s.col] = panel(s.title === f.title ? {...s, title: ""} : s, xr, D.label_width);
+  }
+  P.show(P.gridplot(grid, {sizing_mode: "stretch_width", merge_tools: false,
+                           toolbar_location: null}), "#glider-figure-" + i);
+});
+})();
+"""
+
+
+def _bokeh_js() -> str:
+    """bokeh's JavaScript (:data:`BOKEH_FILES`) from the installed package, as
+    ``<script>`` elements; found without importing bokeh."""
+    spec = importlib.util.find_spec("bokeh")
+    if spec is None or not spec.submodule_search_locations:
+        raise PageError("bokeh is not installed; expected it for the pages (pip install bokeh)")
+    folder = Path(next(iter(spec.submodule_search_locations))) / "server" / "static" / "js"
+    parts = []
+    for name in BOKEH_FILES:
+        try:
+            parts.append((folder / name).read_text(encoding="utf-8"))
+        except OSError as err:
+            raise PageError(f"{folder / name}: cannot be read ({err.strerror or err}); "
+                            "expected bokeh's JavaScript there") from None  # fmt: skip
+    return "".join(f'<script type="text/javascript">\n{js}\n</script>\n' for js in parts)
+
+
+def _b64(values: Any) -> str:
+    """An array as base64 of its little-endian float64 bytes (read back exactly)."""
+    return base64.b64encode(np.ascontiguousarray(values, dtype="<f8").tobytes()).decode("ascii")
+
+
+def _data(figures: Sequence[dict[str, Any]], label_width: int) -> dict[str, Any]:
+    """The figure specs as JSON-able data: each line's x and y an index into ``arrays``."""
+    arrays: list[str] = []
+    seen: dict[str, int] = {}
+
+    def ref(values: Any) -> int:
+        text = _b64(values)
+        if text not in seen:
+            seen[text] = len(arrays)
+            arrays.append(text)
+        return seen[text]
+
+    out = []
+    for f in figures:
+        panels = []
+        for p in f["panels"]:
+            lines = [{**ln, "x": ref(ln["x"]), "y": ref(ln["y"]),
+                      "dash": DASHES.get(ln["dash"], []),
+                      "marker": MARKERS.get(ln["marker"], "circle") if ln["marker"] else ""}
+                     for ln in p["lines"]]  # fmt: skip
+            images = []
+            for im in p["images"]:
+                h, w = im["rgba"].shape[:2]
+                rgba = np.ascontiguousarray(im["rgba"], dtype=np.uint8).tobytes()
+                value, names = np.asarray(im["value"]), np.asarray(im["value"]).dtype == object
+                images.append({"rgba": base64.b64encode(rgba).decode("ascii"), "h": h, "w": w,
+                               "names": bool(names), "x": im["x"], "y": im["y"],
+                               "value": value.ravel().tolist() if names else _b64(value),
+                               "dw": im["dw"], "dh": im["dh"]})  # fmt: skip
+            panels.append({**p, "lines": lines, "images": images})
+        out.append({"title": f["title"], "panels": panels})
+    return {"arrays": arrays, "figures": out, "label_width": label_width}
+
+
+def page_scripts(figures: Sequence[dict[str, Any]], label_width: int) -> str:
+    """The ``<script>`` elements that draw ``figures`` (specs of
+    :func:`~glider_cosim.runner.figure_data.figure_spec`) into the page's
+    ``<div id="glider-figure-N">`` elements, after the page has loaded."""
+    data = json.dumps(_data(figures, label_width), allow_nan=True, default=float)
+    data = data.replace("</", "<\\/")  # NaN and Infinity are JavaScript, not JSON
+    return (f"{_bokeh_js()}<script type='text/javascript'>\nwindow.GLIDER_PAGE = {data};\n"
+            "window.addEventListener('DOMContentLoaded', function () {\n"
+            f"{RENDER}\n}});\n</script>")  # fmt: skip

@@ -1,0 +1,65 @@
+"""``glider-cosim --help`` (and each command's ``--help``) is light: it imports argparse and
+our option modules, never numpy, fmpy, matplotlib, bokeh or Dask (issue 31; they cost
+0.2-0.4 s before the first line of help). Checked by the modules imported, not by a clock."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: third-party packages that must stay out of the help path
+HEAVY = ("numpy", "fmpy", "matplotlib", "bokeh", "dask", "distributed", "pyarrow", "PIL")
+
+
+def _imported(code: str) -> set[str]:
+    """The top-level packages a fresh interpreter imports running ``code`` (from
+    ``-X importtime``, which lists every import, those of the interpreter's start too)."""
+    proc = subprocess.run([sys.executable, "-X", "importtime", "-c", code], capture_output=True,
+                          text=True, timeout=60, check=False)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    names = re.findall(r"^import time:\s*\d+ \|\s*\d+ \|\s*(\S+)", proc.stderr, re.M)
+    assert names, proc.stderr[-2000:]
+    return {n.split(".")[0] for n in names}
+
+
+def _entry_point() -> tuple[str, str]:
+    """``(module, function)`` of the installed ``glider-cosim`` console script."""
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    module, _, func = scripts["glider-cosim"].partition(":")
+    return module, func
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["sweep", "--help"],
+                                  ["verify", "--help"], ["report", "--help"]])  # fmt: skip
+def test_help_imports_no_heavy_package(argv):
+    module, func = _entry_point()  # what the console script runs, with its argv
+    code = (f"import sys; sys.argv = ['glider-cosim', *{argv!r}]\n"
+            f"from {module} import {func}\n{func}()")  # fmt: skip
+    heavy = _imported(code) & set(HEAVY)
+    assert heavy == set(), f"glider-cosim {' '.join(argv)} imports {sorted(heavy)}"
+
+
+def test_building_the_parser_imports_no_heavy_package():
+    code = "from glider_cosim.cli import build_parser\nbuild_parser()"
+    assert _imported(code) & set(HEAVY) == set()
+
+
+def test_the_check_sees_a_heavy_import():  # the test above can fail
+    assert "numpy" in _imported("import glider_cosim.master\nglider_cosim.master.CoSimulation")
+
+
+def test_the_lazy_packages_still_export_their_names():
+    import glider_cosim.master as master
+    import glider_cosim.verify as verify
+
+    assert master.DEFAULT_MAX_STEPS == 1_000_000 and master.CoSimulation.__name__ == "CoSimulation"
+    assert set(master.__all__) <= set(dir(master)) and set(verify.__all__) <= set(dir(verify))
+    assert verify.COMPONENTS["plant"] == "GliderPlant" and callable(verify.verify)
+    with pytest.raises(AttributeError, match="glider_cosim.master' has no attribute 'Nope'"):
+        master.Nope  # noqa: B018
