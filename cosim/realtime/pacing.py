@@ -11,6 +11,7 @@ point that starts later than that stops the run cleanly (:class:`TooLate`).
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable
@@ -171,8 +172,25 @@ def paced_run(
     through the master's planned C calls when it has them, but never whole blocks of
     steps in C), so the rows are those of an unpaced run. Raises as ``run`` does, and
     :class:`TooLate`, after the rows so far were handed to ``recorder``.
+
+    Python's cyclic garbage collector must not stop a paced loop for milliseconds: every
+    object that exists when the loop starts is collected once and then frozen
+    (:func:`gc.freeze`) for the loop, so a collection during it walks only what the loop
+    made (a full collection of the process's objects takes several ms); they are unfrozen
+    when the loop ends, however it ends.
     """
     n = count_steps(stop_time - sim.t0, sim.step_size, sim.max_steps)
+    gc.collect()
+    gc.freeze()
+    try:
+        _paced_points(sim, n, recorder, pacer, on_step)
+    finally:
+        gc.unfreeze()
+
+
+def _paced_points(
+    sim: Any, n: int, recorder: Recorder, pacer: Pacer, on_step: Callable[[int], None] | None
+) -> None:
     with deferred_sigint() as interrupted:
         sim.initialize()
         recorder.start(sim.columns)

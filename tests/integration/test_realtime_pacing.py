@@ -78,3 +78,29 @@ def test_ctrl_c_in_a_paced_run_writes_the_results_so_far(native_dir, tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "interrupted" and m["rows"] == len(results.read_text().splitlines()) - 1
     assert m["real_time"]["points"] == m["rows"]
+
+
+def test_a_paced_run_freezes_the_objects_before_it_and_unfreezes_them_after(native_dir):
+    import gc
+
+    frozen: list[tuple[int, int]] = []  # (generation, objects frozen) of every collection
+
+    def seen(phase, info):
+        if phase == "start":
+            frozen.append((info["generation"], gc.get_freeze_count()))
+
+    before, threshold = gc.get_freeze_count(), gc.get_threshold()
+    gc.set_threshold(50)  # collections during the 0.5 s of the loop, whatever it allocates
+    gc.callbacks.append(seen)
+    try:
+        simulate("default", None, fmu_dir=native_dir, build=False, stop_time=2.0,
+                 real_time=RealTime(rtf=4.0))  # fmt: skip
+    finally:
+        gc.callbacks.remove(seen)
+        gc.set_threshold(*threshold)
+    # the full collection right before the loop, then the loop's, with the rest frozen
+    full = [i for i, (gen, n) in enumerate(frozen) if gen == 2 and n == before]
+    assert full, frozen
+    after = [n for gen, n in frozen[full[-1] + 1 :]]
+    assert len(after) >= 2 and after[0] > before + 1000, frozen[full[-1] :]  # in the loop
+    assert gc.get_freeze_count() == before
