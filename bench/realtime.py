@@ -13,7 +13,9 @@ The machine's floor, measured right after the in-process run: the same pacing in
 no Python and no FMU (``bench/pacing_floor.c``: absolute ``clock_nanosleep`` to 1.5 ms
 before each deadline, then a spin), as many points; and the share of CPU time the
 hypervisor took from this virtual machine (``steal`` of /proc/stat) during each of the
-two, percent. ``--floor-only``: these two runs alone.
+two, percent. Then both again spinning through the whole period, never sleeping
+(``RealTime(spin_ms=20)``, ``--spin-ms 20``: ``in_process_spin_lateness_ms``,
+``c_pacer_spin_lateness_ms``). ``--floor-only``: these four runs alone.
 """
 
 from __future__ import annotations
@@ -92,9 +94,10 @@ def steal_percent(before: tuple[int, int]) -> float:
     return round(100.0 * (steal - before[0]) / max(1, total - before[1]), 2)
 
 
-def c_pacer(points: int, tmp: Path) -> dict:
+def c_pacer(points: int, tmp: Path, spin_us: int = 1500) -> dict:
     """``bench/pacing_floor.c`` compiled here (zig's cc, else the system's) and run for
-    ``points`` points at 50 Hz: its lateness, ms, and the steal during it, %."""
+    ``points`` points at 50 Hz, spinning ``spin_us`` before each: its lateness, ms, and
+    the steal during it, %."""
     try:
         import ziglang  # noqa: F401
 
@@ -105,7 +108,7 @@ def c_pacer(points: int, tmp: Path) -> dict:
     src = Path(__file__).with_name("pacing_floor.c")
     subprocess.run([*cc, "-std=c99", "-O2", str(src), "-o", str(exe)], check=True)
     before = cpu_jiffies()
-    p = subprocess.run([str(exe), str(points), "1500"], capture_output=True, text=True,
+    p = subprocess.run([str(exe), str(points), str(spin_us)], capture_output=True, text=True,
                        check=True)  # fmt: skip
     return {**json.loads(p.stdout), "steal_pct": steal_percent(before)}
 
@@ -125,7 +128,14 @@ def main() -> None:
     out["in_process_lateness_ms"] = lateness(paced)
     out["in_process_steal_pct"] = steal_percent(before)
     with tempfile.TemporaryDirectory(prefix="glider-bench-rt-") as tmp:
-        out["c_pacer_lateness_ms"] = c_pacer(round(args.stop_time / 0.02), Path(tmp))
+        points = round(args.stop_time / 0.02)
+        out["c_pacer_lateness_ms"] = c_pacer(points, Path(tmp))
+        before = cpu_jiffies()
+        spin = simulate("default", None, stop_time=args.stop_time,
+                        real_time=RealTime(1.0, spin_ms=20.0), **run)  # fmt: skip
+        out["in_process_spin_lateness_ms"] = lateness(spin)
+        out["in_process_spin_steal_pct"] = steal_percent(before)
+        out["c_pacer_spin_lateness_ms"] = c_pacer(points, Path(tmp), spin_us=20000)
         if args.floor_only:
             emit(out, args.json)
             return

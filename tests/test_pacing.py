@@ -41,7 +41,26 @@ def test_a_point_later_than_the_limit_stops_with_a_named_error():
     ({"rtf": 0.0}, "rtf 0.0 is invalid"),
     ({"rtf": float("inf")}, "rtf inf is invalid"),
     ({"max_lateness_ms": -1.0}, "max_lateness_ms -1.0 is invalid"),
+    ({"spin_ms": -0.5}, r"spin_ms -0.5 is invalid: expected a finite number >= 0 \(ms\)"),
+    ({"spin_ms": float("nan")}, "spin_ms nan is invalid"),
 ])  # fmt: skip
 def test_bad_settings_are_refused(kw, text):
     with pytest.raises(SystemSpecError, match=text):
         RealTime(**kw)
+
+
+def test_a_spin_of_a_period_never_sleeps_and_the_default_sleeps(monkeypatch):
+    slept: list[float] = []
+    real_sleep = time.sleep
+    monkeypatch.setattr(time, "sleep", lambda s: slept.append(s) or real_sleep(s))
+    p = Pacer(0.02, RealTime(rtf=2.0, spin_ms=10.0))  # a point every 10 ms, all spun
+    p.start()
+    for k in range(4):
+        p.wait(k)
+    assert slept == [] and p.summary()["spin_ms"] == 10.0
+    p = Pacer(0.02, RealTime(rtf=2.0))
+    p.start()
+    for k in range(4):
+        p.wait(k)
+    assert len(slept) == 3 and all(0.0 < s <= 0.0085 + 1e-9 for s in slept), slept
+    assert p.summary()["spin_ms"] == 1.5

@@ -132,6 +132,7 @@ def _run(args: argparse.Namespace) -> int:
             ("--real-time", args.real_time, False),
             ("--rtf", args.rtf, None),
             ("--max-lateness-ms", args.max_lateness_ms, None),
+            ("--spin-ms", args.spin_ms, None),
             ("--external", args.external, []),
             ("--external-timeout", args.external_timeout, None),
         )
@@ -191,15 +192,19 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _real_time(args: argparse.Namespace):
-    """``--real-time``'s pacing, or None; refuses --rtf and --max-lateness-ms without it."""
-    from ..realtime.pacing import RealTime
+    """``--real-time``'s pacing, or None; refuses --rtf, --max-lateness-ms and --spin-ms
+    without it."""
+    from ..realtime.pacing import SPIN_MS, RealTime
 
+    given = (("--rtf", args.rtf), ("--max-lateness-ms", args.max_lateness_ms),
+             ("--spin-ms", args.spin_ms))  # fmt: skip
     if not args.real_time:
-        for opt, value in (("--rtf", args.rtf), ("--max-lateness-ms", args.max_lateness_ms)):
+        for opt, value in given:
             if value is not None:
                 raise UsageError(f"{opt} needs --real-time")
         return None
-    return RealTime(args.rtf or 1.0, args.max_lateness_ms)
+    spin = SPIN_MS if args.spin_ms is None else args.spin_ms
+    return RealTime(args.rtf or 1.0, args.max_lateness_ms, spin)
 
 
 def _externals(args: argparse.Namespace, scenario) -> dict:

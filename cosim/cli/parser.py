@@ -69,6 +69,16 @@ def _positive(text: str) -> float:
     return v
 
 
+def _non_negative(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{quote(text)} is not a number") from None
+    if not v >= 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected a finite number >= 0")
+    return v
+
+
 def _count(text: str) -> int:
     if not re.fullmatch(r"\+?\d{1,18}", text.strip()) or int(text) < 1:
         raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected an integer >= 1")
@@ -179,6 +189,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive,
         default=None,
         help="with --real-time: stop the run when a point starts later than this, ms",
+    )
+    r.add_argument(
+        "--spin-ms",
+        type=_non_negative,
+        default=None,
+        help="with --real-time: spin this long before each point instead of sleeping, ms "
+        "(default 1.5; 20 or more at 50 Hz never sleeps and keeps a core busy)",
     )
     r.add_argument(
         "--external",

@@ -1,7 +1,9 @@
 """Paced runs: communication points held to the wall clock at a real-time factor.
 
 Point ``k`` is due at ``T0 + k*h/rtf`` on the monotonic clock (``time.monotonic_ns``).
-The master sleeps until shortly before the deadline, then spins to it. Overrun policy:
+The master sleeps until ``spin_ms`` before the deadline (1.5 ms by default), then spins
+to it; a ``spin_ms`` of one period or more never sleeps (it keeps a core busy, and holds
+the deadlines where waking from a sleep is slow, as on a virtual machine). Overrun policy:
 simulated time is kept (no step is skipped or stretched) and the deadlines stay on their
 grid, so a late point is followed by points that start at once, without sleeping, until
 the run has caught up; every step whose work (exchange, recording and ``doStep``) ends
@@ -23,8 +25,8 @@ import numpy as np
 from ..master.errors import Interrupted, MasterError, SystemSpecError, deferred_sigint
 from ..master.spec import Recorder, count_steps
 
-#: how long before a deadline the pacer stops sleeping and spins, ns
-SPIN_NS = 1_500_000
+#: how long before a deadline the pacer stops sleeping and spins by default, ms
+SPIN_MS = 1.5
 
 
 class TooLate(MasterError, RuntimeError):
@@ -52,10 +54,14 @@ class RealTime:
         0.5 half speed, 2 twice as fast).
     max_lateness_ms : float or None
         Stop the run when a communication point starts later than this, ms.
+    spin_ms : float
+        How long before each deadline the pacer stops sleeping and spins, ms (0: it only
+        sleeps; a period or more: it never sleeps and keeps a core busy).
     """
 
     rtf: float = 1.0
     max_lateness_ms: float | None = None
+    spin_ms: float = SPIN_MS
 
     def __post_init__(self) -> None:
         if isinstance(self.rtf, bool) or not (math.isfinite(self.rtf) and self.rtf > 0):
@@ -65,6 +71,9 @@ class RealTime:
             raise SystemSpecError(
                 f"max_lateness_ms {m!r} is invalid: expected a finite number > 0 (ms)"
             )
+        sp = self.spin_ms
+        if isinstance(sp, bool) or not (math.isfinite(sp) and sp >= 0):
+            raise SystemSpecError(f"spin_ms {sp!r} is invalid: expected a finite number >= 0 (ms)")
 
 
 class Pacer:
@@ -86,6 +95,7 @@ class Pacer:
         self.limit_ns = (
             None if real_time.max_lateness_ms is None else real_time.max_lateness_ms * 1e6
         )
+        self.spin_ns = round(real_time.spin_ms * 1e6)
         self.start_ns = 0
         self.last_ns = 0
         self.lateness_ns: list[int] = []
@@ -103,8 +113,8 @@ class Pacer:
         """Sleep, then spin, until point ``k`` is due; record how late it starts."""
         due = self.deadline(k)
         now = time.monotonic_ns()
-        if due - now > SPIN_NS:
-            time.sleep((due - now - SPIN_NS) / 1e9)
+        if due - now > self.spin_ns:
+            time.sleep((due - now - self.spin_ns) / 1e9)
         while (now := time.monotonic_ns()) < due:
             pass
         late = now - due
@@ -136,6 +146,7 @@ class Pacer:
             "lateness_ms": pct,
             "overruns": self.overruns,
             "max_lateness_ms": self.real_time.max_lateness_ms,
+            "spin_ms": self.real_time.spin_ms,
             "overrun_policy": "keep simulated time; catch up without sleeping; count",
         }
         return out

@@ -58,6 +58,19 @@ def test_cli_prints_the_line_and_the_lateness_limit_stops_cleanly(native_dir, tm
     p = subprocess.run(base + ["--out", str(out), "--rtf", "2"], capture_output=True, text=True,
                        timeout=60)  # fmt: skip
     assert p.returncode == 2 and "--rtf needs --real-time" in p.stderr
+    p = subprocess.run(base + ["--out", str(out), "--spin-ms", "20"], capture_output=True,
+                       text=True, timeout=60)  # fmt: skip
+    assert p.returncode == 2 and "--spin-ms needs --real-time" in p.stderr
+    p = subprocess.run(base + ["--out", str(out), "--real-time", "--spin-ms", "-1"],
+                       capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert p.returncode == 2 and "'-1' is invalid: expected a finite number >= 0" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
+    p = subprocess.run(base + ["--out", str(out), "--stop-time", "0.2", "--real-time",
+                               "--rtf", "4", "--spin-ms", "5"], capture_output=True,
+                       text=True, timeout=120)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["real_time"]["spin_ms"] == 5 and m["run"]["options"]["--spin-ms"] == 5
 
 
 def test_ctrl_c_in_a_paced_run_writes_the_results_so_far(native_dir, tmp_path):

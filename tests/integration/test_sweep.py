@@ -309,15 +309,30 @@ ORDER = ("A", "B", "C", "A", "D", "B", "A", "C")
 
 @pytest.mark.parametrize("flavor", ["native", "python"])
 def test_a_tasks_runs_are_bit_for_bit_separate_runs(flavor, fmu_dir, native_dir):
-    """A, B, A, ... in one task (one co-simulation reset between runs; a stopped run and
-    a refused one in between replace it): every row's status, message and metrics are
-    those of a separate run of the point, bit for bit."""
+    """A, B, A, ... in one task (one co-simulation reset between runs, a stopped run's
+    too; a refused one replaces it): every row's status, message and metrics are those of
+    a separate run of the point, bit for bit."""
     folder = native_dir if flavor == "native" else fmu_dir
     rows_ = _task(folder, ORDER)
     assert [r["status"] for r in rows_] == ["ok", "ok", "stopped", "ok", "error", "ok", "ok",
                                             "stopped"]  # fmt: skip
     assert rows_[0]["outcome"] == "settled" and rows_[1]["outcome"] != "settled"
     assert _mismatches(folder, ORDER, rows_) == []
+
+
+def test_a_stopped_run_leaves_its_co_simulation_to_be_reset_and_an_error_does_not(
+    native_dir, monkeypatch
+):
+    from glider_cosim.sweeps import worker
+
+    made = []
+    real = worker._new_sim
+    monkeypatch.setattr(worker, "_new_sim", lambda *a: made.append(real(*a)) or made[-1])
+    order = ("C", "A", "D", "A")  # stopped, ok (reset), error (replaced), ok (new)
+    rows_ = _task(native_dir, order)
+    assert [r["status"] for r in rows_] == ["stopped", "ok", "error", "ok"]
+    assert len(made) == 2 and not made[0].instances["plant"].alive  # closed after D
+    assert _mismatches(native_dir, order, rows_) == []
 
 
 def test_the_reuse_check_sees_a_leaking_reset(native_dir, monkeypatch):
