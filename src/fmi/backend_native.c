@@ -138,18 +138,23 @@ static Status nat_transition(Ctx *x, int call) {
 }
 
 /* ------------------------------------------------------------------ value access */
+/* The computed outputs brought up to date when one of them is read. */
+static void update_computed(NativeInstance *ni, const ValueRef vr[], size_t nvr) {
+    size_t i;
+    if (!M.update) return;
+    for (i = 0; i < nvr; ++i) {
+        if (M.vars[vr[i]].computed) {
+            M.update(ni->model, ni->time, ni->initialized);
+            return;
+        }
+    }
+}
+
 static Status nat_get(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *out) {
     NativeInstance *ni = NI(x->inst);
     size_t i;
     if (type == T_STRING) return FAIL(x, "the model has no String variables");
-    if (M.update) {
-        for (i = 0; i < nvr; ++i) {
-            if (M.vars[vr[i]].computed) {
-                M.update(ni->model, ni->time, ni->initialized);
-                break;
-            }
-        }
-    }
+    update_computed(ni, vr, nvr);
     for (i = 0; i < nvr; ++i) {
         const void *p = value_at(ni, &M.vars[vr[i]]);
         if (type == T_REAL) ((double *)out)[i] = *(const double *)p;
@@ -180,6 +185,30 @@ static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const 
         else *(int *)value_at(ni, v) = value != 0.0;
     }
     return ST_OK;
+}
+
+/* The exchange's calls without the layer's framing (Backend.quick_real): a get of Real
+ * variables, or a set of Real inputs (what nat_set stores without a check); anything
+ * else (another reference, an output or parameter set) is left to nat_get/nat_set. */
+static int nat_quick_real(Instance *inst, const ValueRef vr[], size_t nvr, const double *in,
+                          double *out) {
+    NativeInstance *ni = NI(inst);
+    const NativeVar *vars = M.vars;
+    const char *types = M.var_types;
+    const size_t nvars = M.nvars;
+    char *data = (char *)ni->model;
+    size_t i;
+    for (i = 0; i < nvr; ++i) {
+        if (vr[i] >= nvars || types[vr[i]] != T_REAL) return 0;
+        if (!out && vars[vr[i]].causality != NV_INPUT) return 0;
+    }
+    if (out) {
+        update_computed(ni, vr, nvr);
+        for (i = 0; i < nvr; ++i) out[i] = *(const double *)(data + vars[vr[i]].offset);
+    } else {
+        for (i = 0; i < nvr; ++i) *(double *)(data + vars[vr[i]].offset) = in[i];
+    }
+    return 1;
 }
 
 /* ------------------------------------------------------------------ stepping */
@@ -266,5 +295,5 @@ const Backend GLIDER_BACKEND = {
     nat_model_identifier, nat_start,        NULL,                NULL,           nat_create,
     nat_reset,            nat_destroy,      nat_alive,           nat_setup,      nat_transition,
     nat_get,              nat_set,          nat_step,            nat_state_get,  nat_state_set,
-    nat_state_release,    nat_state_bytes,  nat_state_from_bytes,
+    nat_state_release,    nat_state_bytes,  nat_state_from_bytes, nat_quick_real,
 };

@@ -882,5 +882,5 @@ const Backend GLIDER_BACKEND = {
     py_model_identifier, py_start,     py_enter,       py_leave,         py_create,
     py_reset,            py_destroy,   py_alive,       py_setup,         py_transition,
     py_get,              py_set,       py_step,        py_state_get,     py_state_set,
-    py_state_release,    py_state_bytes, py_state_from_bytes,
+    py_state_release,    py_state_bytes, py_state_from_bytes, NULL,
 };

@@ -251,9 +251,21 @@ typedef struct {
     void (*state_release)(FmuState *s, int alive);
     Status (*state_bytes)(Ctx *x, FmuState *s, const char **data, size_t *n);
     Status (*state_from_bytes)(Ctx *x, FmuState *s, const char *data, size_t n);
+    /* optional (NULL: none): a Real get (out) or set (in) of the step's kind that needs
+     * nothing of a call's framing. The layer offers it a call that no check of its own
+     * would refuse or log (instance live in a state that allows the call, no call
+     * logging, nValues = nvr); it returns 1 having done the call as get/set would, with
+     * nothing to report, or 0 without touching anything, when any reference needs
+     * get/set's checks or messages (then the call takes the full path) */
+    int (*quick_real)(Instance *inst, const ValueRef vr[], size_t nvr, const double *in,
+                      double *out);
 } Backend;
 
-/* defined once per binary by its back end */
+/* defined once per binary by its back end; internal to the binary (its definition is
+ * hidden by -fvisibility=hidden; hidden here too, the layer reaches it without the GOT) */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(_WIN32)
+__attribute__((visibility("hidden")))
+#endif
 extern const Backend GLIDER_BACKEND;
 
 #endif

@@ -61,6 +61,10 @@ typedef struct {
     size_t nreal_inputs;
 } NativeModel;
 
+/* internal to the binary, as GLIDER_BACKEND (fmi_layer.h): reached without the GOT */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(_WIN32)
+__attribute__((visibility("hidden")))
+#endif
 extern const NativeModel GLIDER_NATIVE_MODEL;
 
 /* Python's repr() of a float (shortest round trip: 0.1, 100.0, 1e-05, inf, nan), for

@@ -448,3 +448,36 @@ def test_instances_made_and_freed_on_many_threads_stay_apart(native_dir):
         t.join()
     for w in range(4):
         assert got[w] == [expected[k % 50] for k in range(w, w + 400)]
+
+
+def test_the_exchanges_quick_path_gives_what_the_full_path_gives(native_dir):
+    """The native back end's gets and sets of Reals skip the layer's call framing unless a
+    call is logged: the same loop with every call logged (logFmiCalls: the full path)
+    gives the same rows bit for bit, and an output set in between is still refused."""
+    from ctypes import c_char_p
+
+    from raw_fmi import Loop
+
+    def run(logged: bool) -> tuple[list[list[float]], int]:
+        raws = {n: RawFMU(native_dir / f"Glider{n.title()}.fmu")
+                for n in ("plant", "observer", "controller")}  # fmt: skip
+        loop = Loop(raws, "quick" if not logged else "full")
+        loop.instantiate()
+        if logged:
+            for inst, raw in raws.items():
+                cats = (c_char_p * 1)(b"logFmiCalls")
+                assert raw.SetDebugLogging(loop.c[inst], 1, 1, cats) == 0
+        loop.initialize({"controller": {"K_c": 10.0}})
+        rows = loop.step(150)
+        raw = raws["plant"]
+        assert raw.set_real(loop.c["plant"], theta_meas=0.0) == 3  # an output: fmi2Error
+        assert raw.errors()[-1].endswith("theta_meas is an output: it cannot be set")
+        calls = sum(m.text == "fmi2GetReal" for r in raws.values() for m in r.messages)
+        loop.free()
+        return rows, calls
+
+    quick, quick_calls = run(logged=False)
+    full, full_calls = run(logged=True)
+    assert quick_calls == 0 and full_calls > 150 * 5  # the full path logged every get
+    assert np.array_equal(np.array(quick), np.array(full))
+    assert np.isfinite(np.array(quick)).all() and len(quick) == 150
