@@ -59,24 +59,25 @@ class _Parser(argparse.ArgumentParser):
             )  # fmt: skip
 
 
-def _positive(text: str) -> float:
+def _number(text: str, zero: bool) -> float:
+    """A finite number > 0 (``zero``: >= 0) from the command line."""
     try:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{quote(text)} is not a number") from None
-    if not v > 0 or v != v or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected a finite number > 0")
+    if not (v >= 0 if zero else v > 0) or v == float("inf"):
+        raise argparse.ArgumentTypeError(
+            f"{quote(text)} is invalid: expected a finite number {'>=' if zero else '>'} 0"
+        )
     return v
+
+
+def _positive(text: str) -> float:
+    return _number(text, zero=False)
 
 
 def _non_negative(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{quote(text)} is not a number") from None
-    if not v >= 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected a finite number >= 0")
-    return v
+    return _number(text, zero=True)
 
 
 def _count(text: str) -> int:

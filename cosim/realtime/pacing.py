@@ -64,16 +64,20 @@ class RealTime:
     spin_ms: float = SPIN_MS
 
     def __post_init__(self) -> None:
-        if isinstance(self.rtf, bool) or not (math.isfinite(self.rtf) and self.rtf > 0):
-            raise SystemSpecError(f"rtf {self.rtf!r} is invalid: expected a finite number > 0")
-        m = self.max_lateness_ms
-        if m is not None and not (math.isfinite(m) and m > 0):
-            raise SystemSpecError(
-                f"max_lateness_ms {m!r} is invalid: expected a finite number > 0 (ms)"
-            )
-        sp = self.spin_ms
-        if isinstance(sp, bool) or not (math.isfinite(sp) and sp >= 0):
-            raise SystemSpecError(f"spin_ms {sp!r} is invalid: expected a finite number >= 0 (ms)")
+        _check("rtf", self.rtf, zero=False, unit="")
+        if self.max_lateness_ms is not None:
+            _check("max_lateness_ms", self.max_lateness_ms, zero=False, unit=" (ms)")
+        _check("spin_ms", self.spin_ms, zero=True, unit=" (ms)")
+
+
+def _check(name: str, value: Any, zero: bool, unit: str) -> None:
+    """Refuse ``value`` unless it is a finite number > 0 (``zero``: >= 0)."""
+    ok = not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+    if not (ok and (value >= 0 if zero else value > 0)):
+        raise SystemSpecError(
+            f"{name} {value!r} is invalid: expected a finite number {'>=' if zero else '>'} 0"
+            + unit
+        )
 
 
 class Pacer:

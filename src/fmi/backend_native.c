@@ -138,28 +138,30 @@ static Status nat_transition(Ctx *x, int call) {
 }
 
 /* ------------------------------------------------------------------ value access */
-/* The computed outputs brought up to date when one of them is read. */
-static void update_computed(NativeInstance *ni, const ValueRef vr[], size_t nvr) {
+/* The values of Real variables vr (checked), the computed outputs brought up to date
+ * first when one of them is read. */
+static void get_reals(NativeInstance *ni, const ValueRef vr[], size_t nvr, double *out) {
     size_t i;
-    if (!M.update) return;
-    for (i = 0; i < nvr; ++i) {
+    for (i = 0; M.update && i < nvr; ++i) {
         if (M.vars[vr[i]].computed) {
             M.update(ni->model, ni->time, ni->initialized);
-            return;
+            break;
         }
     }
+    for (i = 0; i < nvr; ++i) out[i] = *(const double *)value_at(ni, &M.vars[vr[i]]);
 }
 
 static Status nat_get(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *out) {
     NativeInstance *ni = NI(x->inst);
     size_t i;
     if (type == T_STRING) return FAIL(x, "the model has no String variables");
-    update_computed(ni, vr, nvr);
-    for (i = 0; i < nvr; ++i) {
-        const void *p = value_at(ni, &M.vars[vr[i]]);
-        if (type == T_REAL) ((double *)out)[i] = *(const double *)p;
-        else if (type == T_INTEGER) ((int *)out)[i] = *(const int *)p;
-        else ((int *)out)[i] = *(const int *)p ? 1 : 0;
+    if (type == T_REAL) {
+        get_reals(ni, vr, nvr, out);
+        return ST_OK;
+    }
+    for (i = 0; i < nvr; ++i) { /* Integer and Boolean variables are ints */
+        const int *p = value_at(ni, &M.vars[vr[i]]);
+        ((int *)out)[i] = type == T_INTEGER ? *p : *p ? 1 : 0;
     }
     return ST_OK;
 }
@@ -193,21 +195,14 @@ static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const 
 static int nat_quick_real(Instance *inst, const ValueRef vr[], size_t nvr, const double *in,
                           double *out) {
     NativeInstance *ni = NI(inst);
-    const NativeVar *vars = M.vars;
-    const char *types = M.var_types;
-    const size_t nvars = M.nvars;
-    char *data = (char *)ni->model;
     size_t i;
     for (i = 0; i < nvr; ++i) {
-        if (vr[i] >= nvars || types[vr[i]] != T_REAL) return 0;
-        if (!out && vars[vr[i]].causality != NV_INPUT) return 0;
+        if (vr[i] >= M.nvars || M.var_types[vr[i]] != T_REAL) return 0;
+        if (!out && M.vars[vr[i]].causality != NV_INPUT) return 0;
     }
-    if (out) {
-        update_computed(ni, vr, nvr);
-        for (i = 0; i < nvr; ++i) out[i] = *(const double *)(data + vars[vr[i]].offset);
-    } else {
-        for (i = 0; i < nvr; ++i) *(double *)(data + vars[vr[i]].offset) = in[i];
-    }
+    if (out) get_reals(ni, vr, nvr, out);
+    else
+        for (i = 0; i < nvr; ++i) *(double *)value_at(ni, &M.vars[vr[i]]) = in[i];
     return 1;
 }
 

@@ -260,10 +260,8 @@ static int calls_logged(const Instance *inst) {
 static Status begin(Ctx *x, void *c, int call) {
     Instance *inst;
     Status st;
+    memset(x, 0, sizeof *x);
     x->call = call;
-    x->token = x->have_token = 0;
-    x->msgs = NULL;
-    x->nmsgs = x->cap = 0;
     x->inst = inst = lookup(c);
     if (!inst) return ST_ERROR; /* not an instance of this FMU: nobody to log to */
     if ((st = enter(x)) != ST_OK) return st;
@@ -289,10 +287,6 @@ static Status end(Ctx *x, Status status) {
     if (!inst) return status;
     if (status == ST_FATAL) inst->state = S_FATAL;
     else if (status == ST_ERROR && inst->state != S_FATAL) inst->state = S_ERROR;
-    if (!x->msgs) { /* nothing to log: the common call */
-        if (x->have_token) leave(x);
-        return status;
-    }
     for (i = 0; i < x->nmsgs; ++i) {
         if (!should_log(inst, x->msgs[i].status, x->msgs[i].category)) {
             free(x->msgs[i].text);
