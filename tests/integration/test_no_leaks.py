@@ -160,18 +160,49 @@ def test_extractions_are_reused_within_a_process(fmu_dir):
     assert Path(a).is_relative_to(temp_root())
 
 
-def test_cli_run_with_plots_writes_nothing_in_home(fmu_dir, tmp_path):
-    """matplotlib's font cache goes to the run's temporary folder, not ``~/.cache``."""
+def _run_with_plots(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
+    p = subprocess.run([sys.executable, "-c", CLI, "run", "--fmu-dir", str(fmu_dir), "--out",
+                        str(tmp_path / out), "--stop-time", "2"], capture_output=True, text=True,
+                       env=env, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / out / "pitch.png").is_file()
+    return p
+
+
+def test_cli_run_keeps_the_font_cache_in_our_cache_only(fmu_dir, tmp_path):
+    """matplotlib's font cache goes to glider-cosim's per-user cache (``<cache>/matplotlib``,
+    here ``$GLIDER_COSIM_CACHE``), nothing into the home folder, and the next run reuses
+    it (read, not rebuilt)."""
     home = tmp_path / "home"
     home.mkdir()
     env = private_env(tmp_path / "t") | {"HOME": str(home)}
-    env.pop("MPLCONFIGDIR", None)
-    env.pop("XDG_CACHE_HOME", None)
-    env.pop("XDG_CONFIG_HOME", None)
-    p = subprocess.run([sys.executable, "-c", CLI, "run", "--fmu-dir", str(fmu_dir), "--out",
-                        str(tmp_path / "o"), "--stop-time", "2"], capture_output=True, text=True,
-                       env=env, timeout=300)  # fmt: skip
-    assert p.returncode == 0, p.stderr
-    assert (tmp_path / "o" / "pitch.png").is_file()
+    cache = Path(env["GLIDER_COSIM_CACHE"])  # the suite's (the master's C loop built there)
+    for key in ("MPLCONFIGDIR", "XDG_CACHE_HOME", "XDG_CONFIG_HOME"):
+        env.pop(key, None)
+    _run_with_plots(tmp_path, fmu_dir, env, "o1")
+    fonts = sorted((cache / "matplotlib").glob("fontlist-*.json"))
+    assert len(fonts) == 1, sorted(cache.rglob("*"))
+    before = fonts[0].stat().st_mtime_ns
+    _run_with_plots(tmp_path, fmu_dir, env, "o2")
+    assert fonts[0].stat().st_mtime_ns == before
     assert list(home.rglob("*")) == []
     assert list((tmp_path / "t").iterdir()) == []
+
+
+def test_cli_run_without_a_writable_cache_keeps_the_fonts_in_its_temporary_folder(
+    fmu_dir, tmp_path
+):  # fmt: skip
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file where the cache would be")
+    home = tmp_path / "home"
+    home.mkdir()
+    zig = os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
+    env = private_env(tmp_path / "t") | {
+        "HOME": str(home),
+        "ZIG_GLOBAL_CACHE_DIR": zig,
+        "GLIDER_COSIM_CACHE": str(blocker / "cache"),
+    }
+    env.pop("MPLCONFIGDIR", None)
+    _run_with_plots(tmp_path, fmu_dir, env, "o")
+    assert list(home.rglob("*")) == []
+    assert list((tmp_path / "t").iterdir()) == []  # the temporary font cache is gone too
