@@ -139,3 +139,19 @@ def test_gitignore_covers_every_folder_build_writes(flavor, fmi):
     fmu = default_dir(flavor, fmi) / "GliderPlant.fmu"
     p = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(fmu)], cwd=repo)
     assert p.returncode == 0, f"{fmu} is not in .gitignore"
+
+
+def test_cache_names_the_font_cache_of_the_command_line(monkeypatch, tmp_path, capsys):
+    from glider_cosim.cli import main
+    from glider_cosim.fmus.files import package_version
+
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
+    fonts = tmp_path / package_version() / "matplotlib"
+    fonts.mkdir(parents=True)
+    (fonts / "fontlist-v390.json").write_bytes(b"{}" * 50)
+    assert main(["cache"]) == 0
+    body = [" ".join(line.split()) for line in capsys.readouterr().out.splitlines()]
+    assert (
+        f"{package_version()}/matplotlib 100 B matplotlib's font cache (the command line's plots)"
+        in body
+    )

@@ -47,22 +47,21 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def _matplotlib_cache() -> None:
     """matplotlib's font cache in glider-cosim's per-user cache, beside the built FMUs
-    (``<cache>/matplotlib``, :func:`~glider_cosim.fmus.files.cache_root`), not
-    ``~/.cache/matplotlib``: a command writes nothing outside its output folder and our
-    cache (unless the user points ``MPLCONFIGDIR`` somewhere). Built once: rebuilding it
-    at every run cost 0.2 s, on the drawing's critical path (issue 31). Where that
-    folder cannot be written, the process's temporary folder holds it."""
+    (``<cache>/<version>/matplotlib``, :func:`~glider_cosim.fmus.files.cache_root`;
+    matplotlib creates it when it first draws), not ``~/.cache/matplotlib``: a command
+    writes nothing outside its output folder and our cache (unless the user points
+    ``MPLCONFIGDIR`` somewhere). Built once: rebuilt at every run, it cost 0.2 s on the
+    drawing's critical path (issue 31). Where it cannot be written, the process's
+    temporary folder holds it."""
     if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
         return
-    from ..fmus.files import cache_root
+    from ..fmus.files import cache_root, package_version
 
-    folder = cache_root() / "matplotlib"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        writable = os.access(folder, os.W_OK | os.X_OK)
-    except OSError:
-        writable = False
-    if not writable:
+    folder = cache_root() / package_version() / "matplotlib"
+    existing = folder
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent
+    if not (existing.is_dir() and os.access(existing, os.W_OK | os.X_OK)):
         from ..inputs.tempdirs import new_temp_dir
 
         folder = new_temp_dir("matplotlib_")

@@ -161,6 +161,9 @@ def test_extractions_are_reused_within_a_process(fmu_dir):
 
 
 def _run_with_plots(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
+    """A run with plots; zig's own cache (the master's C loop may be compiled) where it is."""
+    zig = os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
+    env = env | {"ZIG_GLOBAL_CACHE_DIR": zig}
     p = subprocess.run([sys.executable, "-c", CLI, "run", "--fmu-dir", str(fmu_dir), "--out",
                         str(tmp_path / out), "--stop-time", "2"], capture_output=True, text=True,
                        env=env, timeout=300)  # fmt: skip
@@ -170,9 +173,9 @@ def _run_with_plots(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str
 
 
 def test_cli_run_keeps_the_font_cache_in_our_cache_only(fmu_dir, tmp_path):
-    """matplotlib's font cache goes to glider-cosim's per-user cache (``<cache>/matplotlib``,
-    here ``$GLIDER_COSIM_CACHE``), nothing into the home folder, and the next run reuses
-    it (read, not rebuilt)."""
+    """matplotlib's font cache goes to glider-cosim's per-user cache
+    (``<cache>/<version>/matplotlib``, here ``$GLIDER_COSIM_CACHE``), nothing into the home
+    folder, and the next run reuses it (read, not rebuilt)."""
     home = tmp_path / "home"
     home.mkdir()
     env = private_env(tmp_path / "t") | {"HOME": str(home)}
@@ -180,7 +183,9 @@ def test_cli_run_keeps_the_font_cache_in_our_cache_only(fmu_dir, tmp_path):
     for key in ("MPLCONFIGDIR", "XDG_CACHE_HOME", "XDG_CONFIG_HOME"):
         env.pop(key, None)
     _run_with_plots(tmp_path, fmu_dir, env, "o1")
-    fonts = sorted((cache / "matplotlib").glob("fontlist-*.json"))
+    from glider_cosim.fmus.files import package_version
+
+    fonts = sorted((cache / package_version() / "matplotlib").glob("fontlist-*.json"))
     assert len(fonts) == 1, sorted(cache.rglob("*"))
     before = fonts[0].stat().st_mtime_ns
     _run_with_plots(tmp_path, fmu_dir, env, "o2")
@@ -196,10 +201,8 @@ def test_cli_run_without_a_writable_cache_keeps_the_fonts_in_its_temporary_folde
     blocker.write_text("a file where the cache would be")
     home = tmp_path / "home"
     home.mkdir()
-    zig = os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
     env = private_env(tmp_path / "t") | {
         "HOME": str(home),
-        "ZIG_GLOBAL_CACHE_DIR": zig,
         "GLIDER_COSIM_CACHE": str(blocker / "cache"),
     }
     env.pop("MPLCONFIGDIR", None)
