@@ -1,7 +1,7 @@
 """Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
 against the same sampled loop calling the model code directly (no FMI).
 
-Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only]
+Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only] [--fresh-font-cache]
 The last line with --json is one JSON object (figures quoted in
 docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
 cold run. --cli-only measures the command line alone: ``glider-cosim run`` with and
@@ -246,10 +246,18 @@ def cold_run_seconds(fmu_dir: Path, out: Path) -> float:
     return time.perf_counter() - t0
 
 
+#: ``--fresh-font-cache``: each command with a new, empty matplotlib font cache (the CLI
+#: before it kept one in its cache folder: the fonts were scanned again at every run)
+FRESH_FONTS: list[Path] = []
+
+
 def _cli_seconds(*args: str) -> float:
+    env = None
+    if FRESH_FONTS:
+        env = {**os.environ, "MPLCONFIGDIR": tempfile.mkdtemp(dir=FRESH_FONTS[0])}
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-c", "from glider_cosim.cli import console_main; "
-                    "console_main()", *args], check=True, capture_output=True)  # fmt: skip
+                    "console_main()", *args], check=True, capture_output=True, env=env)  # fmt: skip
     return time.perf_counter() - t0
 
 
@@ -266,6 +274,9 @@ def cli_seconds(fmu_dir: Path | None, out: Path, native_dir: Path) -> dict[str, 
                    *extra)  # fmt: skip
             _cli_seconds(*run)
             found[prefix + key] = round(statistics.median(_cli_seconds(*run) for _ in range(5)), 3)
+        found[prefix + "cli_plots_ratio"] = round(
+            found[prefix + "cli_run_s"] / found[prefix + "cli_run_no_plots_s"], 3
+        )
     _cli_seconds("--help")
     found["cli_help_s"] = round(statistics.median(_cli_seconds("--help") for _ in range(5)), 3)
     return found
@@ -279,6 +290,9 @@ def main() -> None:
     ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
     ap.add_argument("--native-only", action="store_true", help="the native figures alone")
     ap.add_argument("--cli-only", action="store_true", help="the command line's figures alone")
+    ap.add_argument("--fresh-font-cache", action="store_true",
+                    help="each command with a new, empty matplotlib font cache (as before "
+                         "the CLI kept it)")  # fmt: skip
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
@@ -288,6 +302,8 @@ def main() -> None:
     result: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
+        if args.fresh_font_cache:
+            FRESH_FONTS.append(out)
         cli = cli_seconds(None if args.native_only else fmu_dir, out, native_dir)
         if args.cli_only:
             emit({**cli, "load_average": os.getloadavg(), "cpus": os.cpu_count()}, args.json)
