@@ -1,12 +1,13 @@
 """Benchmark: where the native flavor's time per macro step goes, function by function,
 against the same C models called directly in one C loop (the floor), sampled by ``perf``.
 
-Usage: python bench/overhead_profile.py [--reps 200] [--period-us 50] [--json]
+Usage: python bench/overhead_profile.py [--reps 200] [--rounds 3] [--period-us 50] [--json]
 
-Two child processes run the default scenario ``--reps`` times (3000 macro steps each,
-recorded in memory): one the floor (``glider_cosim.runner.monolithic``, no FMI), one the
-native FMUs through the master's C block loop (``CoSimulation.advance``), each under
-``perf record -e cpu-clock`` with a fixed sampling period. Each child times its loop
+Child processes run the default scenario ``--reps`` times (3000 macro steps each,
+recorded in memory), ``--rounds`` of each kind alternated: the floor
+(``glider_cosim.runner.monolithic``, no FMI), and the native FMUs through the master's
+C block loop (``CoSimulation.advance``), each under ``perf record -e cpu-clock`` with a
+fixed sampling period. Each child times its loop
 (``perf_counter``); the samples in the loop's code are then split by source file (the
 FMUs' binaries carry their debug information, read with ``nm -l``):
 
@@ -120,7 +121,7 @@ def profile(kind: str, reps: int, period_us: int, work: Path, fmu_dir: Path) -> 
     """Run one child under perf; its timed us per step and its samples by (dso, symbol)."""
     data = work / f"{kind}.perf"
     env = {**os.environ, "GLIDER_COSIM_TMP": str(work / "tmp"), "BENCH_FMU_DIR": str(fmu_dir)}
-    (work / "tmp").mkdir(exist_ok=True)
+    (work / "tmp").mkdir(parents=True, exist_ok=True)
     p = subprocess.run(
         ["perf", "record", "-q", "-e", "cpu-clock", "-c", str(period_us * 1000), "-o", str(data),
          sys.executable, __file__, "--child", kind, "--reps", str(reps)],
@@ -148,6 +149,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=200, help="runs of 3000 steps of each loop")
     ap.add_argument("--period-us", type=int, default=50, help="perf's sampling period, us")
+    ap.add_argument("--rounds", type=int, default=3, help="alternated runs of each loop")
     ap.add_argument("--fmu-dir", default=None, help="native FMUs (default: the per-user cache)")
     ap.add_argument("--child", choices=("floor", "fmi"), help=argparse.SUPPRESS)
     ap.add_argument("--json", action="store_true")
@@ -161,13 +163,23 @@ def main() -> None:
     fmu_dir = prepare_fmus(args.fmu_dir, "native").resolve()
     work = Path(tempfile.mkdtemp(prefix="overhead_profile_"))
     try:
-        runs = {k: profile(k, args.reps, args.period_us, work, fmu_dir) for k in ("floor", "fmi")}
+        runs: dict[str, dict] = {}
+        for r in range(args.rounds):  # alternated: a slow spell of the machine hits both
+            for kind in ("floor", "fmi"):
+                got = profile(kind, args.reps, args.period_us, work / f"{kind}{r}", fmu_dir)
+                run = runs.setdefault(kind, {"times": [], "samples": {}, "binaries": {}})
+                run["times"].append(got["us_per_step"])
+                for key, n in got["samples"].items():
+                    run["samples"][key] = run["samples"].get(key, 0) + n
+                run["binaries"].update(got["binaries"])
+        for run in runs.values():
+            run["us_per_step"] = sum(run["times"]) / len(run["times"])
         files: dict[str, dict[str, str]] = {}
         for run in runs.values():
             for name, path in run["binaries"].items():
                 files.setdefault(name, _symbol_files(path))
         model_syms = {s for f in files.values() for s, src in f.items() if src.endswith("_model.c")}
-        steps = args.reps * STEPS
+        steps = args.reps * STEPS * args.rounds
         result: dict = {"reps": args.reps, "steps_per_rep": STEPS, "period_us": args.period_us}
         for kind, run in runs.items():
             parts: dict[str, float] = defaultdict(float)
@@ -178,7 +190,8 @@ def main() -> None:
                     us = n * args.period_us / steps
                     parts[part] += us
                     top[f"{dso}:{sym}"] += us
-            result[f"{kind}_us_per_macro_step"] = run["us_per_step"]
+            result[f"{kind}_us_per_macro_step"] = round(run["us_per_step"], 4)
+            result[f"{kind}_us_per_macro_step_per_round"] = [round(t, 4) for t in run["times"]]
             result[f"{kind}_sampled_us"] = {p: round(parts.get(p, 0.0), 4) for p in PARTS}
             result[f"{kind}_sampled_total_us"] = round(sum(parts.values()), 4)
             result[f"{kind}_top"] = {
