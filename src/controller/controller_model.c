@@ -11,9 +11,12 @@ double passivity_output(double V, double theta_g, const GliderParams *p,
     double th = theta_g - eq->theta_g;
     double k = p->K_Fdelta / eq->K_De;
     double one_v = 1.0 + v;
-    double g1 = k * one_v * one_v * sin(eq->alpha);
-    double g2 = k * one_v * cos(eq->alpha);
-    return (one_v * one_v - cos(th)) * g1 + one_v * sin(th) * g2;
+    double s_al, c_al, s_th, c_th;
+    GLIDER_SINCOS(eq->alpha, &s_al, &c_al);
+    GLIDER_SINCOS(th, &s_th, &c_th);
+    double g1 = k * one_v * one_v * s_al;
+    double g2 = k * one_v * c_al;
+    return (one_v * one_v - c_th) * g1 + one_v * s_th * g2;
 }
 
 double passivity_law(double V, double theta_g, double K_c, const GliderParams *p,

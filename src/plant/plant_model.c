@@ -289,32 +289,37 @@ void glider_equilibrium(const GliderParams *p, GliderEquilibrium *eq)
 
 /* ---- right-hand side ---------------------------------------------------------------- */
 
-/* rhs() with m0g = m0 * g computed once by the caller, as constants(p) does */
+/* rhs() with m0g = m0 * g computed once by the caller, as constants(p) does; sc_th gets
+ * sin(th) and cos(th) (the position's integration needs them too) */
 static void rhs_c(double V, double th, double al, double w, double u_delta, const GliderParams *p,
-                  double m0g, double F_x, double F_z, double M_y, double out[4])
+                  double m0g, double F_x, double F_z, double M_y, double out[4], double sc_th[2])
 {
     double V2 = V * V;
-    double s_th = sin(th);
-    double c_th = cos(th);
+    double s_th, c_th, s_al, c_al;
+    GLIDER_SINCOS(th, &s_th, &c_th);
+    GLIDER_SINCOS(al, &s_al, &c_al);
     double lift = (p->K_L0 + p->K_L * al) * V2;
     double drag = (p->K_D0 + p->K_D * al * al) * V2;
     double f_delta = p->K_Fdelta * V2 * u_delta;
     double f_v = F_x * c_th - F_z * s_th;
     double f_n = -F_x * s_th - F_z * c_th;
-    double dV = (-m0g * s_th - drag + f_delta * sin(al) + f_v) / p->m;
-    double dth = (-m0g * c_th + lift + f_delta * cos(al) + f_n) / (p->m * V);
+    double dV = (-m0g * s_th - drag + f_delta * s_al + f_v) / p->m;
+    double dth = (-m0g * c_th + lift + f_delta * c_al + f_n) / (p->m * V);
     double dw = ((p->K_M0 + p->K_M * al + p->K_q * w - p->K_M * u_delta) * V2 + M_y) / p->J2;
     out[0] = dV;
     out[1] = dth;
     out[2] = w - dth;
     out[3] = dw;
+    sc_th[0] = s_th;
+    sc_th[1] = c_th;
 }
 
 void glider_rhs(double V, double th, double al, double w, double u_delta, const GliderParams *p,
                 double F_x, double F_z, double M_y, double out[4])
 {
     double m0g = p->m0 * p->g;
-    rhs_c(V, th, al, w, u_delta, p, m0g, F_x, F_z, M_y, out);
+    double sc_th[2];
+    rhs_c(V, th, al, w, u_delta, p, m0g, F_x, F_z, M_y, out, sc_th);
 }
 
 double glider_servo_response(double delta0, double command, double tau, double dt)
@@ -361,6 +366,7 @@ int glider_plant_step(double x[6], double *delta, double delta_cmd, double h,
     double nd, dt, F_x, F_z, M_y, ku, m0g;
     double V, th, al, w, px, pz;
     double k1[4], k2[4], k3[4], k4[4], x2[4], x3[4], x4[4], st[6];
+    double sc1[2], sc2[2], sc3[2], sc4[2]; /* sin, cos of each stage's th */
     long i, n;
 
     if (fabs(d0) > GP_SERVO_DEVIATION_REF) {
@@ -393,26 +399,25 @@ int glider_plant_step(double x[6], double *delta, double delta_cmd, double h,
         double uh = ku * (delta_cmd + d0 * eh);
         double u1 = ku * (delta_cmd + d0 * e1);
         double kx, kz, c;
-        rhs_c(V, th, al, w, u0, p, m0g, F_x, F_z, M_y, k1);
+        rhs_c(V, th, al, w, u0, p, m0g, F_x, F_z, M_y, k1, sc1);
         x2[0] = V + 0.5 * dt * k1[0];
         x2[1] = th + 0.5 * dt * k1[1];
         x2[2] = al + 0.5 * dt * k1[2];
         x2[3] = w + 0.5 * dt * k1[3];
-        rhs_c(x2[0], x2[1], x2[2], x2[3], uh, p, m0g, F_x, F_z, M_y, k2);
+        rhs_c(x2[0], x2[1], x2[2], x2[3], uh, p, m0g, F_x, F_z, M_y, k2, sc2);
         x3[0] = V + 0.5 * dt * k2[0];
         x3[1] = th + 0.5 * dt * k2[1];
         x3[2] = al + 0.5 * dt * k2[2];
         x3[3] = w + 0.5 * dt * k2[3];
-        rhs_c(x3[0], x3[1], x3[2], x3[3], uh, p, m0g, F_x, F_z, M_y, k3);
+        rhs_c(x3[0], x3[1], x3[2], x3[3], uh, p, m0g, F_x, F_z, M_y, k3, sc3);
         x4[0] = V + dt * k3[0];
         x4[1] = th + dt * k3[1];
         x4[2] = al + dt * k3[2];
         x4[3] = w + dt * k3[3];
-        rhs_c(x4[0], x4[1], x4[2], x4[3], u1, p, m0g, F_x, F_z, M_y, k4);
-        kx = V * cos(th) + 2.0 * x2[0] * cos(x2[1]) + 2.0 * x3[0] * cos(x3[1]) +
-             x4[0] * cos(x4[1]);
-        kz = V * sin(th) + 2.0 * x2[0] * sin(x2[1]) + 2.0 * x3[0] * sin(x3[1]) +
-             x4[0] * sin(x4[1]);
+        rhs_c(x4[0], x4[1], x4[2], x4[3], u1, p, m0g, F_x, F_z, M_y, k4, sc4);
+        /* cos(th), cos(x2[1]), ... as the stages' right-hand sides computed them */
+        kx = V * sc1[1] + 2.0 * x2[0] * sc2[1] + 2.0 * x3[0] * sc3[1] + x4[0] * sc4[1];
+        kz = V * sc1[0] + 2.0 * x2[0] * sc2[0] + 2.0 * x3[0] * sc3[0] + x4[0] * sc4[0];
         c = dt / 6.0;
         V += c * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]);
         th += c * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]);
