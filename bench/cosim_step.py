@@ -1,7 +1,8 @@
 """Benchmark: microseconds per macro step of the default scenario (3 FMUs, recording on),
 against the same sampled loop calling the model code directly (no FMI).
 
-Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only] [--fresh-font-cache]
+Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only]
+       [--fresh-font-cache]
 The last line with --json is one JSON object (figures quoted in
 docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
 cold run. --cli-only measures the command line alone: ``glider-cosim run`` with and
