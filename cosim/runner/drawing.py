@@ -1,7 +1,9 @@
 """A run's PNG plots and ``plots.html`` drawn off the critical path (issue 31).
 
 :func:`start_drawer` forks a child process at the start of :func:`~.run.simulate`: it
-imports matplotlib and warms its fonts while the co-simulation runs, then waits. When the
+imports matplotlib, warms its fonts and makes the plots' blank figures
+(:func:`~.plots.make_ahead`, until the results come) while the co-simulation runs, then
+waits. When the
 run's results are in, :meth:`Drawer.draw` sends them over a pipe, the child draws every
 PNG and the page, and :meth:`Drawer.draw` returns once they are all written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
@@ -147,12 +149,16 @@ def _child(conn: Any, parents_end: Any) -> None:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from . import pages, plots  # noqa: F401 (imported now, while the run runs)
+        from . import pages, plots  # noqa: F401 (pages: imported now, while the run runs)
 
         fig = plt.figure(figsize=(1, 1))  # loads the fonts
         fig.text(0.5, 0.5, "0.5 [deg]")
         fig.canvas.draw()
         plt.close(fig)
+        for kind in plots.FIGURE_KINDS:  # the blank figures, until the results come
+            if conn.poll():
+                break
+            plots.make_ahead(kind)
     except Exception:  # noqa: S110 - drawn again below, where the error is reported
         pass
     try:

@@ -123,7 +123,7 @@ def read_png_record(path: Path) -> dict[str, Any]:
 
 def _glide_angle(result: Any, out: Path) -> Path:
     t = result.data[:, 0]
-    fig, ax = plt.subplots(figsize=(7, 3.6), gridspec_kw=SINGLE_MARGINS)
+    fig, ax = _single_figure()
     ax.plot(t, result.column("plant.theta_g") * _DEG, lw=1.4, label="true")
     if "observer.theta_g_hat" in result.columns:
         ax.plot(t, result.column("observer.theta_g_hat") * _DEG, lw=1.0, ls="--",
@@ -176,10 +176,42 @@ def _pitch(result: Any, out: Path) -> Path:
                         result)  # fmt: skip
 
 
+#: blank figures made ahead (:func:`make_ahead`), taken by the next figures drawn
+_AHEAD: dict[str, list[tuple[Any, Any]]] = {"single": [], "pair": []}
+#: the figures of a run's plots, by kind (what :func:`make_ahead` prepares)
+FIGURE_KINDS = ("pair", "pair", "single", "single", "single")
+
+
+def _new_figure(kind: str) -> tuple[Any, Any]:
+    if kind == "pair":  # two panels sharing their time axis: values above, differences below
+        return plt.subplots(2, 1, figsize=(7, 5.2), sharex=True,
+                            gridspec_kw={**PAIR_MARGINS, "height_ratios": (2, 1)})  # fmt: skip
+    return plt.subplots(figsize=(7, 3.6), gridspec_kw=SINGLE_MARGINS)
+
+
+def _single_figure() -> tuple[Any, Any]:
+    """A figure of one panel (made ahead if one is waiting)."""
+    return _AHEAD["single"].pop() if _AHEAD["single"] else _new_figure("single")
+
+
 def _pair_figure() -> tuple[Any, tuple[Any, Any]]:
-    """A figure of two panels sharing their time axis: values above, differences below."""
-    return plt.subplots(2, 1, figsize=(7, 5.2), sharex=True,
-                        gridspec_kw={**PAIR_MARGINS, "height_ratios": (2, 1)})  # fmt: skip
+    """A figure of two panels sharing their time axis: values above, differences below
+    (made ahead if one is waiting)."""
+    return _AHEAD["pair"].pop() if _AHEAD["pair"] else _new_figure("pair")
+
+
+def make_ahead(kind: str) -> None:
+    """Make a blank figure of ``kind`` (``"single"`` or ``"pair"``) for the next figure of
+    that kind: what creating the figure and its axes costs (about 5 and 9 ms) is then paid
+    before the data is there (the drawing process, while the run runs)."""
+    _AHEAD[kind].append(_new_figure(kind))
+
+
+def discard_ahead() -> None:
+    """Close the blank figures :func:`make_ahead` made and no plot took."""
+    for kind in _AHEAD:
+        while _AHEAD[kind]:
+            plt.close(_AHEAD[kind].pop()[0])
 
 
 def _finish_pair(
@@ -219,7 +251,7 @@ def _tail(result: Any, out: Path) -> Path:
 
 def _speed(result: Any, out: Path) -> Path:
     t = result.data[:, 0]
-    fig, ax = plt.subplots(figsize=(7, 3.6), gridspec_kw=SINGLE_MARGINS)
+    fig, ax = _single_figure()
     ax.plot(t, result.column("plant.V"), lw=1.4, label="true")
     if "observer.V_hat" in result.columns:
         ax.plot(t, result.column("observer.V_hat"), lw=1.0, ls="--", label="estimate")
@@ -234,7 +266,7 @@ def _speed(result: Any, out: Path) -> Path:
 
 
 def _depth(result: Any, out: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(7, 3.6), gridspec_kw=SINGLE_MARGINS)
+    fig, ax = _single_figure()
     x, z, t = result.column("plant.x"), result.column("plant.z"), result.data[:, 0]
     ax.plot(x, z, lw=1.2)
     for ev in _events(result):  # not a time axis: the events as points on the path

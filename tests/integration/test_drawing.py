@@ -45,6 +45,48 @@ def test_the_child_writes_what_the_process_writes(result, tmp_path):
     assert multiprocessing.active_children() == []
 
 
+def test_figures_made_ahead_draw_the_same_files(result, tmp_path):
+    """The blank figures the drawing process makes while the run runs are the ones the
+    plots take, and the files are byte for byte those of figures made on demand."""
+    from glider_cosim.runner import plots
+
+    fresh, ahead = tmp_path / "fresh", tmp_path / "ahead"
+    fresh.mkdir()
+    ahead.mkdir()
+    drawing.draw_plots(result, fresh)
+    for kind in plots.FIGURE_KINDS:
+        plots.make_ahead(kind)
+    made = [fig for kind in ("single", "pair") for fig, _ in plots._AHEAD[kind]]
+    assert len(made) == len(plots.FIGURE_KINDS)
+    kept: list = []
+    built = plots.write_plots(drawing.PlotData.of(result), ahead, keep=kept)
+    try:
+        assert plots._AHEAD == {"single": [], "pair": []}  # every one taken
+        assert set(map(id, kept)) == set(map(id, made))
+    finally:
+        plots.discard_ahead()
+        for fig in kept:
+            plots.plt.close(fig)
+    mine = _files(fresh)
+    for name, path in built.items():
+        assert path.read_bytes() == mine[path.name], name
+
+
+def test_the_child_draws_on_figures_made_ahead(result, tmp_path):
+    """A child given time to make its blank figures writes what the process writes."""
+    import time
+
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    drawing.draw_plots(result, here)
+    drawer = drawing.start_drawer()
+    time.sleep(3.0)  # matplotlib imported, the fonts and the blank figures made
+    drawer.draw(result, there)
+    assert _files(here) == _files(there)
+    assert multiprocessing.active_children() == []
+
+
 def test_a_failure_in_the_child_is_one_plot_error(result, tmp_path):
     (tmp_path / "pitch.png.part").mkdir()  # the child cannot write pitch.png
     drawer = drawing.start_drawer()
