@@ -3,9 +3,9 @@
 :func:`start_drawer` forks a child process at the start of :func:`~.run.simulate`: it
 imports matplotlib, warms its fonts and makes the plots' blank figures
 (:func:`~.plots.make_ahead`, until the results come) while the co-simulation runs, then
-waits. When the
-run's results are in, :meth:`Drawer.draw` sends them over a pipe, the child draws every
-PNG and the page, and :meth:`Drawer.draw` returns once they are all written: the files
+waits. When the run's results are in, :meth:`Drawer.draw` sends them over a pipe, the
+child draws every PNG and the page, and :meth:`Drawer.draw` returns once they are all
+written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
 Ctrl-C (the run decides: its rows are written, then the plots of the rows so far);
 :meth:`Drawer.close` ends and reaps a child that is not needed or not finished, and
@@ -63,9 +63,10 @@ def draw_plots(result: Any, out: Path, parallel: bool = False) -> dict[str, Path
     files written. ``parallel`` (where the process forks): the PNGs are drawn by this
     process and a fork of it, about half each, then the page is written here."""
     from .pages import write_run_page
-    from .plots import build_figures, save_png
+    from .plots import build_figures, discard_ahead, save_png
 
     items = build_figures(result, out)
+    discard_ahead()  # blank figures of plots this run has no columns for
     try:
         if parallel and len(items) > 1:
             _save_in_two(items)

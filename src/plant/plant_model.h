@@ -14,6 +14,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* GLIDER_SINCOS(x, &s, &c): s = sin(x), c = cos(x). On glibc one sincos() call, whose
  * code is sin's and cos's (the same bits: 0 differences in 20 million arguments, and the
  * Python model's math.sin/math.cos agree bit for bit in the tests), in 60 % of the two
@@ -23,10 +27,6 @@ void sincos(double x, double *s, double *c);
 #define GLIDER_SINCOS(x, s, c) sincos((x), (s), (c))
 #else
 #define GLIDER_SINCOS(x, s, c) (*(s) = sin(x), *(c) = cos(x))
-#endif
-
-#ifdef __cplusplus
-extern "C" {
 #endif
 
 #define GP_V_STALL 1e-3
