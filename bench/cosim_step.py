@@ -122,6 +122,13 @@ class SyncCsvRecorder(CsvRecorder):
     THREADED = False
 
 
+class PyThreadCsvRecorder(CsvRecorder):
+    """The CSV recorder with a Python writer thread (as before ``csvwriter.c``, and where
+    its C thread cannot start): the file opened in the caller's thread."""
+
+    C_THREAD = False
+
+
 class Csv17gRecorder(SyncCsvRecorder):
     """The CSV recorder as it was: '%.17g' text (``glider_format_rows_17g``) in the
     caller's thread, for the before-and-after figure in one run."""
@@ -331,6 +338,7 @@ def main() -> None:
                 "csv": new_file(CsvRecorder, out / "native.csv"),
                 "csv_replacing": lambda: CsvRecorder(out / "native_replacing.csv"),
                 "csv_sync": new_file(SyncCsvRecorder, out / "native_sync.csv"),
+                "csv_python_thread": new_file(PyThreadCsvRecorder, out / "native_pythread.csv"),
                 "csv_17g": new_file(Csv17gRecorder, out / "native17g.csv"),
             },
             args.repeat * 3,
@@ -347,6 +355,9 @@ def main() -> None:
             "native_csv_over_in_memory": round(native_csv / native_mem, 2),
             "native_csv_replacing_us_per_macro_step": round(runs["csv_replacing"] * 1e6, 2),
             "native_csv_sync_us_per_macro_step": round(native_csv_sync * 1e6, 2),
+            "native_csv_python_thread_us_per_macro_step": round(
+                runs["csv_python_thread"] * 1e6, 2
+            ),
             "native_csv_17g_us_per_macro_step": round(native_csv_17g * 1e6, 2),
             "csv_us_per_value": round(csv_value * 1e6, 4),
             "csv_17g_us_per_value": round(csv_17g * 1e6, 4),
@@ -391,6 +402,7 @@ def main() -> None:
         "native_csv*: a new file each run (an earlier run's removed before the timer), "
         "native_csv_replacing: written over the previous run's file; "
         "native_csv_sync: CSV formatted and written in the run's thread (no writer thread); "
+        "native_csv_python_thread: the writer a Python thread (before csvwriter.c); "
         "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g' in the run's thread, "
         "the text before)",
         "cpus": os.cpu_count(),

@@ -142,6 +142,8 @@ def test_every_csv_writer_writes_the_same_text(tmp_path, lib, monkeypatch):
     def recorded(name: str) -> str:
         rec = CsvRecorder(tmp_path / name)
         rec.start([f"c{i}" for i in range(17)])
+        # csvwriter.c's thread where it can start (here), else a Python one or none
+        assert (rec._native is not None) == (CsvRecorder.THREADED and CsvRecorder.C_THREAD)
         for r in values.tolist():
             rec.row(r)
         rec.close()
@@ -150,6 +152,8 @@ def test_every_csv_writer_writes_the_same_text(tmp_path, lib, monkeypatch):
         return body
 
     assert recorded("c.csv") == expected
+    monkeypatch.setattr(CsvRecorder, "C_THREAD", False)  # a Python writer thread
+    assert recorded("pythread.csv") == expected
     monkeypatch.setattr(CsvRecorder, "THREADED", False)  # formatted in this thread
     assert recorded("sync.csv") == expected
     monkeypatch.setattr(fastloop, "library", lambda **kw: None)  # the Python path
@@ -201,7 +205,8 @@ class _FullDisk:
         pass
 
 
-def test_a_write_error_of_the_writer_thread_is_raised_once(tmp_path, lib):
+def test_a_write_error_of_the_writer_thread_is_raised_once(tmp_path, lib, monkeypatch):
+    monkeypatch.setattr(CsvRecorder, "C_THREAD", False)  # the Python thread (Windows)
     rec = CsvRecorder(tmp_path / "full.csv")
     rec.start(["a", "b"])
     rec._f.close()
@@ -213,7 +218,8 @@ def test_a_write_error_of_the_writer_thread_is_raised_once(tmp_path, lib):
     rec.close()  # closed: nothing raised twice
 
 
-def test_rows_handed_after_a_writer_error_raise_it(tmp_path, lib):
+def test_rows_handed_after_a_writer_error_raise_it(tmp_path, lib, monkeypatch):
+    monkeypatch.setattr(CsvRecorder, "C_THREAD", False)  # the Python thread (Windows)
     rec = CsvRecorder(tmp_path / "full.csv")
     rec.start(["a"])
     rec._f.close()
@@ -226,3 +232,36 @@ def test_rows_handed_after_a_writer_error_raise_it(tmp_path, lib):
     with pytest.raises(OSError, match="No space left on device"):
         rec.rows_block((ctypes.c_double * 1)(2.0), 1, 1)
     rec.close()  # already raised: not again
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_full_disk_under_the_c_writer_thread_is_raised_once_with_the_path(lib):
+    rec = CsvRecorder(Path("/dev/full"))  # every write: ENOSPC, from the kernel
+    rec.start(["a", "b"])
+    assert rec._native is not None
+    with pytest.raises(OSError, match=r"^\[Errno 28\] No space left on device: '/dev/full'$"):
+        for _ in range(100_000):  # until the thread has failed (at the header) and says so
+            rec.rows_block((ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0), 2, 2)
+            time.sleep(0.001)
+    rec.close()  # already raised: not again
+    rec = CsvRecorder(Path("/dev/full"))
+    rec.start(["a"])
+    rec.row([1.0])
+    with pytest.raises(OSError, match="No space left on device") as err:
+        rec.close()
+    assert err.value.errno == 28 and err.value.filename == "/dev/full"
+    rec.close()
+
+
+def test_a_csv_the_c_writer_thread_cannot_create_is_named_as_open_would(tmp_path, lib):
+    path = tmp_path / "no such folder" / "results.csv"
+    rec = CsvRecorder(path)
+    rec.start(["a"])  # the file is created by the thread: its failure comes with the rows
+    assert rec._native is not None
+    rec.row([1.0])
+    with pytest.raises(FileNotFoundError) as err:
+        rec.close()
+    with pytest.raises(FileNotFoundError) as opened:
+        open(path, "wb")  # noqa: SIM115 - the message Python's open gives
+    assert str(err.value) == str(opened.value)
+    assert not path.parent.exists()

@@ -24,13 +24,14 @@ from pathlib import Path
 from typing import Any
 
 SOURCE = Path(__file__).with_name("fastloop.c")
-#: the files compiled into the helper (``shortest.c``: the CSV text, Python's repr)
-SOURCES = (SOURCE, SOURCE.with_name("shortest.c"))
+#: the files compiled into the helper (``shortest.c``: the CSV text, Python's repr;
+#: ``csvwriter.c``: the CSV recorder's writer thread)
+SOURCES = (SOURCE, SOURCE.with_name("shortest.c"), SOURCE.with_name("csvwriter.c"))
 #: the headers they include (in the build's hash too)
 HEADERS = (SOURCE.with_name("shortest.h"), SOURCE.with_name("shortest_pow10.h"))
 ENV = "GLIDER_COSIM_FASTLOOP"
 #: the helper's compile flags (after the toolchain's shared-library ones)
-FLAGS = ("-O2", "-ffp-contract=off")
+FLAGS = ("-O2", "-ffp-contract=off", *(() if os.name == "nt" else ("-pthread",)))
 _LIB: dict[bool, ctypes.CDLL | None] = {}
 
 
@@ -89,6 +90,12 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
         lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
         lib.glider_format_rows_17g.restype = ctypes.c_long
+        lib.glider_csv_open.restype = ctypes.c_void_p
+        lib.glider_csv_open.argtypes = (ctypes.c_char_p, ctypes.c_char_p, ctypes.c_long,
+                                        ctypes.c_int, ctypes.c_int)  # fmt: skip
+        lib.glider_csv_put.restype = lib.glider_csv_close.restype = ctypes.c_int
+        lib.glider_csv_put.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
+        lib.glider_csv_close.argtypes = (ctypes.c_void_p,)
         for name in SHIMS.values():
             getattr(lib, name).restype = ctypes.c_int
     except (OSError, subprocess.SubprocessError):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import os
 import queue
 import threading
 from collections.abc import Sequence
@@ -111,17 +112,21 @@ class CsvRecorder:
     back to the same double (``0.1``, ``1e-05``, ``-0.0``, ``inf``, ``nan``). Where the C
     helper of :mod:`glider_cosim.master.fastloop` is available, rows are collected in
     blocks (of :attr:`BLOCK` rows handed one by one, or the fast loop's blocks) and a
-    writer thread formats them there (``shortest.c``: the same bytes, about 0.03 us a
-    value against 0.25-0.5 us for ``%.17g``, with the GIL released: while the next block
-    steps, on another core) and writes them, in order; at most :attr:`QUEUED` blocks wait
-    for it (:attr:`THREADED` False: in the caller's thread). Without the helper, rows are
-    formatted in Python in the caller's thread. An error of the writer (a full disk) is
-    raised by the next call that hands rows over, else by ``close``.
+    writer thread formats them (``shortest.c``: the same bytes, about 0.03 us a value
+    against 0.25-0.5 us for ``%.17g``) and writes them, in order, while the next block
+    steps, on another core; at most :attr:`QUEUED` blocks wait for it. That thread is C's
+    own (``csvwriter.c``: handing a block over is a copy, the GIL never changes hands);
+    where it cannot start (Windows) it is a Python thread calling the C formatter with
+    the GIL released. :attr:`THREADED` False: formatted and written in the caller's
+    thread. Without the helper, rows are formatted in Python in the caller's thread. An
+    error of the writer (a full disk) is raised by the next call that hands rows over,
+    else by ``close``.
     """
 
     BLOCK = 128  # rows handed one by one, formatted at once by the C helper
     QUEUED = 4  # blocks handed to the writer thread and not written yet, at most
     THREADED = True  # False: formatted and written in the caller's thread
+    C_THREAD = True  # False: the writer thread is a Python thread (as where C's cannot start)
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
@@ -131,19 +136,27 @@ class CsvRecorder:
         self._pending = 0
         self._queue: queue.Queue | None = None
         self._writer: threading.Thread | None = None
+        self._native: int | None = None  # csvwriter.c's writer, while it runs
         self._error: BaseException | None = None  # the writer's, raised once
         self._reported = False
 
     def start(self, columns: Sequence[str]) -> None:
         from ..master.fastloop import library
 
-        self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
-        self._f.write((",".join(columns) + "\n").encode())
+        header = (",".join(columns) + "\n").encode()
         self._ncol = len(columns)
         self._lib = library(release_gil=True) if columns else None
         if self._lib is not None:
             self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
+            if self.THREADED and self.C_THREAD:  # the C thread creates the file itself
+                self._native = self._lib.glider_csv_open(os.fsencode(self.path), header,
+                                                         len(header), self._ncol,
+                                                         self.QUEUED) or None  # fmt: skip
+                if self._native is not None:
+                    return
             self._buf = ctypes.create_string_buffer(self.BLOCK * self._ncol * 25 + 64)
+        self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
+        self._f.write(header)
 
     def row(self, values: Sequence[float]) -> None:
         if self._lib is None:
@@ -181,6 +194,13 @@ class CsvRecorder:
         if not self.THREADED:
             self._write_text(values, nrows)
             return
+        if self._native is not None:  # copied by the C thread's glider_csv_put
+            err = self._lib.glider_csv_put(self._native, values, nrows)
+            if err:
+                self._error = self._os_error(err)
+                self._reported = True
+                raise self._error
+            return
         if self._writer is None:
             self._queue = queue.Queue(self.QUEUED)
             self._writer = threading.Thread(target=self._write_blocks, name="csv-writer",
@@ -214,6 +234,10 @@ class CsvRecorder:
         else:
             self._f.write(memoryview(self._buf)[:n])  # no copy
 
+    def _os_error(self, err: int) -> OSError:
+        """The writer's failure ``err`` (an errno) as the OSError a write would raise."""
+        return OSError(err, os.strerror(err), str(self.path))
+
     def close(self) -> None:
         """Write what is left (wait for the writer thread) and close the file.
 
@@ -222,18 +246,24 @@ class CsvRecorder:
         OSError
             Writing failed (in the writer thread too).
         """
-        if self._f is None:
+        if self._f is None and self._native is None:
             return
         try:
             if self._lib is not None and self._error is None:
                 self._flush()
         finally:
+            if self._native is not None:
+                err = self._lib.glider_csv_close(self._native)
+                self._native = None
+                if err and self._error is None:
+                    self._error = self._os_error(err)
             if self._writer is not None:
                 self._queue.put(None)
                 self._writer.join()
                 self._writer = None
-            self._f.close()
-            self._f = None
+            if self._f is not None:
+                self._f.close()
+                self._f = None
         if self._error is not None and not self._reported:
             self._reported = True
             raise self._error
