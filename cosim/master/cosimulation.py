@@ -112,6 +112,7 @@ class CoSimulation(DrivenInputs):
         self.instances: dict[str, Instance] = {}
         self._keep_callbacks: list[Any] = []
         self._loaded = False
+        self._initialized = False  # instances made and initialised (initialize)
 
     # ------------------------------------------------------------------ setup
     def _resolve(self, ref: str, causality: Iterable[str] | None = None):
@@ -166,9 +167,19 @@ class CoSimulation(DrivenInputs):
             raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be set")
 
     def initialize(self) -> None:
-        """Instantiate, set parameters, initialise every instance."""
+        """Instantiate, set parameters, initialise every instance.
+
+        Once: nothing is done when they are initialised and nothing has stepped since
+        (``initialize()``, then :meth:`run`); after steps (a second :meth:`run`), the
+        earlier instances are freed before new ones are made.
+        """
+        live = [inst.alive for inst in self.instances.values()]
+        if self._initialized and self.k == 0 and live and all(live):
+            return
         if not self._loaded:
             self.load()
+        for inst in self.instances.values():
+            inst.free()  # an earlier run's, if alive
         _LIVE.add(self)
         for inst in self.instances.values():
             cb = inst.callbacks()
@@ -176,6 +187,7 @@ class CoSimulation(DrivenInputs):
             inst.instantiate(cb, self.t0)
         self._setup_instances()
         self._plan_calls()
+        self._initialized = True
 
     def _setup_instances(self) -> None:
         """Set up, parameterise and initialise the (fresh or reset) instances."""

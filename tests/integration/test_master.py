@@ -167,3 +167,42 @@ def test_c_loop_equals_the_python_loop_bit_for_bit(fmu_dir, coupling, monkeypatc
     assert c_fast and not py_fast
     assert c_data.shape == py_data.shape == (1001, c_data.shape[1])
     assert np.array_equal(c_data, py_data)
+
+
+def test_initialize_then_run_instantiates_once_and_a_second_run_frees_the_first(
+    flavor_dir, monkeypatch
+):
+    """``initialize()`` then ``run()`` (what a host timing the run alone does) makes each
+    instance once; a second ``run()`` frees the first run's instances, then starts afresh:
+    the same rows."""
+    from glider_cosim.master.instance import Instance
+    from glider_cosim.scenarios.scenario import load_scenario
+    from glider_cosim.scenarios.system import system_for
+
+    made, freed = [], []
+    instantiate, free = Instance.instantiate, Instance.free
+
+    def counted_instantiate(self, *args):
+        made.append(self.name)
+        return instantiate(self, *args)
+
+    def counted_free(self):
+        if self.alive:
+            freed.append(self.name)
+        return free(self)
+
+    monkeypatch.setattr(Instance, "instantiate", counted_instantiate)
+    monkeypatch.setattr(Instance, "free", counted_free)
+    sim = CoSimulation(system_for(load_scenario("default"), flavor_dir))
+    try:
+        sim.initialize()
+        first, second = ArrayRecorder(), ArrayRecorder()
+        sim.run(4.0, first)
+        assert sorted(made) == sorted(sim.instances) and freed == []
+        sim.run(4.0, second)
+        assert sorted(freed) == sorted(sim.instances)  # the first run's, before the new
+        assert len(made) == 2 * len(sim.instances)
+    finally:
+        sim.close()
+    assert first.array().shape == (201, len(first.columns))
+    assert np.array_equal(first.array(), second.array())
