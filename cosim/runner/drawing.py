@@ -1,11 +1,12 @@
 """A run's PNG plots and ``plots.html`` drawn off the critical path (issue 31).
 
 :func:`start_drawer` forks a child process at the start of :func:`~.run.simulate`: it
-imports matplotlib, warms its fonts and makes the plots' blank figures
-(:func:`~.plots.make_ahead`, until the results come) while the co-simulation runs, then
-waits. When the run's results are in, :meth:`Drawer.draw` sends them over a pipe, the
-child draws every PNG and the page, and :meth:`Drawer.draw` returns once they are all
-written: the files
+imports matplotlib, warms its fonts, forks a partner (:class:`Partner`) and, with it,
+makes the plots' blank figures (:func:`~.plots.make_ahead`, until the results come)
+while the co-simulation runs, then waits. When the run's results are in,
+:meth:`Drawer.draw` sends them over a pipe; the child and its partner each build and
+draw their share of the PNGs (:data:`SHARES`), the child writes the page, and
+:meth:`Drawer.draw` returns once they are all written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
 Ctrl-C (the run decides: its rows are written, then the plots of the rows so far);
 :meth:`Drawer.close` ends and reaps a child that is not needed or not finished, and
@@ -23,6 +24,7 @@ import logging
 import os
 import signal
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -58,67 +60,170 @@ class PlotData:
         return self.data[:, self.columns.index(name)]
 
 
-def draw_plots(result: Any, out: Path, parallel: bool = False) -> dict[str, Path]:
-    """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
-    files written. ``parallel`` (where the process forks): the PNGs are drawn by this
-    process and a fork of it, about half each, then the page is written here."""
-    from .pages import write_run_page
-    from .plots import build_figures, discard_ahead, save_png
+def _shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The plots split in two about evenly by panels (a two-panel figure counts two),
+    the larger first, in :data:`~.plots.PLOTS` order within each."""
+    from .plots import PLOTS
 
-    items = build_figures(result, out)
-    discard_ahead()  # blank figures of plots this run has no columns for
+    mine: list[str] = []
+    theirs: list[str] = []
+    panels = {name: 2 if kind == "pair" else 1 for name, kind, _, _ in PLOTS}
+    for name in sorted(panels, key=lambda n: -panels[n]):  # stable: PLOTS order on ties
+        lighter = mine if sum(map(panels.get, mine)) <= sum(map(panels.get, theirs)) else theirs
+        lighter.append(name)
+    order = list(panels)
+    return tuple(sorted(mine, key=order.index)), tuple(sorted(theirs, key=order.index))
+
+
+def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[str, Path]:
+    """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
+    files written. With ``partner`` (the drawing process's), this process draws the first
+    of :data:`SHARES` and the partner the second, at the same time; the page is written
+    here, from both."""
+    import matplotlib.pyplot as plt
+
+    from .pages import page_not_written, write_run_page
+    from .plots import PLOTS, build_figures, discard_ahead, save_png
+
+    items: list = []
     try:
-        if parallel and len(items) > 1:
-            _save_in_two(items)
-        else:
+        if partner is not None:
+            partner.start(result, out)
+        items = build_figures(result, out, SHARES[0] if partner is not None else None)
+        discard_ahead()  # blank figures of plots this run has no columns for
+        try:
             for fig, path, metadata in items:
                 save_png(fig, path, metadata)
-    except BaseException:
-        import matplotlib.pyplot as plt
-
+            theirs, their_specs = partner.finish() if partner is not None else ({}, {})
+        except BaseException:
+            for fig, _, _ in items:
+                plt.close(fig)
+            raise
+    finally:
+        if partner is not None:
+            partner.close()
+    found = {path.stem: path for _, path, _ in items} | theirs
+    files = {name: found[name] for name, _, _, _ in PLOTS if name in found}
+    if isinstance(their_specs, str):  # the partner could not describe its figures
         for fig, _, _ in items:
             plt.close(fig)
-        raise
-    files = {path.stem: path for _, path, _ in items}
-    files.update(write_run_page(result, out, [fig for fig, _, _ in items]))  # closes them
+        page_not_written(their_specs)
+        return files
+    figures = {path.stem: fig for fig, path, _ in items} | their_specs
+    shown = [figures[name] for name, _, _, _ in PLOTS if name in figures]
+    files.update(write_run_page(result, out, shown))  # closes this process's figures
     return files
 
 
-def _save_in_two(items: list[tuple[Any, Path, dict[str, str]]]) -> None:
-    """Draw the PNGs in this process and a fork of it, the panels about evenly split."""
-    from .plots import save_png
+class Partner:
+    """A fork of the drawing process, made once it has imported matplotlib (while the
+    run runs): it makes the blank figures of the second of :data:`SHARES`, then, when
+    :meth:`start` sends it the results, builds and draws those PNGs, and replies with
+    their paths and page specs (:func:`~.pages.run_page_spec`), or its failure in one
+    line. It dies with the drawing process (``PR_SET_PDEATHSIG``) and ends when its
+    pipe does."""
 
-    mine: list = []
-    theirs: list = []
-    for item in sorted(items, key=lambda it: -len(it[0].get_axes())):
-        lighter = mine if sum(len(f.get_axes()) for f, _, _ in mine) <= sum(
-            len(f.get_axes()) for f, _, _ in theirs) else theirs  # fmt: skip
-        lighter.append(item)
-    read, write = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the fork: its share, then its failure (if any) on the pipe
-        os.close(read)
-        code = 0
+    def __init__(self, close_in_partner: Sequence[Any] = ()) -> None:
+        import multiprocessing
+
+        self._conn, theirs = multiprocessing.Pipe()
+        parent = os.getpid()
+        self.pid = os.fork()
+        if self.pid == 0:  # the partner
+            code = 0
+            try:
+                self._conn.close()
+                for conn in close_in_partner:  # the main process's pipe: its end is the child's
+                    conn.close()
+                _die_with(parent)
+                _partner(theirs)
+            except BaseException:  # noqa: BLE001 - reported on the pipe where it can be
+                code = 1
+            finally:
+                os._exit(code)
+        theirs.close()
+
+    def start(self, result: Any, out: Path) -> None:
+        """Send the results: the partner draws its share."""
+        self._conn.send((result, out))
+
+    def finish(self) -> tuple[dict[str, Path], dict[str, Any] | str]:
+        """Wait for the partner's PNGs: ``({name: path}, {name: page spec})`` (the
+        specs: the failure's text if it could not make them). Raises
+        :class:`PlotError` if it failed or died."""
         try:
-            for fig, path, metadata in theirs:
-                save_png(fig, path, metadata)
-        except BaseException as err:
-            os.write(write, f"{type(err).__name__}: {err}".encode()[:4000])
-            code = 1
-        finally:
-            os._exit(code)
-    os.close(write)
-    old = signal.signal(signal.SIGTERM, lambda *_: (os.kill(pid, signal.SIGKILL), os._exit(143)))
+            kind, files, specs, records = self._conn.recv()
+        except (EOFError, OSError):
+            _, status = os.waitpid(self.pid, 0)
+            self.pid = 0
+            raise PlotError(f"the second drawing process exited (status {status})") from None
+        for record in records:
+            logging.getLogger(record.name).handle(record)
+        if kind != "ok":
+            raise PlotError(files)
+        return files, specs
+
+    def close(self) -> None:
+        """End the partner (done, or not needed) and reap it."""
+        self._conn.close()  # an idle partner reads the end of the pipe and exits
+        if self.pid:
+            try:
+                pid, _ = os.waitpid(self.pid, os.WNOHANG)
+                if pid == 0:
+                    os.kill(self.pid, signal.SIGKILL)
+                    os.waitpid(self.pid, 0)
+            except ChildProcessError:
+                pass
+            self.pid = 0
+
+
+def _die_with(parent: int) -> None:
+    """Have the kernel kill this process when its parent dies (Linux), and exit now if
+    it already has."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:
+        os._exit(0)
+
+
+def _partner(conn: Any) -> None:
+    """The partner's work (:class:`Partner`)."""
+    from .pages import run_page_spec
+    from .plots import FIGURE_KIND, build_figures, discard_ahead, make_ahead, save_png
+
+    ours = logging.getLogger("glider_cosim")
+    collect = _Collect()
+    ours.handlers, ours.propagate = [collect], False
+    for name in SHARES[1]:  # the blank figures, until the results come
+        if conn.poll():
+            break
+        make_ahead(FIGURE_KIND[name])
     try:
-        for fig, path, metadata in mine:
+        result, out = conn.recv()
+    except EOFError:  # no plots after all
+        return
+    try:
+        items = build_figures(result, out, SHARES[1])
+        discard_ahead()
+        for fig, path, metadata in items:
             save_png(fig, path, metadata)
-    finally:
-        with os.fdopen(read, "rb") as pipe:
-            failure = pipe.read().decode(errors="replace")
-        _, status = os.waitpid(pid, 0)
-        signal.signal(signal.SIGTERM, old)
-    if failure or status:
-        raise PlotError(failure or f"the second drawing process exited (status {status})")
+        files = {path.stem: path for _, path, _ in items}
+        try:
+            specs: dict[str, Any] | str = {p.stem: run_page_spec(f) for f, p, _ in items}
+        except (ValueError, TypeError, ImportError, OSError) as err:  # PageError: ValueError
+            specs = str(err)
+    except Exception as err:  # any failure: one line in the parent
+        from ..inputs.text import one_line
+
+        conn.send(("error", one_line(f"{type(err).__name__}: {err}"), {}, collect.records))
+    else:
+        conn.send(("ok", files, specs, collect.records))
+
+
+#: the plots the drawing process draws and the ones its partner draws
+SHARES = _shares()
 
 
 class _Collect(logging.Handler):
@@ -144,6 +249,7 @@ def _child(conn: Any, parents_end: Any) -> None:
     ours = logging.getLogger("glider_cosim")
     collect = _Collect()
     ours.handlers, ours.propagate = [collect], False
+    partner: Partner | None = None
     try:
         import matplotlib
 
@@ -156,18 +262,21 @@ def _child(conn: Any, parents_end: Any) -> None:
         fig.text(0.5, 0.5, "0.5 [deg]")
         fig.canvas.draw()
         plt.close(fig)
-        for kind in plots.FIGURE_KINDS:  # the blank figures, until the results come
+        partner = Partner(close_in_partner=(conn,))
+        for name in SHARES[0]:  # the blank figures, until the results come
             if conn.poll():
                 break
-            plots.make_ahead(kind)
+            plots.make_ahead(plots.FIGURE_KIND[name])
     except Exception:  # noqa: S110 - drawn again below, where the error is reported
         pass
     try:
         job = conn.recv()
     except EOFError:  # the run needs no plots (it failed, or was refused)
+        if partner is not None:
+            partner.close()
         return
     try:
-        files = draw_plots(*job, parallel=True)
+        files = draw_plots(*job, partner=partner)
     except Exception as err:  # any failure: one line in the parent, not a traceback here
         from ..inputs.text import one_line
 

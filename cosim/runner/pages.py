@@ -137,26 +137,41 @@ def run_settings(metrics: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def run_page_spec(fig: Any) -> dict[str, Any]:
+    """What ``plots.html`` draws of one of a run's figures (:func:`figure_spec`, with the
+    figure's first axes title)."""
+    return figure_spec(fig, title=_first_title(fig))
+
+
 def write_run_page(result: Any, out: Path, figures: Sequence[Any]) -> dict[str, Path]:
-    """``plots.html`` of a run from its PNG figures (closed here). A page that cannot be
-    written is a logged warning: the run's results and PNGs stay as written."""
-    import logging
+    """``plots.html`` of a run from its PNG figures (closed here) or their specs
+    (:func:`run_page_spec`, made where the figures were drawn), in this order. A page
+    that cannot be written is a logged warning: the run's results and PNGs stay as
+    written."""
 
     import matplotlib.pyplot as plt
 
     path = Path(out) / "plots.html"
     try:
-        specs = [figure_spec(f, title=_first_title(f)) for f in figures]
+        specs = [f if isinstance(f, dict) else run_page_spec(f) for f in figures]
         name = result.scenario.name
         return {"page": write_page(path, f"glider-cosim run: {name}", specs,
                                    run_settings(result.metrics))}  # fmt: skip
     except (PageError, OSError, ValueError, TypeError, ImportError) as err:
-        logging.getLogger(__name__).warning("plots.html not written (%s); the run's "
-                                            "results and PNGs are kept", err)  # fmt: skip
+        page_not_written(err)
         return {}
     finally:
         for f in figures:
-            plt.close(f)
+            if not isinstance(f, dict):
+                plt.close(f)
+
+
+def page_not_written(err: BaseException | str) -> None:
+    """The warning of a ``plots.html`` that could not be written."""
+    import logging
+
+    logging.getLogger(__name__).warning("plots.html not written (%s); the run's results "
+                                        "and PNGs are kept", err)  # fmt: skip
 
 
 def _first_title(fig: Any) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -178,8 +179,6 @@ def _pitch(result: Any, out: Path) -> Path:
 
 #: blank figures made ahead (:func:`make_ahead`), taken by the next figures drawn
 _AHEAD: dict[str, list[tuple[Any, Any]]] = {"single": [], "pair": []}
-#: the figures of a run's plots, by kind (what :func:`make_ahead` prepares)
-FIGURE_KINDS = ("pair", "pair", "single", "single", "single")
 
 
 def _new_figure(kind: str) -> tuple[Any, Any]:
@@ -300,21 +299,31 @@ def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, P
     return files
 
 
-def build_figures(result: Any, out: Path) -> list[tuple[Any, Path, dict[str, str]]]:
-    """The figures of :func:`write_plots`, not drawn yet: ``(figure, its PNG's path in
-    out, its PNG's text chunks)`` each, for :func:`save_png`."""
+#: the run's plots, in the order they are drawn and shown: (name, its figure's kind (one
+#: panel or two), the columns it needs, the function that builds it)
+PLOTS = (
+    ("glide_angle", "single", ("plant.theta_g",), _glide_angle),
+    ("pitch", "pair", ("plant.theta_meas",), _pitch),
+    ("tail_angle", "pair", ("controller.delta_cmd",), _tail),
+    ("speed", "single", ("plant.V",), _speed),
+    ("depth", "single", ("plant.x", "plant.z"), _depth),
+)
+#: each plot's figure kind, by name
+FIGURE_KIND = {name: kind for name, kind, _, _ in PLOTS}
+
+
+def build_figures(
+    result: Any, out: Path, names: Sequence[str] | None = None
+) -> list[tuple[Any, Path, dict[str, str]]]:
+    """The figures of :func:`write_plots` (of ``names`` only, if given), not drawn yet:
+    ``(figure, its PNG's path in out, its PNG's text chunks)`` each, for
+    :func:`save_png`."""
     global _BUILT
     _BUILT = []
     cols = set(result.columns)
     try:
-        for needs, fn in (
-            (("plant.theta_g",), _glide_angle),
-            (("plant.theta_meas",), _pitch),
-            (("controller.delta_cmd",), _tail),
-            (("plant.V",), _speed),
-            (("plant.x", "plant.z"), _depth),
-        ):
-            if all(c in cols for c in needs):
+        for name, _, needs, fn in PLOTS:
+            if (names is None or name in names) and all(c in cols for c in needs):
                 fn(result, out)
         return _BUILT
     finally:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -54,10 +55,10 @@ def test_figures_made_ahead_draw_the_same_files(result, tmp_path):
     fresh.mkdir()
     ahead.mkdir()
     drawing.draw_plots(result, fresh)
-    for kind in plots.FIGURE_KINDS:
+    for kind in plots.FIGURE_KIND.values():
         plots.make_ahead(kind)
     made = [fig for kind in ("single", "pair") for fig, _ in plots._AHEAD[kind]]
-    assert len(made) == len(plots.FIGURE_KINDS)
+    assert len(made) == len(plots.PLOTS)
     kept: list = []
     built = plots.write_plots(drawing.PlotData.of(result), ahead, keep=kept)
     try:
@@ -124,3 +125,70 @@ def test_a_run_with_plots_leaves_no_child_and_no_part_file(native_dir, tmp_path)
     assert {"glide_angle", "pitch", "tail_angle", "speed", "depth", "page"} <= set(r.files)
     assert multiprocessing.active_children() == []
     assert not list(tmp_path.glob("*.part"))
+
+
+def _partner_of(pid: int, timeout: float = 20.0) -> int:
+    """The drawing process's partner (its one child), once forked."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        children = (Path(f"/proc/{pid}/task/{pid}/children").read_text()).split()
+        if children:
+            return int(children[0])
+        time.sleep(0.02)
+    raise AssertionError(f"the drawing process {pid} forked no partner in {timeout} s")
+
+
+def _dead(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in "ZX"
+    except FileNotFoundError:
+        return True
+
+
+def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    drawing.draw_plots(result, here)  # in this process, alone
+    drawer = drawing.start_drawer()
+    partner = _partner_of(drawer._process.pid)
+    child = drawer._process.pid
+    drawer.draw(result, there)
+    assert _files(here) == _files(there)
+    assert _dead(partner) and _dead(child)
+    from glider_cosim.runner.plots import FIGURE_KIND
+
+    mine, theirs = drawing.SHARES  # every plot once, the panels about evenly split
+    assert sorted(mine + theirs) == sorted(FIGURE_KIND) and not set(mine) & set(theirs)
+    panels = [sum(2 if FIGURE_KIND[n] == "pair" else 1 for n in share) for share in (mine, theirs)]
+    assert panels == [4, 3]
+
+
+def test_a_failure_in_the_partners_share_is_one_plot_error(result, tmp_path):
+    assert "tail_angle" in drawing.SHARES[1]
+    (tmp_path / "tail_angle.png.part").mkdir()  # the partner cannot write tail_angle.png
+    drawer = drawing.start_drawer()
+    _partner_of(drawer._process.pid)
+    with pytest.raises(drawing.PlotError) as err:
+        drawer.draw(result, tmp_path)
+    text = str(err.value)
+    assert text.startswith("PNG plots not written (") and "tail_angle.png.part" in text
+    assert "\n" not in text
+    assert not (tmp_path / "tail_angle.png").exists()
+    assert multiprocessing.active_children() == []
+
+
+def test_the_partner_dies_with_the_drawing_process():
+    import time
+
+    drawer = drawing.start_drawer()
+    partner = _partner_of(drawer._process.pid)
+    os.kill(drawer._process.pid, signal.SIGKILL)
+    drawer._process.join(5)
+    deadline = time.monotonic() + 10
+    while not _dead(partner) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert _dead(partner)
+    drawer.close()
