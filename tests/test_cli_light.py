@@ -63,3 +63,10 @@ def test_the_lazy_packages_still_export_their_names():
     assert verify.COMPONENTS["plant"] == "GliderPlant" and callable(verify.verify)
     with pytest.raises(AttributeError, match="glider_cosim.master' has no attribute 'Nope'"):
         master.Nope  # noqa: B018
+
+
+def test_the_run_path_imports_no_plotting_package():
+    # a run without plots (``--no-plots``, ``simulate(out=None)``) needs neither matplotlib
+    # nor PIL: 0.4-0.5 s; the drawing process imports them, not the run
+    code = "import glider_cosim.runner.run, glider_cosim.runner.drawing, glider_cosim.cli.main"
+    assert _imported(code) & {"matplotlib", "PIL"} == set()

@@ -5,7 +5,7 @@ imports matplotlib, warms its fonts, forks a partner (:class:`Partner`) and, wit
 makes the plots' blank figures (:func:`~.plots.make_ahead`, until the results come)
 while the co-simulation runs, then waits. When the run's results are in,
 :meth:`Drawer.draw` sends them over a pipe; the child and its partner each build and
-draw their share of the PNGs (:data:`SHARES`), the child writes the page, and
+draw their share of the PNGs (:func:`shares`), the child writes the page, and
 :meth:`Drawer.draw` returns once they are all written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
 Ctrl-C (the run decides: its rows are written, then the plots of the rows so far);
@@ -20,6 +20,7 @@ the process, after the run (:func:`draw_plots`).
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import signal
@@ -60,9 +61,12 @@ class PlotData:
         return self.data[:, self.columns.index(name)]
 
 
-def _shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The plots split in two about evenly by panels (a two-panel figure counts two),
-    the larger first, in :data:`~.plots.PLOTS` order within each."""
+@functools.cache
+def shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The plots the drawing process draws and the ones its partner draws: split in two
+    about evenly by panels (a two-panel figure counts two), the larger first, in
+    :data:`~.plots.PLOTS` order within each (computed when first needed: matplotlib is
+    imported only where plots are drawn)."""
     from .plots import PLOTS
 
     mine: list[str] = []
@@ -78,7 +82,7 @@ def _shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
 def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[str, Path]:
     """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
     files written. With ``partner`` (the drawing process's), this process draws the first
-    of :data:`SHARES` and the partner the second, at the same time; the page is written
+    of :func:`shares` and the partner the second, at the same time; the page is written
     here, from both."""
     import matplotlib.pyplot as plt
 
@@ -89,7 +93,7 @@ def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[s
     try:
         if partner is not None:
             partner.start(result, out)
-        items = build_figures(result, out, SHARES[0] if partner is not None else None)
+        items = build_figures(result, out, shares()[0] if partner is not None else None)
         discard_ahead()  # blank figures of plots this run has no columns for
         try:
             for fig, path, metadata in items:
@@ -117,7 +121,7 @@ def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[s
 
 class Partner:
     """A fork of the drawing process, made once it has imported matplotlib (while the
-    run runs): it makes the blank figures of the second of :data:`SHARES`, then, when
+    run runs): it makes the blank figures of the second of :func:`shares`, then, when
     :meth:`start` sends it the results, builds and draws those PNGs, and replies with
     their paths and page specs (:func:`~.pages.run_page_spec`), or its failure in one
     line. It dies with the drawing process (``PR_SET_PDEATHSIG``) and ends when its
@@ -196,7 +200,7 @@ def _partner(conn: Any) -> None:
     ours = logging.getLogger("glider_cosim")
     collect = _Collect()
     ours.handlers, ours.propagate = [collect], False
-    for name in SHARES[1]:  # the blank figures, until the results come
+    for name in shares()[1]:  # the blank figures, until the results come
         if conn.poll():
             break
         make_ahead(FIGURE_KIND[name])
@@ -205,7 +209,7 @@ def _partner(conn: Any) -> None:
     except EOFError:  # no plots after all
         return
     try:
-        items = build_figures(result, out, SHARES[1])
+        items = build_figures(result, out, shares()[1])
         discard_ahead()
         for fig, path, metadata in items:
             save_png(fig, path, metadata)
@@ -220,10 +224,6 @@ def _partner(conn: Any) -> None:
         conn.send(("error", one_line(f"{type(err).__name__}: {err}"), {}, collect.records))
     else:
         conn.send(("ok", files, specs, collect.records))
-
-
-#: the plots the drawing process draws and the ones its partner draws
-SHARES = _shares()
 
 
 class _Collect(logging.Handler):
@@ -263,7 +263,7 @@ def _child(conn: Any, parents_end: Any) -> None:
         fig.canvas.draw()
         plt.close(fig)
         partner = Partner(close_in_partner=(conn,))
-        for name in SHARES[0]:  # the blank figures, until the results come
+        for name in shares()[0]:  # the blank figures, until the results come
             if conn.poll():
                 break
             plots.make_ahead(plots.FIGURE_KIND[name])

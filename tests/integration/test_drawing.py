@@ -160,14 +160,14 @@ def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
     assert _dead(partner) and _dead(child)
     from glider_cosim.runner.plots import FIGURE_KIND
 
-    mine, theirs = drawing.SHARES  # every plot once, the panels about evenly split
+    mine, theirs = drawing.shares()  # every plot once, the panels about evenly split
     assert sorted(mine + theirs) == sorted(FIGURE_KIND) and not set(mine) & set(theirs)
     panels = [sum(2 if FIGURE_KIND[n] == "pair" else 1 for n in share) for share in (mine, theirs)]
     assert panels == [4, 3]
 
 
 def test_a_failure_in_the_partners_share_is_one_plot_error(result, tmp_path):
-    assert "tail_angle" in drawing.SHARES[1]
+    assert "tail_angle" in drawing.shares()[1]
     (tmp_path / "tail_angle.png.part").mkdir()  # the partner cannot write tail_angle.png
     drawer = drawing.start_drawer()
     _partner_of(drawer._process.pid)
