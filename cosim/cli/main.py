@@ -8,6 +8,8 @@ interrupted by Ctrl-C, 143 terminated by SIGTERM (results so far are written).
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
 import logging
 import os
 import signal
@@ -15,6 +17,7 @@ import sys
 import threading
 import warnings
 from collections.abc import Sequence
+from typing import NoReturn
 
 from ..inputs.text import one_line
 from ..master.errors import Interrupted, MasterError, SystemSpecError
@@ -136,8 +139,29 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def console_main() -> None:
-    """Console script: run :func:`main` and exit with its code (a normal interpreter exit)."""
-    sys.exit(main())
+    """Console script: run :func:`main` and exit with its code (:func:`exit_now`)."""
+    exit_now(main())
+
+
+def exit_now(code: int) -> NoReturn:
+    """End the process with ``code`` after what the interpreter's exit does that matters:
+    the threads that are not daemons joined, the ``atexit`` handlers run (temporary
+    folders removed, FMU instances freed, child processes ended, logging flushed), the
+    standard streams flushed; but without tearing down the ~450 modules one by one,
+    50-90 ms of every command (issue 31). Every file a command writes is closed before
+    :func:`main` returns. A standard output that cannot be flushed (a closed pipe) makes
+    the status 120, as the interpreter's exit does."""
+    for thread in threading.enumerate():
+        if thread is not threading.main_thread() and not thread.daemon:
+            thread.join()
+    atexit._run_exitfuncs()  # the interpreter's own list (registered with atexit.register)
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):
+        code = code or 120
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":
