@@ -87,17 +87,14 @@ def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[s
     import matplotlib.pyplot as plt
 
     from .pages import page_not_written, write_run_page
-    from .plots import PLOTS, build_figures, discard_ahead, save_png
+    from .plots import PLOTS
 
     items: list = []
     try:
         if partner is not None:
             partner.start(result, out)
-        items = build_figures(result, out, shares()[0] if partner is not None else None)
-        discard_ahead()  # blank figures of plots this run has no columns for
+        items = _draw_share(result, out, shares()[0] if partner is not None else None)
         try:
-            for fig, path, metadata in items:
-                save_png(fig, path, metadata)
             theirs, their_specs = partner.finish() if partner is not None else ({}, {})
         except BaseException:
             for fig, _, _ in items:
@@ -117,6 +114,50 @@ def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[s
     shown = [figures[name] for name, _, _, _ in PLOTS if name in figures]
     files.update(write_run_page(result, out, shown))  # closes this process's figures
     return files
+
+
+def _draw_share(result: Any, out: Path, names: Sequence[str] | None) -> list:
+    """Build and draw the PNGs of ``names`` (all if None): their ``(figure, path,
+    metadata)``, the figures left open (closed if one fails)."""
+    import matplotlib.pyplot as plt
+
+    from .plots import build_figures, discard_ahead, save_png
+
+    items = build_figures(result, out, names)
+    discard_ahead()  # blank figures of plots this run has no columns for
+    try:
+        for fig, path, metadata in items:
+            save_png(fig, path, metadata)
+    except BaseException:
+        for fig, _, _ in items:
+            plt.close(fig)
+        raise
+    return items
+
+
+def _make_ahead_until(conn: Any, names: Sequence[str]) -> None:
+    """The blank figures of ``names``, until something (or the end) waits on ``conn``."""
+    from .plots import FIGURE_KIND, make_ahead
+
+    for name in names:
+        if conn.poll():
+            break
+        make_ahead(FIGURE_KIND[name])
+
+
+def _collect_logs() -> _Collect:
+    """Our modules' log records kept in this (forked) process, to be sent to its parent."""
+    ours = logging.getLogger("glider_cosim")
+    collect = _Collect()
+    ours.handlers, ours.propagate = [collect], False
+    return collect
+
+
+def _failure(err: BaseException) -> str:
+    """A drawing process's failure in one line, for its parent."""
+    from ..inputs.text import one_line
+
+    return one_line(f"{type(err).__name__}: {err}")
 
 
 class Partner:
@@ -195,33 +236,22 @@ def _die_with(parent: int) -> None:
 def _partner(conn: Any) -> None:
     """The partner's work (:class:`Partner`)."""
     from .pages import run_page_spec
-    from .plots import FIGURE_KIND, build_figures, discard_ahead, make_ahead, save_png
 
-    ours = logging.getLogger("glider_cosim")
-    collect = _Collect()
-    ours.handlers, ours.propagate = [collect], False
-    for name in shares()[1]:  # the blank figures, until the results come
-        if conn.poll():
-            break
-        make_ahead(FIGURE_KIND[name])
+    collect = _collect_logs()
+    _make_ahead_until(conn, shares()[1])
     try:
         result, out = conn.recv()
     except EOFError:  # no plots after all
         return
     try:
-        items = build_figures(result, out, shares()[1])
-        discard_ahead()
-        for fig, path, metadata in items:
-            save_png(fig, path, metadata)
+        items = _draw_share(result, out, shares()[1])
         files = {path.stem: path for _, path, _ in items}
         try:
             specs: dict[str, Any] | str = {p.stem: run_page_spec(f) for f, p, _ in items}
         except (ValueError, TypeError, ImportError, OSError) as err:  # PageError: ValueError
             specs = str(err)
     except Exception as err:  # any failure: one line in the parent
-        from ..inputs.text import one_line
-
-        conn.send(("error", one_line(f"{type(err).__name__}: {err}"), {}, collect.records))
+        conn.send(("error", _failure(err), {}, collect.records))
     else:
         conn.send(("ok", files, specs, collect.records))
 
@@ -246,9 +276,7 @@ def _child(conn: Any, parents_end: Any) -> None:
     parents_end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    ours = logging.getLogger("glider_cosim")
-    collect = _Collect()
-    ours.handlers, ours.propagate = [collect], False
+    collect = _collect_logs()
     partner: Partner | None = None
     try:
         import matplotlib
@@ -263,10 +291,7 @@ def _child(conn: Any, parents_end: Any) -> None:
         fig.canvas.draw()
         plt.close(fig)
         partner = Partner(close_in_partner=(conn,))
-        for name in shares()[0]:  # the blank figures, until the results come
-            if conn.poll():
-                break
-            plots.make_ahead(plots.FIGURE_KIND[name])
+        _make_ahead_until(conn, shares()[0])  # the blank figures, until the results come
     except Exception:  # noqa: S110 - drawn again below, where the error is reported
         pass
     try:
@@ -278,9 +303,7 @@ def _child(conn: Any, parents_end: Any) -> None:
     try:
         files = draw_plots(*job, partner=partner)
     except Exception as err:  # any failure: one line in the parent, not a traceback here
-        from ..inputs.text import one_line
-
-        conn.send(("error", one_line(f"{type(err).__name__}: {err}"), collect.records))
+        conn.send(("error", _failure(err), collect.records))
     else:
         conn.send(("ok", files, collect.records))
 

@@ -148,7 +148,6 @@ def write_run_page(result: Any, out: Path, figures: Sequence[Any]) -> dict[str, 
     (:func:`run_page_spec`, made where the figures were drawn), in this order. A page
     that cannot be written is a logged warning: the run's results and PNGs stay as
     written."""
-
     import matplotlib.pyplot as plt
 
     path = Path(out) / "plots.html"

@@ -122,7 +122,7 @@ def read_png_record(path: Path) -> dict[str, Any]:
             "settings": text.get(META_SETTINGS, "")}  # fmt: skip
 
 
-def _glide_angle(result: Any, out: Path) -> Path:
+def _glide_angle(result: Any, path: Path) -> Path:
     t = result.data[:, 0]
     fig, ax = _single_figure()
     ax.plot(t, result.column("plant.theta_g") * _DEG, lw=1.4, label="true")
@@ -137,10 +137,10 @@ def _glide_angle(result: Any, out: Path) -> Path:
     mark_events([ax], _events(result))
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=7)
-    return _save(fig, out / "glide_angle.png", result)
+    return _save(fig, path, result)
 
 
-def _pitch(result: Any, out: Path) -> Path:
+def _pitch(result: Any, path: Path) -> Path:
     """Values on top; below, measured and estimated pitch minus the true one, so the
     measurement is visible even when its noise is far smaller than the transient."""
     t = result.data[:, 0]
@@ -173,8 +173,7 @@ def _pitch(result: Any, out: Path) -> Path:
     if est is not None:
         ax2.plot(t, est - ref, lw=1.0, color="tab:orange", zorder=3,
                  label=f"estimate - {ref_name}")  # fmt: skip
-    return _finish_pair(fig, (ax, ax2), _title(result, "Pitch"), "theta", out / "pitch.png",
-                        result)  # fmt: skip
+    return _finish_pair(fig, (ax, ax2), _title(result, "Pitch"), "theta", path, result)
 
 
 #: blank figures made ahead (:func:`make_ahead`), taken by the next figures drawn
@@ -230,7 +229,7 @@ def _finish_pair(
     return _save(fig, path, result)
 
 
-def _tail(result: Any, out: Path) -> Path:
+def _tail(result: Any, path: Path) -> Path:
     """The command as the held (zero-order-hold) steps it is, the servo as a line; below,
     command minus servo angle (the servo's lag)."""
     t = result.data[:, 0]
@@ -244,11 +243,10 @@ def _tail(result: Any, out: Path) -> Path:
     # the command on top, thin and dashed: the servo's wide line stays visible under it
     ax.step(t, cmd, where="post", lw=1.1, ls="--", color="tab:red", zorder=3,
             label="command (held)")  # fmt: skip
-    return _finish_pair(fig, (ax, ax2), _title(result, "Tail angle"), "delta",
-                        out / "tail_angle.png", result)  # fmt: skip
+    return _finish_pair(fig, (ax, ax2), _title(result, "Tail angle"), "delta", path, result)
 
 
-def _speed(result: Any, out: Path) -> Path:
+def _speed(result: Any, path: Path) -> Path:
     t = result.data[:, 0]
     fig, ax = _single_figure()
     ax.plot(t, result.column("plant.V"), lw=1.4, label="true")
@@ -261,10 +259,10 @@ def _speed(result: Any, out: Path) -> Path:
     mark_events([ax], _events(result))
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=7)
-    return _save(fig, out / "speed.png", result)
+    return _save(fig, path, result)
 
 
-def _depth(result: Any, out: Path) -> Path:
+def _depth(result: Any, path: Path) -> Path:
     fig, ax = _single_figure()
     x, z, t = result.column("plant.x"), result.column("plant.z"), result.data[:, 0]
     ax.plot(x, z, lw=1.2)
@@ -281,7 +279,7 @@ def _depth(result: Any, out: Path) -> Path:
     ax.grid(alpha=0.3)
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="best", fontsize=7)
-    return _save(fig, out / "depth.png", result)
+    return _save(fig, path, result)
 
 
 def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, Path]:
@@ -299,8 +297,9 @@ def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, P
     return files
 
 
-#: the run's plots, in the order they are drawn and shown: (name, its figure's kind (one
-#: panel or two), the columns it needs, the function that builds it)
+#: the run's plots, in the order they are drawn and shown: (name (its PNG is
+#: ``<name>.png``), its figure's kind (one panel or two), the columns it needs, the
+#: function that builds it into that PNG's path)
 PLOTS = (
     ("glide_angle", "single", ("plant.theta_g",), _glide_angle),
     ("pitch", "pair", ("plant.theta_meas",), _pitch),
@@ -324,7 +323,7 @@ def build_figures(
     try:
         for name, _, needs, fn in PLOTS:
             if (names is None or name in names) and all(c in cols for c in needs):
-                fn(result, out)
+                fn(result, out / f"{name}.png")
         return _BUILT
     finally:
         _BUILT = None
