@@ -1,7 +1,7 @@
 """The results pages: bokeh against plotly on the default run's figures.
 
-Both draw the same figure specs (:func:`glider_cosim.runner.pages.figure_spec` of the
-PNGs' figures), every sample kept, the library's JavaScript inline once per page. Measured:
+Both draw the same figure specs (the run's plots, :func:`glider_cosim.runner.plots.build_specs`,
+the PNGs' own), every sample kept, the library's JavaScript inline once per page. Measured:
 the page's size in bytes; its load time in headless Chromium (the wall time of
 ``chromium --headless --dump-dom`` on the page minus that on an empty page, median of
 ``--repeat``); and what writing ``plots.html`` adds to ``glider-cosim run`` (the spec and
@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from glider_cosim.runner.pages import figure_spec, run_settings, write_page, write_run_page
+from glider_cosim.runner.pages import run_settings, write_page, write_run_page
 from glider_cosim.runner.plots import write_plots
 from glider_cosim.runner.run import simulate
 from glider_cosim.scenarios.scenario import load_scenario
@@ -83,12 +83,11 @@ def main() -> None:
         tmp = Path(name)
         result = simulate(load_scenario(None), tmp / "run", plots=False)
         t0 = time.perf_counter()
-        figs: list = []
-        write_plots(result, tmp / "run", keep=figs)
+        specs: list = []
+        write_plots(result, tmp / "run", keep=specs)
         t_png = time.perf_counter() - t0
-        specs = [figure_spec(f) for f in figs]
         t0 = time.perf_counter()
-        write_run_page(result, tmp / "run", figs)  # the specs and the page, figures closed
+        write_run_page(result, tmp / "run", specs)
         t_page = time.perf_counter() - t0
         bokeh = write_page(tmp / "bokeh.html", "default", specs, run_settings(result.metrics))
         plotly = plotly_page(tmp / "plotly.html", specs, "default")

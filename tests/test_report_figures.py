@@ -101,33 +101,35 @@ def _run_result(noise_std: float, meas_offset: float):
     return r
 
 
-def _labels(ax):
-    return ax.get_legend_handles_labels()[1]
+def _labels(panel):
+    return [ln["name"] for ln in panel["lines"] if ln["legend"]]
+
+
+def _by_title(specs):
+    return {s["title"].split(" (")[0]: s for s in specs}
 
 
 def test_pitch_at_noise_0_lists_no_measured_series_and_speed_marks_the_equilibrium(tmp_path):
-    figs = []
-    run_plots.write_plots(_run_result(0.0, 0.0), tmp_path, keep=figs)
-    by_name = {f.axes[0].get_title().split(" (")[0]: f for f in figs}
-    top, below = by_name["Pitch"].axes[:2]
+    specs = []
+    run_plots.write_plots(_run_result(0.0, 0.0), tmp_path, keep=specs)
+    by_name = _by_title(specs)
+    top, below = by_name["Pitch"]["panels"]
     assert _labels(top) == ["true = measured (noise std 0 deg)", "estimate"]
     assert _labels(below) == ["estimate - true"]
-    speed = by_name["Speed"].axes[0]
+    speed = by_name["Speed"]["panels"][0]
     assert _labels(speed) == ["true", "estimate", "equilibrium"]
-    (eq,) = [ln for ln in speed.get_lines() if ln.get_label() == "equilibrium"]
-    assert eq.get_ydata()[0] == pytest.approx(0.237)
-    for f in figs:
-        plt.close(f)
+    (eq,) = [ln for ln in speed["lines"] if ln["name"] == "equilibrium"]
+    assert eq["y"][0] == eq["y"][1] == pytest.approx(0.237)
+    assert list(eq["x"]) == speed["xlim"]  # across the panel
 
 
 def test_pitch_with_noise_lists_the_measured_samples(tmp_path):
-    figs = []
-    run_plots.write_plots(_run_result(0.1, 0.05), tmp_path, keep=figs)
-    top, below = next(f for f in figs if f.axes[0].get_title().startswith("Pitch")).axes[:2]
+    specs = []
+    run_plots.write_plots(_run_result(0.1, 0.05), tmp_path, keep=specs)
+    top, below = _by_title(specs)["Pitch"]["panels"]
     assert _labels(top)[0].startswith("measured (samples, noise std 5.7 deg)")
     assert _labels(below) == ["measured - true", "estimate - true"]
-    for f in figs:
-        plt.close(f)
+    assert top["lines"][0]["marker"] == "." and not top["lines"][0]["lines"]
 
 
 def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tmp_path):

@@ -1,11 +1,11 @@
 """A run's PNG plots and ``plots.html`` drawn off the critical path (issue 31).
 
 :func:`start_drawer` forks a child process at the start of :func:`~.run.simulate`: it
-imports matplotlib, warms its fonts, forks a partner (:class:`Partner`) and, with it,
-makes the plots' blank figures (:func:`~.plots.make_ahead`, until the results come)
-while the co-simulation runs, then waits. When the run's results are in,
-:meth:`Drawer.draw` sends them over a pipe; the child and its partner each build and
-draw their share of the PNGs (:func:`shares`), the child writes the page, and
+imports Pillow and the drawing modules, loads the fonts (:func:`~.raster.warm`) and forks
+a partner (:class:`Partner`) while the co-simulation runs, then waits. When the run's
+results are in, :meth:`Drawer.draw` sends them over a pipe; the child and its partner
+each draw their share of the PNGs (:func:`shares`) from the plots' specs
+(:func:`~.plots.build_specs`), the child writes the page from all of them, and
 :meth:`Drawer.draw` returns once they are all written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
 Ctrl-C (the run decides: its rows are written, then the plots of the rows so far);
@@ -65,13 +65,12 @@ class PlotData:
 def shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The plots the drawing process draws and the ones its partner draws: split in two
     about evenly by panels (a two-panel figure counts two), the larger first, in
-    :data:`~.plots.PLOTS` order within each (computed when first needed: matplotlib is
-    imported only where plots are drawn)."""
+    :data:`~.plots.PLOTS` order within each."""
     from .plots import PLOTS
 
     mine: list[str] = []
     theirs: list[str] = []
-    panels = {name: 2 if kind == "pair" else 1 for name, kind, _, _ in PLOTS}
+    panels = {name: 2 if name in PAIRS else 1 for name, _, _ in PLOTS}
     for name in sorted(panels, key=lambda n: -panels[n]):  # stable: PLOTS order on ties
         lighter = mine if sum(map(panels.get, mine)) <= sum(map(panels.get, theirs)) else theirs
         lighter.append(name)
@@ -79,70 +78,40 @@ def shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
     return tuple(sorted(mine, key=order.index)), tuple(sorted(theirs, key=order.index))
 
 
+#: the plots of two panels (values and differences)
+PAIRS = frozenset({"pitch", "tail_angle"})
+
+
 def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[str, Path]:
     """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
     files written. With ``partner`` (the drawing process's), this process draws the first
     of :func:`shares` and the partner the second, at the same time; the page is written
-    here, from both."""
-    import matplotlib.pyplot as plt
+    here, of every plot's spec."""
+    from .pages import write_run_page
+    from .plots import build_specs
 
-    from .pages import page_not_written, write_run_page
-    from .plots import PLOTS
-
-    items: list = []
+    specs = build_specs(result, out)
     try:
         if partner is not None:
             partner.start(result, out)
-        items = _draw_share(result, out, shares()[0] if partner is not None else None)
-        try:
-            theirs, their_specs = partner.finish() if partner is not None else ({}, {})
-        except BaseException:
-            for fig, _, _ in items:
-                plt.close(fig)
-            raise
+        mine = _draw_share(specs, shares()[0] if partner is not None else None)
+        theirs = partner.finish() if partner is not None else {}
     finally:
         if partner is not None:
             partner.close()
-    found = {path.stem: path for _, path, _ in items} | theirs
-    files = {name: found[name] for name, _, _, _ in PLOTS if name in found}
-    if isinstance(their_specs, str):  # the partner could not describe its figures
-        for fig, _, _ in items:
-            plt.close(fig)
-        page_not_written(their_specs)
-        return files
-    figures = {path.stem: fig for fig, path, _ in items} | their_specs
-    shown = [figures[name] for name, _, _, _ in PLOTS if name in figures]
-    files.update(write_run_page(result, out, shown))  # closes this process's figures
+    found = mine | theirs
+    files = {path.stem: found[path.stem] for _, path, _ in specs if path.stem in found}
+    files.update(write_run_page(result, out, [spec for spec, _, _ in specs]))
     return files
 
 
-def _draw_share(result: Any, out: Path, names: Sequence[str] | None) -> list:
-    """Build and draw the PNGs of ``names`` (all if None): their ``(figure, path,
-    metadata)``, the figures left open (closed if one fails)."""
-    import matplotlib.pyplot as plt
+def _draw_share(specs: Sequence[tuple], names: Sequence[str] | None) -> dict[str, Path]:
+    """Draw the PNGs of ``names`` (all if None) of ``specs`` (:func:`~.plots.build_specs`):
+    ``{name: path}``."""
+    from .raster import render_png
 
-    from .plots import build_figures, discard_ahead, save_png
-
-    items = build_figures(result, out, names)
-    discard_ahead()  # blank figures of plots this run has no columns for
-    try:
-        for fig, path, metadata in items:
-            save_png(fig, path, metadata)
-    except BaseException:
-        for fig, _, _ in items:
-            plt.close(fig)
-        raise
-    return items
-
-
-def _make_ahead_until(conn: Any, names: Sequence[str]) -> None:
-    """The blank figures of ``names``, until something (or the end) waits on ``conn``."""
-    from .plots import FIGURE_KIND, make_ahead
-
-    for name in names:
-        if conn.poll():
-            break
-        make_ahead(FIGURE_KIND[name])
+    return {path.stem: render_png(spec, path, metadata) for spec, path, metadata in specs
+            if names is None or path.stem in names}  # fmt: skip
 
 
 def _collect_logs() -> _Collect:
@@ -161,12 +130,10 @@ def _failure(err: BaseException) -> str:
 
 
 class Partner:
-    """A fork of the drawing process, made once it has imported matplotlib (while the
-    run runs): it makes the blank figures of the second of :func:`shares`, then, when
-    :meth:`start` sends it the results, builds and draws those PNGs, and replies with
-    their paths and page specs (:func:`~.pages.run_page_spec`), or its failure in one
-    line. It dies with the drawing process (``PR_SET_PDEATHSIG``) and ends when its
-    pipe does."""
+    """A fork of the drawing process, made once it has imported what drawing needs (while
+    the run runs): when :meth:`start` sends it the results, it draws the PNGs of the
+    second of :func:`shares` and replies with their paths, or its failure in one line.
+    It dies with the drawing process (``PR_SET_PDEATHSIG``) and ends when its pipe does."""
 
     def __init__(self, close_in_partner: Sequence[Any] = ()) -> None:
         import multiprocessing
@@ -192,12 +159,11 @@ class Partner:
         """Send the results: the partner draws its share."""
         self._conn.send((result, out))
 
-    def finish(self) -> tuple[dict[str, Path], dict[str, Any] | str]:
-        """Wait for the partner's PNGs: ``({name: path}, {name: page spec})`` (the
-        specs: the failure's text if it could not make them). Raises
-        :class:`PlotError` if it failed or died."""
+    def finish(self) -> dict[str, Path]:
+        """Wait for the partner's PNGs: ``{name: path}``. Raises :class:`PlotError` if
+        it failed or died."""
         try:
-            kind, files, specs, records = self._conn.recv()
+            kind, files, records = self._conn.recv()
         except (EOFError, OSError):
             _, status = os.waitpid(self.pid, 0)
             self.pid = 0
@@ -206,7 +172,7 @@ class Partner:
             logging.getLogger(record.name).handle(record)
         if kind != "ok":
             raise PlotError(files)
-        return files, specs
+        return files
 
     def close(self) -> None:
         """End the partner (done, or not needed) and reap it."""
@@ -235,25 +201,19 @@ def _die_with(parent: int) -> None:
 
 def _partner(conn: Any) -> None:
     """The partner's work (:class:`Partner`)."""
-    from .pages import run_page_spec
+    from .plots import build_specs
 
     collect = _collect_logs()
-    _make_ahead_until(conn, shares()[1])
     try:
         result, out = conn.recv()
     except EOFError:  # no plots after all
         return
     try:
-        items = _draw_share(result, out, shares()[1])
-        files = {path.stem: path for _, path, _ in items}
-        try:
-            specs: dict[str, Any] | str = {p.stem: run_page_spec(f) for f, p, _ in items}
-        except (ValueError, TypeError, ImportError, OSError) as err:  # PageError: ValueError
-            specs = str(err)
+        files = _draw_share(build_specs(result, out, shares()[1]), None)
     except Exception as err:  # any failure: one line in the parent
-        conn.send(("error", _failure(err), {}, collect.records))
+        conn.send(("error", _failure(err), collect.records))
     else:
-        conn.send(("ok", files, specs, collect.records))
+        conn.send(("ok", files, collect.records))
 
 
 class _Collect(logging.Handler):
@@ -279,19 +239,10 @@ def _child(conn: Any, parents_end: Any) -> None:
     collect = _collect_logs()
     partner: Partner | None = None
     try:
-        import matplotlib
+        from . import pages, plots, raster  # noqa: F401 (imported now, while the run runs)
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        from . import pages, plots  # noqa: F401 (pages: imported now, while the run runs)
-
-        fig = plt.figure(figsize=(1, 1))  # loads the fonts
-        fig.text(0.5, 0.5, "0.5 [deg]")
-        fig.canvas.draw()
-        plt.close(fig)
+        raster.warm()
         partner = Partner(close_in_partner=(conn,))
-        _make_ahead_until(conn, shares()[0])  # the blank figures, until the results come
     except Exception:  # noqa: S110 - drawn again below, where the error is reported
         pass
     try:

@@ -1,9 +1,10 @@
 """Interactive HTML pages of a run's or a report's figures (``plots.html``, ``report.html``).
 
-The figures are the PNGs' own matplotlib figures, read back artist by artist
-(:func:`figure_spec`: every line with its label, colour and style, the equilibrium and
-event lines, images, the axes' titles, labels and limits), so what a figure shows is
-defined once, where the PNG is drawn. :func:`write_page` writes them into one
+A run's figures are its plots' specs (:mod:`.plots`), the ones its PNGs are drawn from;
+a report's are its matplotlib figures, read back artist by artist (:func:`figure_spec`:
+every line with its label, colour and style, the equilibrium and event lines, images,
+the axes' titles, labels and limits). Either way what a figure shows is defined once,
+where the PNG is drawn. :func:`write_page` writes them into one
 self-contained file that BokehJS draws in the browser (:mod:`.page_script`: bokeh's
 JavaScript inline from the installed package, nothing fetched, no bokeh imported in
 Python); each figure zooms (box and wheel), shows values on hover and hides a series
@@ -137,32 +138,18 @@ def run_settings(metrics: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def run_page_spec(fig: Any) -> dict[str, Any]:
-    """What ``plots.html`` draws of one of a run's figures (:func:`figure_spec`, with the
-    figure's first axes title)."""
-    return figure_spec(fig, title=_first_title(fig))
-
-
-def write_run_page(result: Any, out: Path, figures: Sequence[Any]) -> dict[str, Path]:
-    """``plots.html`` of a run from its PNG figures (closed here) or their specs
-    (:func:`run_page_spec`, made where the figures were drawn), in this order. A page
-    that cannot be written is a logged warning: the run's results and PNGs stay as
-    written."""
-    import matplotlib.pyplot as plt
-
+def write_run_page(result: Any, out: Path, specs: Sequence[dict[str, Any]]) -> dict[str, Path]:
+    """``plots.html`` of a run from its plots' specs (:func:`~.plots.build_specs`), in this
+    order. A page that cannot be written is a logged warning: the run's results and PNGs
+    stay as written."""
     path = Path(out) / "plots.html"
     try:
-        specs = [f if isinstance(f, dict) else run_page_spec(f) for f in figures]
         name = result.scenario.name
         return {"page": write_page(path, f"glider-cosim run: {name}", specs,
                                    run_settings(result.metrics))}  # fmt: skip
-    except (PageError, OSError, ValueError, TypeError, ImportError) as err:
+    except (PageError, OSError, ValueError, TypeError) as err:
         page_not_written(err)
         return {}
-    finally:
-        for f in figures:
-            if not isinstance(f, dict):
-                plt.close(f)
 
 
 def page_not_written(err: BaseException | str) -> None:
@@ -171,10 +158,6 @@ def page_not_written(err: BaseException | str) -> None:
 
     logging.getLogger(__name__).warning("plots.html not written (%s); the run's results "
                                         "and PNGs are kept", err)  # fmt: skip
-
-
-def _first_title(fig: Any) -> str:
-    return next((ax.get_title() for ax in fig.get_axes() if ax.get_title()), "")
 
 
 class keep_figures:  # noqa: N801 - used as a context manager, like contextlib's

@@ -46,35 +46,9 @@ def test_the_child_writes_what_the_process_writes(result, tmp_path):
     assert multiprocessing.active_children() == []
 
 
-def test_figures_made_ahead_draw_the_same_files(result, tmp_path):
-    """The blank figures the drawing process makes while the run runs are the ones the
-    plots take, and the files are byte for byte those of figures made on demand."""
-    from glider_cosim.runner import plots
-
-    fresh, ahead = tmp_path / "fresh", tmp_path / "ahead"
-    fresh.mkdir()
-    ahead.mkdir()
-    drawing.draw_plots(result, fresh)
-    for kind in plots.FIGURE_KIND.values():
-        plots.make_ahead(kind)
-    made = [fig for kind in ("single", "pair") for fig, _ in plots._AHEAD[kind]]
-    assert len(made) == len(plots.PLOTS)
-    kept: list = []
-    built = plots.write_plots(drawing.PlotData.of(result), ahead, keep=kept)
-    try:
-        assert plots._AHEAD == {"single": [], "pair": []}  # every one taken
-        assert set(map(id, kept)) == set(map(id, made))
-    finally:
-        plots.discard_ahead()
-        for fig in kept:
-            plots.plt.close(fig)
-    mine = _files(fresh)
-    for name, path in built.items():
-        assert path.read_bytes() == mine[path.name], name
-
-
-def test_the_child_draws_on_figures_made_ahead(result, tmp_path):
-    """A child given time to make its blank figures writes what the process writes."""
+def test_the_child_draws_after_its_warm_up_what_the_process_draws(result, tmp_path):
+    """A child given time to import Pillow, load the fonts and fork its partner writes
+    what the process writes."""
     import time
 
     here, there = tmp_path / "here", tmp_path / "there"
@@ -82,10 +56,41 @@ def test_the_child_draws_on_figures_made_ahead(result, tmp_path):
     there.mkdir()
     drawing.draw_plots(result, here)
     drawer = drawing.start_drawer()
-    time.sleep(3.0)  # matplotlib imported, the fonts and the blank figures made
+    _partner_of(drawer._process.pid)
+    time.sleep(0.5)
     drawer.draw(result, there)
     assert _files(here) == _files(there)
     assert multiprocessing.active_children() == []
+
+
+_MAPPED = """
+import sys, time
+from pathlib import Path
+from glider_cosim.runner import drawing
+drawer = drawing.start_drawer()
+child = drawer._process.pid
+deadline = time.monotonic() + 20
+while not Path(f"/proc/{child}/task/{child}/children").read_text().split():
+    assert time.monotonic() < deadline, "no partner forked"
+    time.sleep(0.02)
+print(Path(f"/proc/{child}/maps").read_text())
+drawer.close()
+"""
+
+
+def test_the_drawing_process_never_loads_matplotlib():
+    """The point of drawing with Pillow (issue 31): matplotlib's import alone (0.55 s)
+    outlasted a native run without plots. A fresh interpreter starts a drawing process
+    and the libraries mapped into it, once it is ready, are read from /proc."""
+    import subprocess
+    import sys
+
+    maps = subprocess.run([sys.executable, "-c", _MAPPED], capture_output=True, text=True,
+                          check=True, timeout=120).stdout  # fmt: skip
+    libraries = {line.split()[-1] for line in maps.splitlines() if line.endswith(".so")
+                 or ".so." in line or ".cpython-" in line}  # fmt: skip
+    assert any("/PIL/_imaging" in lib for lib in libraries), sorted(libraries)
+    assert not [lib for lib in libraries if "/matplotlib/" in lib]
 
 
 def test_a_failure_in_the_child_is_one_plot_error(result, tmp_path):
@@ -158,11 +163,12 @@ def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
     drawer.draw(result, there)
     assert _files(here) == _files(there)
     assert _dead(partner) and _dead(child)
-    from glider_cosim.runner.plots import FIGURE_KIND
+    from glider_cosim.runner.plots import PLOTS
 
+    names = [name for name, _, _ in PLOTS]
     mine, theirs = drawing.shares()  # every plot once, the panels about evenly split
-    assert sorted(mine + theirs) == sorted(FIGURE_KIND) and not set(mine) & set(theirs)
-    panels = [sum(2 if FIGURE_KIND[n] == "pair" else 1 for n in share) for share in (mine, theirs)]
+    assert sorted(mine + theirs) == sorted(names) and not set(mine) & set(theirs)
+    panels = [sum(2 if n in drawing.PAIRS else 1 for n in share) for share in (mine, theirs)]
     assert panels == [4, 3]
 
 

@@ -65,8 +65,8 @@ def test_no_plots_rerun_removes_only_what_the_run_owns(fmu_dir, tmp_path):
     assert set(OWNED) >= {"results.csv", "metrics.json", *(f"{p}.png" for p in PNGS)}
 
 
-def _lines(fig):
-    return [ln for ax in fig.axes for ln in ax.get_lines() if (ln.get_gid() or "")[:6] == "event:"]
+def _lines(spec):
+    return [ln for p in spec["panels"] for ln in p["lines"] if ln["gid"][:6] == "event:"]
 
 
 @pytest.mark.parametrize(
@@ -99,20 +99,21 @@ def test_plots_mark_the_events(fmu_dir, tmp_path, name, doc, kinds):
         assert z[k] >= 1.0 > z[k - 1]
     for png in PNGS:  # what each PNG says it marks
         assert read_png_record(tmp_path / f"{png}.png")["events"] == events
-    figs: list = []
+    specs: list = []
     (tmp_path / "again").mkdir()
-    write_plots(r, tmp_path / "again", keep=figs)
-    assert len(figs) == len(PNGS)
-    for png, fig in zip(PNGS, figs):
-        lines = _lines(fig)
-        if png in TIME_PLOTS:  # a vertical line at each event's time, on every axis
-            for ax in fig.axes:
-                marks = [(ln.get_gid(), ln.get_xdata()[0]) for ln in ax.get_lines()
-                         if (ln.get_gid() or "").startswith("event:")]  # fmt: skip
-                assert marks == [(f"event:{e['kind']}", e["time_s"]) for e in events]
+    write_plots(r, tmp_path / "again", keep=specs)
+    assert len(specs) == len(PNGS)
+    for png, spec in zip(PNGS, specs):
+        lines = _lines(spec)
+        if png in TIME_PLOTS:  # a vertical line at each event's time, on every panel
+            for p in spec["panels"]:
+                marks = [(ln["gid"], ln["x"][0], ln["x"][1], tuple(ln["y"])) for ln in p["lines"]
+                         if ln["gid"].startswith("event:")]  # fmt: skip
+                assert marks == [(f"event:{e['kind']}", e["time_s"], e["time_s"],
+                                  tuple(p["ylim"])) for e in events]  # fmt: skip
         else:  # the depth profile: a point on the path at each event
-            assert [ln.get_gid() for ln in lines] == [f"event:{e['kind']}" for e in events]
-        labels = fig.axes[0].get_legend_handles_labels()[1]
+            assert [ln["gid"] for ln in lines] == [f"event:{e['kind']}" for e in events]
+        labels = [ln["name"] for ln in spec["panels"][0]["lines"] if ln["legend"]]
         assert all(any(e["label"] in lab for lab in labels) for e in events)
 
 

@@ -1,0 +1,316 @@
+"""A run's PNG plots drawn from their specs with Pillow, without matplotlib.
+
+A spec (:mod:`.plots`) says what a figure shows: its panels, each with its limits,
+labels and lines (series, equilibrium and event lines, markers), in data units; the
+same spec is what ``plots.html`` draws (:mod:`.pages`). :func:`render_png` lays it out
+as the run's matplotlib figures were (DejaVu Sans, 110 dpi, the same margins, ticks,
+grid, legends and line styles) and draws it at twice the size, then halves it: the
+halving is the anti-aliasing.
+
+Why not matplotlib: importing it takes 0.55-0.63 s on our 2-core machine, more than a
+whole native run without plots (0.43 s), so a run with plots could not stay within
+1.5x of one without (issue 31). Pillow imports in 0.13-0.17 s and draws a figure here
+in a few milliseconds.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+from PIL.PngImagePlugin import PngInfo
+
+from .strokes import DPI, SCALE, RenderError, _blend, _px, draw_line
+
+__all__ = ["DPI", "RenderError", "font", "layout", "nice_ticks", "render", "render_png",
+           "tick_labels", "warm"]  # fmt: skip
+
+#: zlib level of the PNGs: 1 writes in a third of the time of the default 6
+PNG_COMPRESS_LEVEL = 1
+#: font sizes, points: tick labels and axis labels, axes titles, legends, subtitles
+FONT_PT, TITLE_PT = 10.0, 12.0
+_GRID = (0xB0, 0xB0, 0xB0)
+_TICK_PT, _TICK_PAD_PT, _LABEL_PAD_PT, _TITLE_PAD_PT = 3.5, 3.5, 4.0, 6.0
+_MINUS = "\N{MINUS SIGN}"
+
+
+@functools.cache
+def font(size_pt: float) -> Any:
+    """DejaVu Sans (matplotlib's font, read from its installed data; matplotlib is not
+    imported) at ``size_pt`` for the drawing; Pillow's own font if it is missing."""
+    size = max(1, round(_px(size_pt)))
+    spec = importlib.util.find_spec("matplotlib")
+    for folder in spec.submodule_search_locations or () if spec else ():
+        path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
+        if path.is_file():
+            return ImageFont.truetype(str(path), size)
+    return ImageFont.load_default(size)
+
+
+def warm() -> None:
+    """Load the plots' fonts and draw a line of each (the drawing process, while the run
+    runs)."""
+    scratch = ImageDraw.Draw(Image.new("L", (64, 64)))
+    for size in (FONT_PT, TITLE_PT, 7.0, 7.5):
+        scratch.text((0, 0), "0.5 [deg]", font=font(size), anchor="lt")
+
+
+# ------------------------------------------------------------------ ticks and labels
+def nice_ticks(lo: float, hi: float, nbins: int) -> np.ndarray:
+    """At most ``nbins + 1`` ticks at a multiple of 1, 2, 2.5 or 5 times a power of ten
+    within ``[lo, hi]`` (matplotlib's ``MaxNLocator`` steps)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        raise RenderError(f"axis limits [{lo}, {hi}]: expected finite, increasing limits")
+    raw = (hi - lo) / max(1, nbins)
+    scale = 10.0 ** math.floor(math.log10(raw))
+    for step in (1.0, 2.0, 2.5, 5.0, 10.0, 20.0):
+        step *= scale
+        first = math.ceil(lo / step - 1e-9)
+        last = math.floor(hi / step + 1e-9)
+        if last - first <= nbins:
+            return np.arange(first, last + 1) * step
+    return np.array([lo, hi])  # not reached: 20 * scale > (hi - lo) / nbins * 2
+
+
+def tick_labels(ticks: np.ndarray) -> list[str]:
+    """Labels with as many decimals as tell the ticks apart (all the same count), a
+    minus sign, and an exponent for very large or small values."""
+    if not len(ticks):
+        return []
+    step = float(np.min(np.diff(ticks))) if len(ticks) > 1 else abs(float(ticks[0])) or 1.0
+    big = float(np.max(np.abs(ticks)))
+    if big >= 1e5 or 0 < big < 1e-3:
+        digits = next(d for d in range(1, 16)
+                      if len({f"{v:.{d}e}" for v in ticks}) == len(ticks))  # fmt: skip
+        text = [f"{v:.{digits}e}" for v in ticks]
+    else:
+        exact = (d for d in range(16) if np.all(np.abs(np.round(ticks, d) - ticks) < step * 1e-6))
+        decimals = next(exact, 15)
+        text = [f"{0.0 if abs(v) < step * 1e-9 else v:.{decimals}f}" for v in ticks]
+    return [s.replace("-", _MINUS) for s in text]
+
+
+# ------------------------------------------------------------------ layout and text
+def _text(draw: Any, xy: tuple[float, float], text: str, size_pt: float, anchor: str,
+          fill: tuple[int, int, int] = (0, 0, 0)) -> None:  # fmt: skip
+    draw.text(xy, text, font=font(size_pt), fill=fill, anchor=anchor)
+
+
+def _text_width(text: str, size_pt: float) -> float:
+    return float(font(size_pt).getlength(text))
+
+
+def _vertical_text(im: Image.Image, text: str, size_pt: float, right: float, middle: float) -> None:
+    """``text`` turned a quarter left, its right edge at ``right``, centred on ``middle``."""
+    f = font(size_pt)
+    left, top, r, bottom = f.getbbox(text, anchor="ls")
+    strip = Image.new("L", (math.ceil(r - left) + 2, math.ceil(bottom - top) + 2), 0)
+    ImageDraw.Draw(strip).text((1 - left, 1 - top), text, font=f, fill=255, anchor="ls")
+    strip = strip.transpose(Image.Transpose.ROTATE_90)
+    im.paste((0, 0, 0), (round(right - strip.width), round(middle - strip.height / 2)), strip)
+
+
+def _panel_boxes(spec: dict[str, Any], size: tuple[int, int], left: float) -> list[tuple]:
+    """Each panel's box ``(x0, y0, x1, y1)`` in the drawing's pixels."""
+    w, h = size
+    m = spec["margins"]
+    x0, x1 = left * w, m["right"] * w
+    top, bottom = (1 - m["top"]) * h, (1 - m["bottom"]) * h
+    ratios = [float(r) for r in spec.get("height_ratios") or [1.0] * len(spec["panels"])]
+    n = len(ratios)
+    if n != len(spec["panels"]):
+        raise RenderError(f"{n} height ratios for {len(spec['panels'])} panels")
+    cell = (bottom - top) / (n + m.get("hspace", 0.0) * (n - 1))
+    gap = m.get("hspace", 0.0) * cell
+    boxes, y = [], top
+    for r in ratios:
+        height = n * cell * r / sum(ratios)
+        boxes.append((x0, y, x1, y + height))
+        y += height + gap
+    return boxes
+
+
+def _left_margin(spec: dict[str, Any], width: float, labels: list[list[str]]) -> float:
+    """The left margin (figure fraction) wide enough for the widest y tick label, the
+    ticks and the y label."""
+    widest = max((_text_width(s, FONT_PT) for ls in labels for s in ls), default=0.0)
+    need = widest + _px(_TICK_PT + _TICK_PAD_PT + _LABEL_PAD_PT) + _px(FONT_PT) * 1.2 + 8 * SCALE
+    return max(spec["margins"]["left"], min(0.3, need / width))
+
+
+def _nbins(length_px: float, per_tick_pt: float) -> int:
+    return max(3, min(9, int(length_px / _px(per_tick_pt))))
+
+
+def _ticks(lim: Sequence[float], nbins: int) -> np.ndarray:
+    return nice_ticks(float(lim[0]), float(lim[1]), nbins)
+
+
+def _to_px(v: np.ndarray, lim: Sequence[float], length: float, flip: bool) -> np.ndarray:
+    lo, hi = lim
+    f = (np.asarray(v, dtype=float) - lo) / (hi - lo)
+    return (1.0 - f if flip else f) * length
+
+
+# ------------------------------------------------------------------ legend
+def _legend_entries(panel: dict[str, Any]) -> list[dict[str, Any]]:
+    return [ln for ln in panel["lines"] if ln.get("legend")]
+
+
+def _legend_box(
+    entries: list[dict[str, Any]], box: tuple, size_pt: float, points: list[np.ndarray]
+) -> tuple[float, float, float, float]:
+    """Where the legend goes: of matplotlib's places ("best"), the first covering the
+    fewest data points; ``points`` are the panel's in drawing pixels."""
+    em = _px(size_pt)
+    width = max(_text_width(e["name"], size_pt) for e in entries) + 2.0 * em + 0.8 * em + 0.8 * em
+    height = len(entries) * 1.3 * em + 0.6 * em
+    x0, y0, x1, y1 = box
+    pad = 0.5 * em
+    xs = {"l": x0 + pad, "c": (x0 + x1 - width) / 2, "r": x1 - pad - width}
+    ys = {"u": y0 + pad, "c": (y0 + y1 - height) / 2, "d": y1 - pad - height}
+    order = ("ur", "ul", "dl", "dr", "cr", "cl", "cr", "dc", "uc", "cc")
+    best, where = None, (xs["r"], ys["u"])
+    for place in order:
+        lx, ly = xs[place[1]], ys[place[0]]
+        covered = sum(int(np.count_nonzero((p[:, 0] >= lx) & (p[:, 0] <= lx + width)
+                                           & (p[:, 1] >= ly) & (p[:, 1] <= ly + height)))
+                      for p in points)  # fmt: skip
+        if best is None or covered < best:
+            best, where = covered, (lx, ly)
+        if covered == 0:
+            break
+    return where[0], where[1], width, height
+
+
+def _draw_legend(im: Image.Image, entries: list[dict[str, Any]], at: tuple, size_pt: float) -> None:
+    lx, ly, width, height = at
+    em = _px(size_pt)
+    draw = ImageDraw.Draw(im)
+    draw.rounded_rectangle([lx, ly, lx + width, ly + height], radius=0.2 * em,
+                           fill=(255, 255, 255), outline=(0xCC, 0xCC, 0xCC),
+                           width=max(1, round(_px(0.8))))  # fmt: skip
+    for k, e in enumerate(entries):
+        cy = ly + 0.3 * em + (k + 0.5) * 1.3 * em
+        hx0, hx1 = lx + 0.4 * em, lx + 2.4 * em
+        handle = Image.new("RGB", (round(hx1 - hx0) + 2, round(1.3 * em)), (255, 255, 255))
+        hy = handle.height / 2
+        sample = {**e, "step": False}
+        if e.get("lines", True):
+            draw_line(handle, sample, np.array([1.0, handle.width - 1.0]), np.array([hy, hy]))
+        if e.get("marker"):  # markerscale 4 for tiny dots, as the run's legends had
+            scale = 4.0 if e["marker"] == "." else 1.0
+            mark = {**sample, "lines": False, "size": float(e.get("size", 6.0)) * scale,
+                    "alpha": max(0.6, float(e.get("alpha", 1.0)))}  # fmt: skip
+            draw_line(handle, mark, np.array([handle.width / 2]), np.array([hy]))
+        im.paste(handle, (round(hx0), round(cy - hy)))
+        _text(draw, (lx + 2.4 * em + 0.8 * em, cy), e["name"], size_pt, "lm")
+
+
+# ------------------------------------------------------------------ the figure
+def layout(spec: dict[str, Any]) -> tuple[tuple[int, int], list[tuple[float, ...]]]:
+    """The drawing's size and each panel's box ``(x0, y0, x1, y1)``, in pixels of the
+    drawing (:data:`SCALE` times the PNG's). The left margin follows the widest y tick
+    label; the panels' heights do not depend on it."""
+    panels = spec.get("panels") or []
+    if not panels:
+        raise RenderError(f"figure {spec.get('title', '')!r}: no panels; expected at least one")
+    w_in, h_in = spec["size_in"]
+    size = (round(w_in * DPI) * SCALE, round(h_in * DPI) * SCALE)
+    heights = [b[3] - b[1] for b in _panel_boxes(spec, size, spec["margins"]["left"])]
+    labels = [tick_labels(_ticks(p["ylim"], _nbins(h, 2 * FONT_PT))) for p, h in
+              zip(panels, heights, strict=True)]  # fmt: skip
+    return size, _panel_boxes(spec, size, _left_margin(spec, size[0], labels))
+
+
+def render(spec: dict[str, Any]) -> Image.Image:
+    """The figure of ``spec`` (:mod:`.plots`), an RGB image at :data:`DPI`."""
+    size, boxes = layout(spec)
+    im = Image.new("RGB", size, (255, 255, 255))
+    draw = ImageDraw.Draw(im)
+    panels = spec["panels"]
+    for k, (p, box) in enumerate(zip(panels, boxes, strict=True)):
+        _draw_panel(im, draw, p, box, last=k == len(panels) - 1)
+    if spec.get("suptitle"):
+        _text(draw, (size[0] / 2, 0.02 * size[1]), spec["suptitle"], 7.5, "mt", (77, 77, 77))
+    return im.reduce(SCALE)
+
+
+def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last: bool) -> None:
+    x0, y0, x1, y1 = box
+    aw, ah = round(x1 - x0), round(y1 - y0)
+    panel = Image.new("RGB", (aw, ah), (255, 255, 255))
+    flip_y = not p.get("inverted", False)
+    xt = _ticks(p["xlim"], _nbins(aw, 3 * FONT_PT))
+    yt = _ticks(p["ylim"], _nbins(ah, 2 * FONT_PT))
+    xpx = _to_px(xt, p["xlim"], aw, False)
+    ypx = _to_px(yt, p["ylim"], ah, flip_y)
+    pd = ImageDraw.Draw(panel)
+    grid = _blend(_GRID, 0.3)
+    gw = max(1, round(_px(0.8)))
+    for v in xpx:
+        pd.line([v, 0, v, ah], fill=grid, width=gw)
+    for v in ypx:
+        pd.line([0, v, aw, v], fill=grid, width=gw)
+    points = []
+    for ln in p["lines"]:
+        lx = _to_px(ln["x"], p["xlim"], aw, False)
+        ly = _to_px(ln["y"], p["ylim"], ah, flip_y)
+        draw_line(panel, ln, lx, ly)
+        if ln.get("span"):  # an event or equilibrium line: its path through the box
+            n = 20
+            points.append(np.column_stack([np.linspace(lx[0], lx[-1], n),
+                                           np.linspace(ly[0], ly[-1], n)]) + (x0, y0))  # fmt: skip
+        else:
+            points.append(np.column_stack([lx, ly])[:: max(1, len(lx) // 1000)] + (x0, y0))
+    im.paste(panel, (round(x0), round(y0)))
+    lw = max(1, round(_px(0.8)))
+    draw.rectangle([round(x0) - lw // 2, round(y0) - lw // 2, round(x0) + aw, round(y0) + ah],
+                   outline=(0, 0, 0), width=lw)  # fmt: skip
+    tick = _px(_TICK_PT)
+    pad = _px(_TICK_PAD_PT)
+    em = _px(FONT_PT)
+    for v, text in zip(xpx, tick_labels(xt), strict=True):
+        draw.line([x0 + v, y1, x0 + v, y1 + tick], fill=(0, 0, 0), width=lw)
+        if last:
+            _text(draw, (x0 + v, y1 + tick + pad), text, FONT_PT, "mt")
+    widest = 0.0
+    for v, text in zip(ypx, tick_labels(yt), strict=True):
+        draw.line([x0 - tick, y0 + v, x0, y0 + v], fill=(0, 0, 0), width=lw)
+        _text(draw, (x0 - tick - pad, y0 + v), text, FONT_PT, "rm")
+        widest = max(widest, _text_width(text, FONT_PT))
+    if p.get("ylabel"):
+        _vertical_text(im, p["ylabel"], FONT_PT, x0 - tick - pad - widest - _px(_LABEL_PAD_PT),
+                       (y0 + y1) / 2)  # fmt: skip
+    if last and p.get("xlabel"):
+        _text(draw, ((x0 + x1) / 2, y1 + tick + pad + 1.2 * em + _px(_LABEL_PAD_PT)),
+              p["xlabel"], FONT_PT, "mt")  # fmt: skip
+    if p.get("title"):
+        _text(draw, ((x0 + x1) / 2, y0 - _px(_TITLE_PAD_PT)), p["title"], TITLE_PT, "md")
+    entries = _legend_entries(p)
+    if entries:
+        size_pt = float(p.get("legend_pt", 7.0))
+        _draw_legend(im, entries, _legend_box(entries, box, size_pt, points), size_pt)
+
+
+def render_png(spec: dict[str, Any], path: Path, metadata: dict[str, str]) -> Path:
+    """Draw ``spec`` into the PNG ``path`` with ``metadata`` as its text chunks; the file
+    is complete or absent (written beside it, then renamed)."""
+    image = render(spec)
+    info = PngInfo()
+    for key, value in metadata.items():
+        info.add_itxt(key, value)
+    part = path.with_name(path.name + ".part")
+    try:
+        image.save(part, format="PNG", pnginfo=info, compress_level=PNG_COMPRESS_LEVEL,
+                   dpi=(DPI, DPI))  # fmt: skip
+        part.replace(path)
+    finally:
+        part.unlink(missing_ok=True)
+    return path
