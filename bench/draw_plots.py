@@ -3,7 +3,8 @@ import a drawing process pays before it can draw.
 
 A native run of the default scenario in memory (3001 rows), then, per plot, the best of
 ``--repeat`` times of: its spec (``plots.build_specs``), its drawing
-(``raster.render``) and its PNG (Pillow's encoder, zlib level 1, into memory); the five
+(``raster.render``) and its PNG (``raster.png_bytes``, into memory; ``_pillow_png_ms``:
+Pillow's encoder at zlib level 1, for comparison); the five
 in all (``render_png`` into files, best of ``--repeat``); and, in new interpreters, the
 import of what the drawing process imports (Pillow and the drawing modules, numpy
 included) against matplotlib's pyplot (median of ``--repeat``).
@@ -60,6 +61,9 @@ def main() -> None:
             out[f"{stem}_draw_ms"] = _best_ms(lambda spec=spec: raster.render(spec), args.repeat)
             image = raster.render(spec)
             out[f"{stem}_png_ms"] = _best_ms(
+                lambda image=image: raster.png_bytes(image, {}), args.repeat
+            )
+            out[f"{stem}_pillow_png_ms"] = _best_ms(
                 lambda image=image: image.save(io.BytesIO(), format="PNG", compress_level=1),
                 args.repeat,
             )

@@ -157,3 +157,20 @@ def test_without_matplotlibs_font_pillows_own_is_used(monkeypatch):
         assert raster.render(_spec([plots.line([0, 1], [0, 1], "a")])).size == (770, 396)
     finally:
         raster.font.cache_clear()
+
+
+def test_the_png_reads_back_pixel_for_pixel_with_its_resolution_and_text():
+    import io
+
+    line = plots.line([0.0, 1.0], [0.2, 0.8], "rise", color=RED)
+    image = raster.render(_spec([line]))
+    meta = {plots.META_EVENTS: '[{"label": "\N{GREEK SMALL LETTER THETA} = 1"}]', "k": ""}
+    data = raster.png_bytes(image, meta)
+    with Image.open(io.BytesIO(data)) as im:
+        im.verify()  # every chunk's CRC
+    with Image.open(io.BytesIO(data)) as im:
+        assert np.array_equal(np.asarray(im.convert("RGB")), np.asarray(image))
+        assert im.info["dpi"] == pytest.approx((110, 110), abs=0.01)
+        assert im.text == meta
+    with pytest.raises(raster.RenderError, match=r"image mode 'L': expected 'RGB'"):
+        raster.png_bytes(image.convert("L"), {})

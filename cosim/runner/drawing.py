@@ -5,7 +5,7 @@ imports Pillow and the drawing modules, loads the fonts (:func:`~.raster.warm`) 
 a partner (:class:`Partner`) while the co-simulation runs, then waits. When the run's
 results are in, :meth:`Drawer.draw` sends them over a pipe; the child and its partner
 each draw their share of the PNGs (:func:`shares`) from the plots' specs
-(:func:`~.plots.build_specs`), the child writes the page from all of them, and
+(:func:`~.plots.build_specs`), the partner writes the page from all of them, and
 :meth:`Drawer.draw` returns once they are all written: the files
 exist when ``simulate`` (and ``glider-cosim run``) returns, as before. The child ignores
 Ctrl-C (the run decides: its rows are written, then the plots of the rows so far);
@@ -63,46 +63,53 @@ class PlotData:
 
 @functools.cache
 def shares() -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The plots the drawing process draws and the ones its partner draws: split in two
-    about evenly by panels (a two-panel figure counts two), the larger first, in
-    :data:`~.plots.PLOTS` order within each."""
+    """The plots the drawing process draws and the ones its partner draws, the partner
+    writing the page too: split about evenly by cost (:data:`COST`: a two-panel plot
+    costs two one-panel ones, the page two), in :data:`~.plots.PLOTS` order within each."""
     from .plots import PLOTS
 
+    order = [name for name, _, _ in PLOTS]
     mine: list[str] = []
     theirs: list[str] = []
-    panels = {name: 2 if name in PAIRS else 1 for name, _, _ in PLOTS}
-    for name in sorted(panels, key=lambda n: -panels[n]):  # stable: PLOTS order on ties
-        lighter = mine if sum(map(panels.get, mine)) <= sum(map(panels.get, theirs)) else theirs
-        lighter.append(name)
-    order = list(panels)
+    load = [0.0, COST["page"]]
+    for name in sorted(order, key=lambda n: -COST.get(n, 1.0)):  # stable: PLOTS order on ties
+        k = 0 if load[0] <= load[1] else 1
+        (mine, theirs)[k].append(name)
+        load[k] += COST.get(name, 1.0)
     return tuple(sorted(mine, key=order.index)), tuple(sorted(theirs, key=order.index))
 
 
-#: the plots of two panels (values and differences)
-PAIRS = frozenset({"pitch", "tail_angle"})
+#: what drawing each costs, in one-panel plots (measured: ``bench/draw_plots.py``, a
+#: one-panel plot 6-10 ms, a two-panel one 15-19, the page 15-19); others cost 1
+COST = {"pitch": 2.0, "tail_angle": 2.0, "page": 2.0}
 
 
 def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[str, Path]:
     """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
     files written. With ``partner`` (the drawing process's), this process draws the first
-    of :func:`shares` and the partner the second, at the same time; the page is written
-    here, of every plot's spec."""
-    from .pages import write_run_page
+    of :func:`shares` and the partner the second and the page, at the same time."""
     from .plots import build_specs
 
     specs = build_specs(result, out)
     try:
         if partner is not None:
             partner.start(result, out)
-        mine = _draw_share(specs, shares()[0] if partner is not None else None)
-        theirs = partner.finish() if partner is not None else {}
+            found = _draw_share(specs, shares()[0]) | partner.finish()
+        else:
+            found = _draw_share(specs, None) | _write_page(result, out, specs)
     finally:
         if partner is not None:
             partner.close()
-    found = mine | theirs
     files = {path.stem: found[path.stem] for _, path, _ in specs if path.stem in found}
-    files.update(write_run_page(result, out, [spec for spec, _, _ in specs]))
-    return files
+    return files | ({"page": found["page"]} if "page" in found else {})
+
+
+def _write_page(result: Any, out: Path, specs: Sequence[tuple]) -> dict[str, Path]:
+    """``plots.html`` of every plot's spec: ``{"page": path}``, or ``{}`` (a warning) if
+    it could not be written."""
+    from .pages import write_run_page
+
+    return write_run_page(result, out, [spec for spec, _, _ in specs])
 
 
 def _draw_share(specs: Sequence[tuple], names: Sequence[str] | None) -> dict[str, Path]:
@@ -132,7 +139,8 @@ def _failure(err: BaseException) -> str:
 class Partner:
     """A fork of the drawing process, made once it has imported what drawing needs (while
     the run runs): when :meth:`start` sends it the results, it draws the PNGs of the
-    second of :func:`shares` and replies with their paths, or its failure in one line.
+    second of :func:`shares` and writes the page, and replies with their paths, or its
+    failure in one line.
     It dies with the drawing process (``PR_SET_PDEATHSIG``) and ends when its pipe does."""
 
     def __init__(self, close_in_partner: Sequence[Any] = ()) -> None:
@@ -209,7 +217,8 @@ def _partner(conn: Any) -> None:
     except EOFError:  # no plots after all
         return
     try:
-        files = _draw_share(build_specs(result, out, shares()[1]), None)
+        specs = build_specs(result, out)
+        files = _draw_share(specs, shares()[1]) | _write_page(result, out, specs)
     except Exception as err:  # any failure: one line in the parent
         conn.send(("error", _failure(err), collect.records))
     else:

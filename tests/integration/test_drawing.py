@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import shutil
 import signal
 from pathlib import Path
 
@@ -166,23 +167,24 @@ def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
     from glider_cosim.runner.plots import PLOTS
 
     names = [name for name, _, _ in PLOTS]
-    mine, theirs = drawing.shares()  # every plot once, the panels about evenly split
+    mine, theirs = drawing.shares()  # every plot once, the cost evenly split, the page theirs
     assert sorted(mine + theirs) == sorted(names) and not set(mine) & set(theirs)
-    panels = [sum(2 if n in drawing.PAIRS else 1 for n in share) for share in (mine, theirs)]
-    assert panels == [4, 3]
+    assert (mine, theirs) == (("pitch", "tail_angle", "depth"), ("glide_angle", "speed"))
+    cost = [sum(drawing.COST.get(n, 1.0) for n in share) for share in (mine, theirs + ("page",))]
+    assert cost == [5.0, 4.0]
 
 
 def test_a_failure_in_the_partners_share_is_one_plot_error(result, tmp_path):
-    assert "tail_angle" in drawing.shares()[1]
-    (tmp_path / "tail_angle.png.part").mkdir()  # the partner cannot write tail_angle.png
+    assert "speed" in drawing.shares()[1]
+    (tmp_path / "speed.png.part").mkdir()  # the partner cannot write speed.png
     drawer = drawing.start_drawer()
     _partner_of(drawer._process.pid)
     with pytest.raises(drawing.PlotError) as err:
         drawer.draw(result, tmp_path)
     text = str(err.value)
-    assert text.startswith("PNG plots not written (") and "tail_angle.png.part" in text
+    assert text.startswith("PNG plots not written (") and "speed.png.part" in text
     assert "\n" not in text
-    assert not (tmp_path / "tail_angle.png").exists()
+    assert not (tmp_path / "speed.png").exists()
     assert multiprocessing.active_children() == []
 
 
@@ -198,3 +200,18 @@ def test_the_partner_dies_with_the_drawing_process():
         time.sleep(0.02)
     assert _dead(partner)
     drawer.close()
+
+
+@pytest.mark.skipif(shutil.which("pngcheck") is None, reason="pngcheck is installed by .ci/run")
+def test_pngcheck_finds_the_runs_pngs_valid(result, tmp_path):
+    """glider-cosim writes its PNGs itself (``raster.png_bytes``): a PNG checker we did
+    not write reads every chunk, its CRC and the image data."""
+    import subprocess
+
+    files = drawing.draw_plots(result, tmp_path)
+    pngs = [str(p) for p in files.values() if p.suffix == ".png"]
+    assert len(pngs) == 5
+    done = subprocess.run(["pngcheck", "-v", *pngs], capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.count("No errors detected") == 5
+    assert done.stdout.count("keyword: glider-cosim:settings") == 5
