@@ -174,3 +174,14 @@ def test_the_png_reads_back_pixel_for_pixel_with_its_resolution_and_text():
         assert im.text == meta
     with pytest.raises(raster.RenderError, match=r"image mode 'L': expected 'RGB'"):
         raster.png_bytes(image.convert("L"), {})
+
+
+def test_a_legend_lets_what_it_covers_show_faintly():
+    """As matplotlib's (framealpha 0.8): a line under the legend stays visible."""
+    im = Image.new("RGB", (400, 200), (255, 0, 0))
+    entry = plots.line([0.0, 1.0], [0.0, 1.0], "a", color="#0000ff")
+    raster._draw_legend(im, [entry], (100.0, 50.0, 200.0, 60.0), 7.0)
+    a = np.asarray(im, dtype=int)
+    assert list(a[100, 280]) == pytest.approx([255, 204, 204], abs=1)  # inside, no ink
+    assert list(a[10, 10]) == [255, 0, 0]  # outside: untouched
+    assert (np.abs(a[50:111, 100:301] - [0, 0, 255]).sum(axis=2) < 60).any()  # its handle

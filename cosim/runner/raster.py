@@ -207,17 +207,23 @@ def _legend_box(
     return where[0], where[1], width, height
 
 
+#: how opaque a legend's background is (matplotlib's ``framealpha``): what it covers shows
+LEGEND_ALPHA = 0.8
+
+
 def _draw_legend(im: Image.Image, entries: list[dict[str, Any]], at: tuple, size_pt: float) -> None:
     lx, ly, width, height = at
     em = _px(size_pt)
-    draw = ImageDraw.Draw(im)
-    draw.rounded_rectangle([lx, ly, lx + width, ly + height], radius=0.2 * em,
-                           fill=(255, 255, 255), outline=(0xCC, 0xCC, 0xCC),
-                           width=max(1, round(_px(0.8))))  # fmt: skip
+    box = (round(lx), round(ly), round(lx + width) + 1, round(ly + height) + 1)
+    white = Image.new("RGB", (box[2] - box[0], box[3] - box[1]), (255, 255, 255))
+    legend = Image.blend(im.crop(box), white, LEGEND_ALPHA)
+    draw = ImageDraw.Draw(legend)
+    draw.rounded_rectangle([0, 0, legend.width - 1, legend.height - 1], radius=0.2 * em,
+                           outline=(0xCC, 0xCC, 0xCC), width=max(1, round(_px(0.8))))  # fmt: skip
     for k, e in enumerate(entries):
-        cy = ly + 0.3 * em + (k + 0.5) * 1.3 * em
-        hx0, hx1 = lx + 0.4 * em, lx + 2.4 * em
-        handle = Image.new("RGB", (round(hx1 - hx0) + 2, round(1.3 * em)), (255, 255, 255))
+        cy = 0.3 * em + (k + 0.5) * 1.3 * em
+        spot = (round(0.4 * em), round(cy - 0.65 * em), round(2.4 * em) + 2, round(cy + 0.65 * em))
+        handle = legend.crop(spot)
         hy = handle.height / 2
         sample = {**e, "step": False}
         if e.get("lines", True):
@@ -227,8 +233,9 @@ def _draw_legend(im: Image.Image, entries: list[dict[str, Any]], at: tuple, size
             mark = {**sample, "lines": False, "size": float(e.get("size", 6.0)) * scale,
                     "alpha": max(0.6, float(e.get("alpha", 1.0)))}  # fmt: skip
             draw_line(handle, mark, np.array([handle.width / 2]), np.array([hy]))
-        im.paste(handle, (round(hx0), round(cy - hy)))
-        _text(draw, (lx + 2.4 * em + 0.8 * em, cy), e["name"], size_pt, "lm")
+        legend.paste(handle, spot[:2])
+        _text(draw, (3.2 * em, cy), e["name"], size_pt, "lm")
+    im.paste(legend, box[:2])
 
 
 # ------------------------------------------------------------------ the figure
@@ -281,8 +288,9 @@ def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last:
         lx = _to_px(ln["x"], p["xlim"], aw, False)
         ly = _to_px(ln["y"], p["ylim"], ah, flip_y)
         draw_line(panel, ln, lx, ly)
-        if ln.get("span"):  # an event or equilibrium line: its path through the box
-            n = 20
+        if ln.get("span"):  # an event or equilibrium line: a point every 2 px of it, as
+            # dense as a series (the legend then keeps off it as off the data)
+            n = max(2, int(abs(lx[-1] - lx[0]) + abs(ly[-1] - ly[0])) // (2 * SCALE))
             points.append(np.column_stack([np.linspace(lx[0], lx[-1], n),
                                            np.linspace(ly[0], ly[-1], n)]) + (x0, y0))  # fmt: skip
         else:
