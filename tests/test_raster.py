@@ -29,7 +29,9 @@ def test_ticks_are_round_steps_within_the_limits(lo, hi, nbins, want):
     assert len(ticks) <= nbins + 1 and ticks[0] >= lo and ticks[-1] <= hi
 
 
-@pytest.mark.parametrize("lim", [(1.0, 1.0), (2.0, 1.0), (0.0, float("nan")), (0, float("inf"))])
+@pytest.mark.parametrize(
+    "lim", [(1.0, 1.0), (2.0, 1.0), (0.0, float("nan")), (0, float("inf")), (-1e308, 1e308)]
+)
 def test_bad_limits_are_a_render_error(lim):
     with pytest.raises(raster.RenderError, match=r"axis limits \[.*\]: expected finite, "
                        r"increasing limits"):  # fmt: skip

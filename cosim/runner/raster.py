@@ -83,7 +83,7 @@ def warm() -> None:
 def nice_ticks(lo: float, hi: float, nbins: int) -> np.ndarray:
     """At most ``nbins + 1`` ticks at a multiple of 1, 2, 2.5 or 5 times a power of ten
     within ``[lo, hi]`` (matplotlib's ``MaxNLocator`` steps)."""
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+    if not math.isfinite(hi - lo) or hi <= lo:  # (lo or hi not finite, or too far apart)
         raise RenderError(f"axis limits [{lo}, {hi}]: expected finite, increasing limits")
     raw = (hi - lo) / max(1, nbins)
     scale = 10.0 ** math.floor(math.log10(raw))
@@ -104,8 +104,8 @@ def tick_labels(ticks: np.ndarray) -> list[str]:
     step = float(np.min(np.diff(ticks))) if len(ticks) > 1 else abs(float(ticks[0])) or 1.0
     big = float(np.max(np.abs(ticks)))
     if big >= 1e5 or 0 < big < 1e-3:
-        digits = next(d for d in range(1, 16)
-                      if len({f"{v:.{d}e}" for v in ticks}) == len(ticks))  # fmt: skip
+        apart = (d for d in range(1, 17) if len({f"{v:.{d}e}" for v in ticks}) == len(ticks))
+        digits = next(apart, 16)
         text = [f"{v:.{digits}e}" for v in ticks]
     else:
         exact = (d for d in range(16) if np.all(np.abs(np.round(ticks, d) - ticks) < step * 1e-6))
@@ -193,7 +193,7 @@ def _legend_box(
     pad = 0.5 * em
     xs = {"l": x0 + pad, "c": (x0 + x1 - width) / 2, "r": x1 - pad - width}
     ys = {"u": y0 + pad, "c": (y0 + y1 - height) / 2, "d": y1 - pad - height}
-    order = ("ur", "ul", "dl", "dr", "cr", "cl", "cr", "dc", "uc", "cc")
+    order = ("ur", "ul", "dl", "dr", "cr", "cl", "dc", "uc", "cc")
     best, where = None, (xs["r"], ys["u"])
     for place in order:
         lx, ly = xs[place[1]], ys[place[0]]
