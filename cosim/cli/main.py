@@ -100,7 +100,7 @@ def _main(args: argparse.Namespace) -> int:
     if command == "run" and not args.no_plots:
         from ..runner.drawing import prestart
 
-        prestart()  # matplotlib imported in a child while this process imports the master
+        prestart()  # Pillow imported in a child while this process imports the master
     from .commands import dispatch  # after parsing: --help imports none of the commands
 
     error = error_prefix(command)

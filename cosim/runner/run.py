@@ -277,7 +277,7 @@ def simulate(
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
     record = run_record(scenario, sim, options)
     # the plots' process forks now, before the recorder's writer thread: it imports
-    # matplotlib while the run runs and draws when the results are in (drawing.py)
+    # Pillow while the run runs and draws when the results are in (drawing.py)
     drawer = start_drawer() if plots and out is not None else None
     try:
         files: dict[str, Path] = {}
