@@ -25,6 +25,10 @@ The per-core figures (one round each, medians over the rounds):
   ``worker_cpu_ms_per_run_1_worker`` (the worker process's CPU time over the timed sweep,
   per run: its event loop and heartbeats included) and ``sweep_efficiency_cpu``, the
   first over the second.
+- ``runs_per_s_1_worker_dask_trim`` and ``worker_cpu_ms_per_run_1_worker_dask_trim``: the
+  same 1-worker sweep with the worker started as Dask starts it, with
+  ``MALLOC_TRIM_THRESHOLD_=65536`` (glider-cosim's local workers start without it:
+  ``glider_cosim.sweeps.cluster.NO_TRIM``), in the same rounds.
 
 Each timed sweep runs ``--runs`` points (default 240, about 0.7 s on one native worker):
 a sweep's fixed start (the FMUs sent, the results file, the first task's round trip) is
@@ -120,6 +124,10 @@ def _median(xs: list[float]) -> float:
     return statistics.median(xs)
 
 
+#: Dask's ``distributed.nanny.pre-spawn-environ`` value of ``MALLOC_TRIM_THRESHOLD_``
+DASK_TRIM = "65536"
+
+
 def main() -> None:
     from distributed import Client, wait
 
@@ -142,7 +150,9 @@ def main() -> None:
     run_cpu_ms: list[float] = []
     worker_ms: list[float] = []
     loads: list[float] = []
-    rates: dict[str, list[float]] = {"local1": [], "local2": [], "ext": [], "ext_traj": []}
+    rates: dict[str, list[float]] = {"local1": [], "dask_trim": [], "local2": [], "ext": [],
+                                     "ext_traj": []}  # fmt: skip
+    trim_ms: list[float] = []
     client_ms: dict[str, list[float]] = {"ext": [], "ext_traj": []}
     sched_pct: list[float] = []
     with DaskCluster(0, hidden=[]) as alone:  # the scheduler's own idle load
@@ -155,15 +165,25 @@ def main() -> None:
         for _ in range(args.rounds):  # interleaved: the machine's load drifts
             # no other client in this process meanwhile: the local clusters' results
             # reached it in bursts, seconds late, while the external one's was connected
-            for n in (1, 2):  # the local cluster's scheduler runs in this process: started
-                local = make_client(n)  # and closed here, so the client's CPU time below
-                try:  # is the client's alone
+            # the local cluster's scheduler runs in this process: started and closed
+            # here, so the client's CPU time below is the client's alone; "dask_trim":
+            # the workers started with Dask's MALLOC_TRIM_THRESHOLD_ (ours start without)
+            for n, name in ((1, "local1"), (1, "dask_trim"), (2, "local2")):
+                if name == "dask_trim":
+                    os.environ["MALLOC_TRIM_THRESHOLD_"] = DASK_TRIM
+                try:
+                    local = make_client(n)
+                finally:
+                    os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+                try:
                     r = rate(local, n, args.runs, fmu_dir)
-                    rates[f"local{n}"].append(r["runs_per_s"])
+                    rates[name].append(r["runs_per_s"])
                 finally:
                     local.close()
                     local.cluster.close()
-                if n == 1:  # the run time of one run, in the same round
+                if name == "dask_trim":
+                    trim_ms.append(r["worker_cpu_ms_per_run"])
+                if name == "local1":  # the run time of one run, in the same round
                     wall, cpu_s = in_memory_run_s(fmu_dir, args.repeats)
                     run_ms.append(1e3 * wall)
                     run_cpu_ms.append(1e3 * cpu_s)
@@ -197,6 +217,8 @@ def main() -> None:
         "in_memory_run_cpu_ms": round(_median(run_cpu_ms), 3),
         "worker_cpu_ms_per_run_1_worker": round(_median(worker_ms), 3),
         "sweep_efficiency_cpu": round(_median(run_cpu_ms) / _median(worker_ms), 3),
+        "runs_per_s_1_worker_dask_trim": [round(x, 2) for x in rates["dask_trim"]],
+        "worker_cpu_ms_per_run_1_worker_dask_trim": round(_median(trim_ms), 3),
         "load_avg_1min_per_round": [round(x, 2) for x in loads],
         "runs_per_s_1_worker": [round(x, 2) for x in rates["local1"]],
         "runs_per_s_2_workers": [round(x, 2) for x in rates["local2"]],

@@ -40,6 +40,15 @@ def package_version(dist: str = DIST) -> str | None:
         return None
 
 
+#: Dask starts its worker processes with ``MALLOC_TRIM_THRESHOLD_=65536``
+#: (``distributed.nanny.pre-spawn-environ``): glibc then returns freed memory at once and
+#: stops adapting its mmap threshold, and a sweep's runs allocate and free their arrays
+#: thousands of times: 13-20 % more CPU a run here (``bench/sweep.py``,
+#: ``worker_cpu_ms_per_run_1_worker_dask_trim``). The local workers start without it
+#: (glibc's own behaviour); a value in the environment still wins.
+NO_TRIM = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
 def make_client(workers: int = 2, scheduler: str | None = None, dashboard: bool = False) -> Any:
     """A Dask client: an existing cluster, or a local one of worker processes.
 
@@ -65,7 +74,7 @@ def make_client(workers: int = 2, scheduler: str | None = None, dashboard: bool 
     # removed with this process's temporary folder
     scratch = str(new_temp_dir("dask_"))
     dask.config.set({"temporary-directory": scratch})
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), dask.config.set(NO_TRIM):  # read by each nanny here
         warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=":8787" if dashboard else ":0",
