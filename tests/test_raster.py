@@ -117,7 +117,9 @@ def test_the_legend_goes_where_the_data_is_not():
     assert ly > 40 and ly + h <= 500  # below the line, inside the panel
     assert lx + w <= 1000 and lx >= 0
     lx, ly, _, _ = raster._legend_box([high], box, 7.0, [])
-    assert (lx, ly) == pytest.approx((1000 - raster._px(3.5) - w, raster._px(3.5)))  # upper right
+    assert (lx, ly) == pytest.approx(
+        (1000 - raster.pt_px(3.5) - w, raster.pt_px(3.5))
+    )  # upper right
     assert raster.render(spec).size == (770, 396)
 
 

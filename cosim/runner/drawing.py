@@ -88,20 +88,19 @@ def draw_plots(result: Any, out: Path, partner: Partner | None = None) -> dict[s
     """Write the run's PNG plots and ``plots.html`` into ``out``; ``{name: path}`` of the
     files written. With ``partner`` (the drawing process's), this process draws the first
     of :func:`shares` and the partner the second and the page, at the same time."""
-    from .plots import build_specs
+    from .plots import PLOTS, build_specs
 
-    specs = build_specs(result, out)
     try:
-        if partner is not None:
+        if partner is not None:  # it builds its share's specs, and all of them for the page
             partner.start(result, out)
-            found = _draw_share(specs, shares()[0]) | partner.finish()
+            found = _draw_share(build_specs(result, out, shares()[0]), None) | partner.finish()
         else:
+            specs = build_specs(result, out)
             found = _draw_share(specs, None) | _write_page(result, out, specs)
     finally:
         if partner is not None:
             partner.close()
-    files = {path.stem: found[path.stem] for _, path, _ in specs if path.stem in found}
-    return files | ({"page": found["page"]} if "page" in found else {})
+    return {name: found[name] for name in [n for n, _, _ in PLOTS] + ["page"] if name in found}
 
 
 def _write_page(result: Any, out: Path, specs: Sequence[tuple]) -> dict[str, Path]:

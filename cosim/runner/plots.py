@@ -127,18 +127,22 @@ def panel(
             "images": [], "texts": [], "legend_pt": 7.0}  # fmt: skip
 
 
-def figure(result: Any, kind: str, panels: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """A figure spec of ``kind`` (``"single"`` or ``"pair"``), the run's settings as its
-    subtitle."""
+def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:
+    """A figure spec of ``kind`` (``"single"`` or ``"pair"``) with ``subtitle`` above its
+    panels (a run's: its settings)."""
     return {
         "title": next((p["title"] for p in panels if p["title"]), ""),
-        "suptitle": settings_text(result.metrics),
+        "suptitle": subtitle,
         "notes": [],
         "panels": list(panels),
         "size_in": SIZES[kind],
         "margins": PAIR_MARGINS if kind == "pair" else SINGLE_MARGINS,
         "height_ratios": [2.0, 1.0] if kind == "pair" else [1.0],
     }
+
+
+def _run_figure(result: Any, kind: str, panels: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    return figure(kind, panels, settings_text(result.metrics))
 
 
 def _title(result: Any, what: str) -> str:
@@ -171,7 +175,7 @@ def _glide_angle(result: Any) -> dict[str, Any]:
         lines.append(line([0.0], [result.metrics["theta_ge_rad"] * _DEG], "equilibrium",
                           color="k", dash="dotted", width=0.8, span="y"))  # fmt: skip
     lines += event_lines(_events(result))
-    return figure(result, "single", [panel(lines, title=_title(result, "Glide angle"),
+    return _run_figure(result, "single", [panel(lines, title=_title(result, "Glide angle"),
                                            xlabel="time [s]", ylabel="theta_g [deg]")])  # fmt: skip
 
 
@@ -221,7 +225,7 @@ def _pair(
         for ln in p["lines"]:
             if ln["span"] == "y":
                 ln["x"] = np.array(shared)
-    return figure(result, "pair", [above, under])
+    return _run_figure(result, "pair", [above, under])
 
 
 def _tail(result: Any) -> dict[str, Any]:
@@ -250,7 +254,7 @@ def _speed(result: Any) -> dict[str, Any]:
         lines.append(line([0.0], [result.metrics["V_e_m_s"]], "equilibrium", color="k",
                           dash="dotted", width=0.8, span="y"))  # fmt: skip
     lines += event_lines(_events(result))
-    return figure(result, "single", [panel(lines, title=_title(result, "Speed"),
+    return _run_figure(result, "single", [panel(lines, title=_title(result, "Speed"),
                                            xlabel="time [s]", ylabel="V [m/s]")])  # fmt: skip
 
 
@@ -264,7 +268,7 @@ def _depth(result: Any) -> dict[str, Any]:
         name = f"{ev['label']}, t = {ev['time_s']:.2f} s"
         lines.append(line([x[k]], [z[k]], name, color=color, marker=marker, size=7.0,
                           gid=f"event:{ev['kind']}"))  # fmt: skip
-    return figure(result, "single", [panel(lines, title=_title(result, "Depth profile"),
+    return _run_figure(result, "single", [panel(lines, title=_title(result, "Depth profile"),
                                            xlabel="x [m]", ylabel="depth z [m]",
                                            inverted=True)])  # fmt: skip
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from .strokes import DASHES, DPI, SCALE, RenderError, _blend, _px, draw_line
+from .strokes import DASHES, DPI, SCALE, RenderError, draw_line, over_white, pt_px
 
 __all__ = ["DPI", "RenderError", "font", "layout", "nice_ticks", "png_bytes", "render",
            "render_png", "tick_labels", "warm"]  # fmt: skip
@@ -45,7 +45,7 @@ _MINUS = "\N{MINUS SIGN}"
 def font(size_pt: float) -> Any:
     """DejaVu Sans (matplotlib's font, read from its installed data; matplotlib is not
     imported) at ``size_pt`` for the drawing; Pillow's own font if it is missing."""
-    size = max(1, round(_px(size_pt)))
+    size = max(1, round(pt_px(size_pt)))
     spec = importlib.util.find_spec("matplotlib")
     for folder in spec.submodule_search_locations or () if spec else ():
         path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
@@ -60,18 +60,17 @@ def warm() -> None:
     process, while the run runs): a process's first plot took 15-35 ms longer than the
     next ones (the allocator then mapped fresh memory for the images, and first calls),
     and a partner forked afterwards inherits what this warmed."""
+    from .plots import figure, line, panel
+
     t = np.linspace(0.0, 1.0, 50)
-    lines = [{"x": t, "y": np.sin(6 * t), "name": "a", "legend": True, "color": "#1f77b4",
-              "alpha": 1.0, "width": 1.4, "dash": dash, "lines": True, "marker": "",
-              "size": 6.0, "step": dash == "dashed", "span": ""}
+    y = np.sin(6.0 * t)
+    lines = [line(t, y, "a", dash=dash, width=1.4, step=dash == "dashed")
              for dash in ("solid", *DASHES)]  # fmt: skip
-    lines += [{**lines[0], "marker": m, "lines": False, "alpha": a, "size": 7.0}
+    lines += [line(t, y, "b", marker=m, alpha=a, size=7.0)
               for m, a in ((".", 0.3), ("o", 1.0), ("D", 1.0), ("X", 1.0))]  # fmt: skip
-    panel = {"title": "(0)", "xlabel": "x", "ylabel": "y", "xlim": [-0.1, 1.1],
-             "ylim": [-1.1, 1.1], "inverted": False, "lines": lines, "legend_pt": 7.0}  # fmt: skip
-    spec = {"title": "", "suptitle": "s", "panels": [panel, panel], "size_in": (7.0, 5.2),
-            "margins": {"left": 0.2, "right": 0.95, "bottom": 0.2, "top": 0.8, "hspace": 0.1},
-            "height_ratios": [2.0, 1.0]}  # fmt: skip
+    lines.append(line([0.5], [0.0], "c", color="k", dash="dotted", alpha=0.3, span="x"))
+    spec = figure("pair", [panel(lines, title="(0)", ylabel="y"),
+                           panel(lines, xlabel="x", ylabel="y", row=1)], "s")  # fmt: skip
     png_bytes(render(spec), {"k": "v"})
     scratch = ImageDraw.Draw(Image.new("L", (8, 8)))
     chars = "".join(map(chr, range(32, 127))) + _MINUS
@@ -158,12 +157,14 @@ def _left_margin(spec: dict[str, Any], width: float, labels: list[list[str]]) ->
     """The left margin (figure fraction) wide enough for the widest y tick label, the
     ticks and the y label."""
     widest = max((_text_width(s, FONT_PT) for ls in labels for s in ls), default=0.0)
-    need = widest + _px(_TICK_PT + _TICK_PAD_PT + _LABEL_PAD_PT) + _px(FONT_PT) * 1.2 + 8 * SCALE
+    need = (
+        widest + pt_px(_TICK_PT + _TICK_PAD_PT + _LABEL_PAD_PT) + pt_px(FONT_PT) * 1.2 + 8 * SCALE
+    )
     return max(spec["margins"]["left"], min(0.3, need / width))
 
 
 def _nbins(length_px: float, per_tick_pt: float) -> int:
-    return max(3, min(9, int(length_px / _px(per_tick_pt))))
+    return max(3, min(9, int(length_px / pt_px(per_tick_pt))))
 
 
 def _ticks(lim: Sequence[float], nbins: int) -> np.ndarray:
@@ -186,7 +187,7 @@ def _legend_box(
 ) -> tuple[float, float, float, float]:
     """Where the legend goes: of matplotlib's places ("best"), the first covering the
     fewest data points; ``points`` are the panel's in drawing pixels."""
-    em = _px(size_pt)
+    em = pt_px(size_pt)
     width = max(_text_width(e["name"], size_pt) for e in entries) + 2.0 * em + 0.8 * em + 0.8 * em
     height = len(entries) * 1.3 * em + 0.6 * em
     x0, y0, x1, y1 = box
@@ -213,13 +214,13 @@ LEGEND_ALPHA = 0.8
 
 def _draw_legend(im: Image.Image, entries: list[dict[str, Any]], at: tuple, size_pt: float) -> None:
     lx, ly, width, height = at
-    em = _px(size_pt)
+    em = pt_px(size_pt)
     box = (round(lx), round(ly), round(lx + width) + 1, round(ly + height) + 1)
     white = Image.new("RGB", (box[2] - box[0], box[3] - box[1]), (255, 255, 255))
     legend = Image.blend(im.crop(box), white, LEGEND_ALPHA)
     draw = ImageDraw.Draw(legend)
     draw.rounded_rectangle([0, 0, legend.width - 1, legend.height - 1], radius=0.2 * em,
-                           outline=(0xCC, 0xCC, 0xCC), width=max(1, round(_px(0.8))))  # fmt: skip
+                           outline=(0xCC, 0xCC, 0xCC), width=max(1, round(pt_px(0.8))))  # fmt: skip
     for k, e in enumerate(entries):
         cy = 0.3 * em + (k + 0.5) * 1.3 * em
         spot = (round(0.4 * em), round(cy - 0.65 * em), round(2.4 * em) + 2, round(cy + 0.65 * em))
@@ -277,8 +278,8 @@ def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last:
     xpx = _to_px(xt, p["xlim"], aw, False)
     ypx = _to_px(yt, p["ylim"], ah, flip_y)
     pd = ImageDraw.Draw(panel)
-    grid = _blend(_GRID, 0.3)
-    gw = max(1, round(_px(0.8)))
+    grid = over_white(_GRID, 0.3)
+    gw = max(1, round(pt_px(0.8)))
     for v in xpx:
         pd.line([v, 0, v, ah], fill=grid, width=gw)
     for v in ypx:
@@ -296,12 +297,12 @@ def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last:
         else:
             points.append(np.column_stack([lx, ly])[:: max(1, len(lx) // 1000)] + (x0, y0))
     im.paste(panel, (round(x0), round(y0)))
-    lw = max(1, round(_px(0.8)))
+    lw = max(1, round(pt_px(0.8)))
     draw.rectangle([round(x0) - lw // 2, round(y0) - lw // 2, round(x0) + aw, round(y0) + ah],
                    outline=(0, 0, 0), width=lw)  # fmt: skip
-    tick = _px(_TICK_PT)
-    pad = _px(_TICK_PAD_PT)
-    em = _px(FONT_PT)
+    tick = pt_px(_TICK_PT)
+    pad = pt_px(_TICK_PAD_PT)
+    em = pt_px(FONT_PT)
     for v, text in zip(xpx, tick_labels(xt), strict=True):
         draw.line([x0 + v, y1, x0 + v, y1 + tick], fill=(0, 0, 0), width=lw)
         if last:
@@ -312,13 +313,13 @@ def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last:
         _text(draw, (x0 - tick - pad, y0 + v), text, FONT_PT, "rm")
         widest = max(widest, _text_width(text, FONT_PT))
     if p.get("ylabel"):
-        _vertical_text(im, p["ylabel"], FONT_PT, x0 - tick - pad - widest - _px(_LABEL_PAD_PT),
+        _vertical_text(im, p["ylabel"], FONT_PT, x0 - tick - pad - widest - pt_px(_LABEL_PAD_PT),
                        (y0 + y1) / 2)  # fmt: skip
     if last and p.get("xlabel"):
-        _text(draw, ((x0 + x1) / 2, y1 + tick + pad + 1.2 * em + _px(_LABEL_PAD_PT)),
+        _text(draw, ((x0 + x1) / 2, y1 + tick + pad + 1.2 * em + pt_px(_LABEL_PAD_PT)),
               p["xlabel"], FONT_PT, "mt")  # fmt: skip
     if p.get("title"):
-        _text(draw, ((x0 + x1) / 2, y0 - _px(_TITLE_PAD_PT)), p["title"], TITLE_PT, "md")
+        _text(draw, ((x0 + x1) / 2, y0 - pt_px(_TITLE_PAD_PT)), p["title"], TITLE_PT, "md")
     entries = _legend_entries(p)
     if entries:
         size_pt = float(p.get("legend_pt", 7.0))

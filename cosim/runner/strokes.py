@@ -25,7 +25,7 @@ class RenderError(ValueError):
     """A spec that cannot be drawn (no panels, an unknown layout, bad limits)."""
 
 
-def _px(pt: float) -> float:
+def pt_px(pt: float) -> float:
     """Points -> pixels of the drawing (SCALE times the PNG's)."""
     return pt * DPI / 72.0 * SCALE
 
@@ -37,7 +37,7 @@ def _rgb(color: str) -> tuple[int, int, int]:
     return int(color[0:2], 16), int(color[2:4], 16), int(color[4:6], 16)
 
 
-def _blend(rgb: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
+def over_white(rgb: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
     """``rgb`` at ``alpha`` over white."""
     return tuple(round(255 - alpha * (255 - c)) for c in rgb)  # type: ignore[return-value]
 
@@ -111,7 +111,7 @@ class _Layer:
         self.opaque = alpha >= OPAQUE
         if self.opaque:
             self.mask = onto
-            self.ink: Any = _blend(rgb, alpha)
+            self.ink: Any = over_white(rgb, alpha)
         else:
             self.mask = Image.new("L", onto.size, 0)
             self.ink = 255
@@ -146,7 +146,7 @@ def draw_line(panel: Image.Image, line: dict[str, Any], x: np.ndarray, y: np.nda
         x, y = _steps(x, y)
     lim = 4.0 * max(panel.size)
     x, y = np.clip(x, -lim, lim), np.clip(y, -lim, lim)
-    width = _px(float(line.get("width", 1.0)))
+    width = pt_px(float(line.get("width", 1.0)))
     if line.get("lines", True):
         pattern = DASHES.get(line.get("dash", "solid"))
         for piece in _pieces(x, y):
@@ -155,7 +155,7 @@ def draw_line(panel: Image.Image, line: dict[str, Any], x: np.ndarray, y: np.nda
                 _stroke(layer, part, width)
     marker = line.get("marker", "")
     if marker:
-        r = max(0.75, _px(float(line.get("size", 6.0))) / 2)
+        r = max(0.75, pt_px(float(line.get("size", 6.0))) / 2)
         ok = np.isfinite(x) & np.isfinite(y)
         if marker == "." and ok.sum() > 50:  # many small dots: stamped with numpy
             _dots(layer, x[ok], y[ok], r)
