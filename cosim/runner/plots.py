@@ -1,11 +1,5 @@
-"""A run's plots (angles in degrees, time in seconds), each defined once as a spec.
-
-A spec is plain data: ``{"title", "suptitle", "notes", "panels", "size_in", "margins",
-"height_ratios"}``, each panel ``{"title", "xlabel", "ylabel", "xlim", "ylim",
-"inverted", "log", "row", "col", "lines", "images", "texts", "legend_pt"}`` and each
-line ``{"x", "y", "name", "legend", "color", "alpha", "width", "dash", "lines",
-"marker", "size", "edge", "step", "span", "gid"}`` (x and y in data units; widths and
-sizes in points). :mod:`.raster` draws it as the PNG and :mod:`.pages` as the zoomable
+"""A run's plots (angles in degrees, time in seconds), each defined once as a spec
+(:mod:`.spec`): :mod:`.raster` draws it as the PNG and :mod:`.pages` as the zoomable
 ``plots.html``, so both show the same lines, labels and limits.
 """
 
@@ -19,19 +13,13 @@ from typing import Any
 import numpy as np
 
 from .provenance import settings_text
+from .spec import COLORS, PAIR_MARGINS, SINGLE_MARGINS, SIZES, figure, line, panel
+
+__all__ = ["COLORS", "EVENT_STYLE", "PAIR_MARGINS", "PLOTS", "SINGLE_MARGINS", "SIZES",
+           "build_specs", "event_lines", "figure", "line", "panel", "read_png_record",
+           "write_plots"]  # fmt: skip
 
 _DEG = 180.0 / np.pi
-#: the colours the plots use (matplotlib's "tab" palette, by the names they had there)
-COLORS = {
-    "tab:blue": "#1f77b4",
-    "tab:orange": "#ff7f0e",
-    "tab:green": "#2ca02c",
-    "tab:red": "#d62728",
-    "tab:purple": "#9467bd",
-    "tab:gray": "#7f7f7f",
-    "darkred": "#8b0000",
-    "k": "#000000",
-}
 #: how each marked event is drawn (colour, line style)
 EVENT_STYLE = {
     "enable": ("tab:green", "dashed"),
@@ -40,105 +28,8 @@ EVENT_STYLE = {
     "discard": ("tab:red", "dashed"),
     "error": ("darkred", "dotted"),
 }
-#: margins (figure fractions) of the one-panel and the two-panel figures (the left one
-#: grows with the y tick labels: :func:`.raster.render`)
-SINGLE_MARGINS = {"left": 0.1, "right": 0.98, "bottom": 0.13, "top": 0.86}
-PAIR_MARGINS = {"left": 0.1, "right": 0.98, "bottom": 0.09, "top": 0.9, "hspace": 0.1}
-#: figure sizes, inches: one panel, and two panels sharing their time axis
-SIZES = {"single": (7.0, 3.6), "pair": (7.0, 5.2)}
-#: autoscaled limits leave this fraction of the data's range on each side
-AXIS_MARGIN = 0.05
 #: the PNG text chunks that carry what a plot marks and which run it shows
 META_EVENTS, META_SETTINGS = "glider-cosim:events", "glider-cosim:settings"
-
-
-def line(
-    x: Any,
-    y: Any,
-    name: str = "",
-    *,
-    color: str = "tab:blue",
-    width: float = 1.0,
-    dash: str = "solid",
-    alpha: float = 1.0,
-    marker: str = "",
-    size: float = 6.0,
-    step: bool = False,
-    span: str = "",
-    gid: str = "",
-    legend: bool | None = None,
-) -> dict[str, Any]:
-    """One line of a panel (a spec): ``x``, ``y`` in data units, ``width`` and ``size``
-    (markers) in points, ``dash`` one of solid, dashed, dashdot, dotted; ``span``
-    ``"x"`` for a vertical line across the panel at ``x[0]`` (``"y"``: horizontal, at
-    ``y[0]``), its other coordinates set to the panel's limits by :func:`panel`."""
-    rgb = COLORS.get(color, color)
-    return {
-        "x": np.asarray(x, dtype=float),
-        "y": np.asarray(y, dtype=float),
-        "name": name or gid.split(":", 1)[-1],
-        "legend": bool(name) if legend is None else legend,
-        "color": rgb,
-        "alpha": float(alpha),
-        "width": float(width),
-        "dash": dash,
-        "lines": not marker,
-        "marker": marker,
-        "size": float(size),
-        "edge": rgb,
-        "step": step,
-        "span": span,
-        "gid": gid,
-    }
-
-
-def _limits(values: list[np.ndarray]) -> list[float]:
-    v = np.concatenate([np.asarray(a, dtype=float).ravel() for a in values] or [np.zeros(1)])
-    v = v[np.isfinite(v)]
-    lo, hi = (float(v.min()), float(v.max())) if len(v) else (0.0, 1.0)
-    if hi - lo <= 1e-12 * max(1.0, abs(hi)):  # a constant: a range around it
-        half = 0.05 * abs(hi) if hi else 0.05
-        return [lo - half, hi + half]
-    pad = AXIS_MARGIN * (hi - lo)
-    return [lo - pad, hi + pad]
-
-
-def panel(
-    lines: Sequence[dict[str, Any]],
-    *,
-    title: str = "",
-    xlabel: str = "",
-    ylabel: str = "",
-    row: int = 0,
-    inverted: bool = False,
-) -> dict[str, Any]:
-    """A panel of ``lines`` (drawn in this order), its limits autoscaled from them (the
-    span lines count where they stand), then the span lines run across it."""
-    xs = [ln["x"] for ln in lines if ln["span"] != "y"]
-    ys = [ln["y"] for ln in lines if ln["span"] != "x"]
-    xlim, ylim = _limits(xs), _limits(ys)
-    for ln in lines:
-        if ln["span"] == "x":
-            ln["x"], ln["y"] = np.repeat(ln["x"][:1], 2), np.array(ylim)
-        elif ln["span"] == "y":
-            ln["x"], ln["y"] = np.array(xlim), np.repeat(ln["y"][:1], 2)
-    return {"title": title, "xlabel": xlabel, "ylabel": ylabel, "xlim": xlim, "ylim": ylim,
-            "inverted": inverted, "log": False, "row": row, "col": 0, "lines": list(lines),
-            "images": [], "texts": [], "legend_pt": 7.0}  # fmt: skip
-
-
-def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:
-    """A figure spec of ``kind`` (``"single"`` or ``"pair"``) with ``subtitle`` above its
-    panels (a run's: its settings)."""
-    return {
-        "title": next((p["title"] for p in panels if p["title"]), ""),
-        "suptitle": subtitle,
-        "notes": [],
-        "panels": list(panels),
-        "size_in": SIZES[kind],
-        "margins": PAIR_MARGINS if kind == "pair" else SINGLE_MARGINS,
-        "height_ratios": [2.0, 1.0] if kind == "pair" else [1.0],
-    }
 
 
 def _run_figure(result: Any, kind: str, panels: Sequence[dict[str, Any]]) -> dict[str, Any]:

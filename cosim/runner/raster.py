@@ -1,6 +1,6 @@
 """A run's PNG plots drawn from their specs with Pillow, without matplotlib.
 
-A spec (:mod:`.plots`) says what a figure shows: its panels, each with its limits,
+A spec (:mod:`.spec`) says what a figure shows: its panels, each with its limits,
 labels and lines (series, equilibrium and event lines, markers), in data units; the
 same spec is what ``plots.html`` draws (:mod:`.pages`). :func:`render_png` lays it out
 as the run's matplotlib figures were (DejaVu Sans, 110 dpi, the same margins, ticks,
@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from .spec import figure, line, panel
 from .strokes import DASHES, DPI, SCALE, RenderError, draw_line, over_white, pt_px
 
 __all__ = ["DPI", "RenderError", "font", "layout", "nice_ticks", "png_bytes", "render",
@@ -60,8 +61,6 @@ def warm() -> None:
     process, while the run runs): a process's first plot took 15-35 ms longer than the
     next ones (the allocator then mapped fresh memory for the images, and first calls),
     and a partner forked afterwards inherits what this warmed."""
-    from .plots import figure, line, panel
-
     t = np.linspace(0.0, 1.0, 50)
     y = np.sin(6.0 * t)
     lines = [line(t, y, "a", dash=dash, width=1.4, step=dash == "dashed")
@@ -256,7 +255,7 @@ def layout(spec: dict[str, Any]) -> tuple[tuple[int, int], list[tuple[float, ...
 
 
 def render(spec: dict[str, Any]) -> Image.Image:
-    """The figure of ``spec`` (:mod:`.plots`), an RGB image at :data:`DPI`."""
+    """The figure of ``spec`` (:mod:`.spec`), an RGB image at :data:`DPI`."""
     size, boxes = layout(spec)
     im = Image.new("RGB", size, (255, 255, 255))
     draw = ImageDraw.Draw(im)
