@@ -152,6 +152,6 @@ def test_cache_names_the_font_cache_of_the_command_line(monkeypatch, tmp_path, c
     assert main(["cache"]) == 0
     body = [" ".join(line.split()) for line in capsys.readouterr().out.splitlines()]
     assert (
-        f"{package_version()}/matplotlib 100 B matplotlib's font cache (the command line's plots)"
-        in body
+        f"{package_version()}/matplotlib 100 B matplotlib's font cache "
+        "(the sweep's and report's figures)" in body
     )

@@ -53,9 +53,9 @@ def _matplotlib_cache() -> None:
     (``<cache>/<version>/matplotlib``, :func:`~glider_cosim.fmus.files.cache_root`;
     matplotlib creates it when it first draws), not ``~/.cache/matplotlib``: a command
     writes nothing outside its output folder and our cache (unless the user points
-    ``MPLCONFIGDIR`` somewhere). Built once: rebuilt at every run, it cost 0.2 s on the
-    drawing's critical path (issue 31). Where it cannot be written, the process's
-    temporary folder holds it."""
+    ``MPLCONFIGDIR`` somewhere). Built once: rebuilt each time, it cost 0.2 s a command.
+    matplotlib draws the sweep's and report's figures (a run's PNGs are Pillow's, without
+    it). Where it cannot be written, the process's temporary folder holds it."""
     if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
         return
     from ..fmus.files import cache_root, package_version

@@ -64,7 +64,7 @@ def _describe(version: str, name: str, keys: dict[str, str]) -> str:
     if name == "native-obj":
         return "native objects (each C file compiled per platform)"
     if name == "matplotlib":
-        return "matplotlib's font cache (the command line's plots)"
+        return "matplotlib's font cache (the sweep's and report's figures)"
     kind, only, host = kind.partition("-only-")
     if kind in FMU_KINDS:
         flavor, _, fmi = kind.partition("-")

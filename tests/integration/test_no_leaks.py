@@ -160,41 +160,44 @@ def test_extractions_are_reused_within_a_process(fmu_dir):
     assert Path(a).is_relative_to(temp_root())
 
 
-def _run_with_plots(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
-    """A run with plots; zig's own cache (the master's C loop may be compiled) where it is."""
+def _draw_with_matplotlib(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
+    """A command drawing with matplotlib: a two-run sweep (its figures; a run's PNGs are
+    Pillow's, no matplotlib); zig's own cache (the master's C loop may be compiled)."""
     zig = os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
     env = env | {"ZIG_GLOBAL_CACHE_DIR": zig}
-    p = subprocess.run([sys.executable, "-c", CLI, "run", "--fmu-dir", str(fmu_dir), "--out",
-                        str(tmp_path / out), "--stop-time", "2"], capture_output=True, text=True,
-                       env=env, timeout=300)  # fmt: skip
+    p = subprocess.run([sys.executable, "-c", CLI, "sweep", "--param", "controller.K_c=6,8",
+                        "--workers", "1", "--stop-time", "2", "--fmu-dir", str(fmu_dir),
+                        "--out", str(tmp_path / out)], capture_output=True, text=True, env=env,
+                       timeout=300)  # fmt: skip
     assert p.returncode == 0, p.stderr
-    assert (tmp_path / out / "pitch.png").is_file()
+    assert (tmp_path / out / "settling_vs_effort.png").is_file()
     return p
 
 
-def test_cli_run_keeps_the_font_cache_in_our_cache_only(fmu_dir, tmp_path):
-    """matplotlib's font cache goes to glider-cosim's per-user cache
-    (``<cache>/<version>/matplotlib``, here ``$GLIDER_COSIM_CACHE``), nothing into the home
-    folder, and the next run reuses it (read, not rebuilt)."""
+def test_cli_keeps_matplotlibs_font_cache_in_our_cache_only(fmu_dir, tmp_path):
+    """matplotlib's font cache (the sweep's and report's figures) goes to glider-cosim's
+    per-user cache (``<cache>/<version>/matplotlib``, here a fresh ``$GLIDER_COSIM_CACHE``),
+    nothing into the home folder, and the next command reuses it (read, not rebuilt)."""
     home = tmp_path / "home"
     home.mkdir()
     env = private_env(tmp_path / "t") | {"HOME": str(home)}
-    cache = Path(env["GLIDER_COSIM_CACHE"])  # the suite's (the master's C loop built there)
+    cache = tmp_path / "cache"  # empty: a font cache found there was written by this test
+    env["GLIDER_COSIM_CACHE"] = str(cache)
     for key in ("MPLCONFIGDIR", "XDG_CACHE_HOME", "XDG_CONFIG_HOME"):
         env.pop(key, None)
-    _run_with_plots(tmp_path, fmu_dir, env, "o1")
+    _draw_with_matplotlib(tmp_path, fmu_dir, env, "o1")
     from glider_cosim.fmus.files import package_version
 
     fonts = sorted((cache / package_version() / "matplotlib").glob("fontlist-*.json"))
     assert len(fonts) == 1, sorted(cache.rglob("*"))
     before = fonts[0].stat().st_mtime_ns
-    _run_with_plots(tmp_path, fmu_dir, env, "o2")
+    _draw_with_matplotlib(tmp_path, fmu_dir, env, "o2")
     assert fonts[0].stat().st_mtime_ns == before
     assert list(home.rglob("*")) == []
     assert list((tmp_path / "t").iterdir()) == []
 
 
-def test_cli_run_without_a_writable_cache_keeps_the_fonts_in_its_temporary_folder(
+def test_cli_without_a_writable_cache_keeps_the_fonts_in_its_temporary_folder(
     fmu_dir, tmp_path
 ):  # fmt: skip
     blocker = tmp_path / "not-a-folder"
@@ -206,6 +209,6 @@ def test_cli_run_without_a_writable_cache_keeps_the_fonts_in_its_temporary_folde
         "GLIDER_COSIM_CACHE": str(blocker / "cache"),
     }
     env.pop("MPLCONFIGDIR", None)
-    _run_with_plots(tmp_path, fmu_dir, env, "o")
+    _draw_with_matplotlib(tmp_path, fmu_dir, env, "o")
     assert list(home.rglob("*")) == []
     assert list((tmp_path / "t").iterdir()) == []  # the temporary font cache is gone too
