@@ -54,13 +54,28 @@ def test_an_object_key_follows_the_file_its_headers_the_flags_and_the_compiler(s
 def test_zig_links_without_compiler_rt_but_on_windows():
     flags = {k: objects.link_flags(objects.Target(k, p, ZIG), ("-std=c99", "-O2"))
              for k, p in toolchain.PLATFORMS.items()}  # fmt: skip
-    assert flags["x86_64-linux"] == ["-O2", "-fPIC", "-shared", "-fvisibility=hidden",
+    assert flags["x86_64-linux"] == ["-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-flto",
                                      "-rtlib=none"]  # fmt: skip
     assert flags["aarch64-darwin"][-1] == "-rtlib=none"
     assert flags["x86_64-windows"] == ["-O2", "-shared"]
     gcc = objects.Target("x86_64-linux", toolchain.PLATFORMS["x86_64-linux"], GCC)
     assert "-rtlib=none" not in objects.link_flags(gcc, FLAGS)
-    assert objects.compile_flags(LINUX, FLAGS) == ["-O2", "-Wall", "-fPIC", "-fvisibility=hidden"]
+    assert objects.compile_flags(LINUX, FLAGS) == ["-O2", "-Wall", "-fPIC", "-fvisibility=hidden",
+                                                   "-flto"]  # fmt: skip
+
+
+def test_link_time_optimisation_is_zigs_on_linux_only_on_compile_and_link():
+    for key, platform in toolchain.PLATFORMS.items():
+        t = objects.Target(key, platform, ZIG)
+        lto = platform.os == "linux"
+        assert ("-flto" in objects.compile_flags(t, FLAGS)) is lto, key
+        assert ("-flto" in objects.link_flags(t, FLAGS)) is lto, key
+    gcc = objects.Target("x86_64-linux", toolchain.PLATFORMS["x86_64-linux"], GCC)
+    assert "-flto" not in objects.compile_flags(gcc, FLAGS) + objects.link_flags(gcc, FLAGS)
+    # the FMUs' staleness hashes follow the policy: a compiler with it differs from one without
+    zig = toolchain.Toolchain((ZIG,), "zig").fingerprint()
+    assert "lto ['aarch64-linux', 'x86_64-linux']" in zig
+    assert "lto []" in toolchain.Toolchain((GCC,), "gcc").fingerprint()
 
 
 def test_the_cache_lists_a_host_only_set_and_the_objects(tmp_path, monkeypatch):

@@ -75,17 +75,25 @@ def _fmi_headers_digest() -> str:
 
 
 def compile_flags(target: Target, cflags: tuple[str, ...]) -> list[str]:
-    """The flags of an object's compile: ``cflags`` and the shared library's code flags."""
+    """The flags of an object's compile: ``cflags``, the shared library's code flags and
+    link-time optimisation where the compiler makes it
+    (:meth:`glider_fmi.toolchain.Compiler.lto_flags`)."""
     shared = target.compiler.shared_flags(target.platform)
-    return [*cflags, *(f for f in shared if f not in ("-shared", "-static-libgcc"))]
+    return [
+        *cflags,
+        *(f for f in shared if f not in ("-shared", "-static-libgcc")),
+        *target.compiler.lto_flags(target.platform),
+    ]
 
 
 def link_flags(target: Target, cflags: tuple[str, ...]) -> list[str]:
     """The flags of a library's link: the optimisation level (zig builds its C library
-    parts at it), the shared-library flags and, for zig but on Windows, no compiler_rt
-    (:meth:`glider_fmi.toolchain.Compiler.link_extra`)."""
+    parts at it; with link-time optimisation, our code too), the shared-library flags,
+    link-time optimisation where the compile had it and, for zig but on Windows, no
+    compiler_rt (:meth:`glider_fmi.toolchain.Compiler.link_extra`)."""
     flags = [f for f in cflags if f.startswith("-O")]
     flags += target.compiler.shared_flags(target.platform)
+    flags += target.compiler.lto_flags(target.platform)
     return [*flags, *target.compiler.link_extra(target.platform)]
 
 

@@ -3,12 +3,12 @@ the model code directly (no FMI): the reference for accuracy and FMI overhead.
 
 :func:`simulate_monolithic` calls the Python models. :class:`NativeMonolithic` is the
 native flavor's floor: ``monolithic.c`` (next to this module) compiled with the native
-FMUs' own C models (``src/<part>/<part>_model.c``, their flags) into a helper of the FMU
-cache, like the master's fast loop (:func:`glider_cosim.master.fastloop.build_helper`),
-runs the same loop in C. Its rows are bit for bit those of the native co-simulation
-(tested), so its time is what the models cost, and the native flavor's time per macro
-step minus it is what FMI and the master add (``bench/cosim_step.py``:
-``native_monolithic_us_per_macro_step``).
+FMUs' own C models (``src/<part>/<part>_model.c``, their flags, link-time optimisation
+included) into a helper of the FMU cache, like the master's fast loop
+(:func:`glider_cosim.master.fastloop.build_helper`), runs the same loop in C. Its rows
+are bit for bit those of the native co-simulation (tested), so its time is what the
+models cost, and the native flavor's time per macro step minus it is what FMI and the
+master add (``bench/cosim_step.py``: ``native_monolithic_us_per_macro_step``).
 """
 
 from __future__ import annotations
@@ -261,9 +261,12 @@ _LIB: list[ctypes.CDLL] = []
 
 def _library() -> ctypes.CDLL:
     if not _LIB:
+        from glider_fmi.toolchain import host_lto_flags
+
         from ..master.fastloop import build_helper
 
-        out = build_helper("monolithic", SOURCES, HEADERS, FLAGS, "the native monolithic loop")
+        flags = (*FLAGS, *host_lto_flags())  # the models built as the FMUs build them
+        out = build_helper("monolithic", SOURCES, HEADERS, flags, "the native monolithic loop")
         lib = ctypes.CDLL(str(out))
         lib.glider_mono_state_size.restype = ctypes.c_size_t
         lib.glider_mono_init.restype = ctypes.c_int
