@@ -2,13 +2,12 @@
 the model code directly (no FMI): the reference for accuracy and FMI overhead.
 
 :func:`simulate_monolithic` calls the Python models. :class:`NativeMonolithic` is the
-native flavor's floor: ``monolithic.c`` (next to this module) compiled with the native
-FMUs' own C models (``src/<part>/<part>_model.c``, their flags, link-time optimisation
-included) into a helper of the FMU cache, like the master's fast loop
-(:func:`glider_cosim.master.fastloop.build_helper`), runs the same loop in C. Its rows
-are bit for bit those of the native co-simulation (tested), so its time is what the
-models cost, and the native flavor's time per macro step minus it is what FMI and the
-master add (``bench/cosim_step.py``: ``native_monolithic_us_per_macro_step``).
+native flavor's floor: ``monolithic.c`` (next to this module) and the native FMUs' C
+models (``src/<part>/<part>_model.c``), built as the FMUs are (flags, link-time
+optimisation) into a helper of the FMU cache (``master.fastloop.build_helper``),
+runs the same loop in C. Its rows are bit for bit those of the native co-simulation
+(tested), so its time is what the models cost, and the native flavor's time per macro
+step minus it is what FMI and the master add (``native_monolithic_us_per_macro_step``).
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ import glider_fmi
 import glider_observer
 import glider_plant
 from glider_controller.laws import Law, PIController, passivity_law
+from glider_fmi.toolchain import host_lto_flags
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step
 from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
@@ -261,8 +261,6 @@ _LIB: list[ctypes.CDLL] = []
 
 def _library() -> ctypes.CDLL:
     if not _LIB:
-        from glider_fmi.toolchain import host_lto_flags
-
         from ..master.fastloop import build_helper
 
         flags = (*FLAGS, *host_lto_flags())  # the models built as the FMUs build them
