@@ -90,6 +90,21 @@ def test_a_million_random_doubles_are_written_as_repr_and_read_back_bit_for_bit(
     assert_repr_and_bits(values, c_lines(lib, values))
 
 
+def test_values_of_every_fixed_notation_layout_are_written_as_repr(lib):
+    """Random bit patterns are mostly written in scientific notation; a simulation's
+    values are not: 300,000 doubles log-uniform over 1e-6 .. 1e17 (both signs, every
+    layout: 0.000ddd, the point among the digits, integers with ".0", and both sides of
+    repr's 1e-4 and 1e16 switches), and as many rounded to 1-6 decimals (short texts,
+    trailing zeros stripped)."""
+    rng = np.random.default_rng(7)
+    wide = np.exp(rng.uniform(np.log(1e-6), np.log(1e17), 300_000))
+    wide *= rng.choice([-1.0, 1.0], wide.size)
+    scale = 10.0 ** rng.integers(1, 7, 300_000)
+    short = np.round(rng.uniform(-1000, 1000, 300_000) * scale) / scale
+    values = np.concatenate([wide, short])
+    assert_repr_and_bits(values, c_lines(lib, values))
+
+
 def test_special_values_are_written_as_repr_and_read_back_bit_for_bit(lib):
     values = special_values()
     assert_repr_and_bits(values, c_lines(lib, values))
