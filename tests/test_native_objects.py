@@ -125,3 +125,13 @@ def test_runs_run_here_and_exports_hand_on():
     assert runs_here(ns("report", scheduler=None))
     assert not runs_here(ns("export-ssp"))
     assert not runs_here(ns("export-fmu"))
+
+
+def test_a_host_helper_built_as_the_fmus_gets_their_link_time_optimisation():
+    key = toolchain.host_platform()
+    if key is None:
+        pytest.skip("this machine is none of our platforms")
+    chain = toolchain.Toolchain((ZIG,), "zig")
+    lto = toolchain.PLATFORMS[key].os == "linux"
+    assert ("-flto" in toolchain.host_command(chain, lto=True)) is lto
+    assert "-flto" not in toolchain.host_command(chain)

@@ -118,7 +118,12 @@ def built_library() -> Path:
 
 
 def build_helper(
-    stem: str, sources: Sequence[Path], headers: Sequence[Path], flags: Sequence[str], what: str
+    stem: str,
+    sources: Sequence[Path],
+    headers: Sequence[Path],
+    flags: Sequence[str],
+    what: str,
+    lto: bool = False,
 ) -> Path:
     """A shared library of ``sources`` for this process, built once per FMU cache.
 
@@ -133,6 +138,9 @@ def build_helper(
         Compile flags after the toolchain's shared-library ones.
     what : str
         What it is, for the compiler's error message.
+    lto : bool
+        Built with link-time optimisation where the native FMUs are
+        (:func:`glider_fmi.toolchain.host_command`).
 
     Returns
     -------
@@ -151,11 +159,11 @@ def build_helper(
     from ..fmus.files import cache_root, package_version
     from ..inputs.tempdirs import new_temp_dir
 
-    cmd = [*toolchain.host_command(), *flags]
+    cmd = [*toolchain.host_command(lto=lto), *flags]
     h = hashlib.sha256()
     for path in (*sources, *headers):
         h.update(path.read_bytes())
-    h.update(" ".join([*flags, toolchain.fingerprint()]).encode())
+    h.update(" ".join([*flags, toolchain.fingerprint(), f"lto={lto}"]).encode())
     suffix = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
     folder = cache_root() / package_version() / f"{stem}-{h.hexdigest()[:16]}"
     out = folder / f"{stem}{suffix}"

@@ -27,7 +27,6 @@ import glider_fmi
 import glider_observer
 import glider_plant
 from glider_controller.laws import Law, PIController, passivity_law
-from glider_fmi.toolchain import host_lto_flags
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step
 from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
@@ -263,8 +262,9 @@ def _library() -> ctypes.CDLL:
     if not _LIB:
         from ..master.fastloop import build_helper
 
-        flags = (*FLAGS, *host_lto_flags())  # the models built as the FMUs build them
-        out = build_helper("monolithic", SOURCES, HEADERS, flags, "the native monolithic loop")
+        out = build_helper(
+            "monolithic", SOURCES, HEADERS, FLAGS, "the native monolithic loop", lto=True
+        )  # the models built as the FMUs build them
         lib = ctypes.CDLL(str(out))
         lib.glider_mono_state_size.restype = ctypes.c_size_t
         lib.glider_mono_init.restype = ctypes.c_int

@@ -259,10 +259,12 @@ def run(cmd: list[str], what: str, timeout: float = 300) -> str:
     return (proc.stderr + proc.stdout).strip()
 
 
-def host_command(chain: Toolchain | None = None) -> list[str]:
+def host_command(chain: Toolchain | None = None, lto: bool = False) -> list[str]:
     """The start of a command line building a shared library this process loads (the
     master's C loop, the container's forwarder): the toolchain's compiler for this
-    machine's platform, with its target and shared-library flags.
+    machine's platform, with its target and shared-library flags; ``lto``: and its
+    link-time optimisation (:meth:`Compiler.lto_flags`), for a helper that must be built
+    as the native FMUs are (the floor's models).
 
     Raises
     ------
@@ -276,12 +278,5 @@ def host_command(chain: Toolchain | None = None) -> list[str]:
         raise ToolchainError(f"no compiler for this machine ({key}) in --compiler {chain.spec}")
     platform = PLATFORMS[key]
     shared = [f for f in compiler.shared_flags(platform) if f != "-fvisibility=hidden"]
-    return [*compiler.argv(platform), *shared, *compiler.link_extra(platform)]  # all exported
-
-
-def host_lto_flags(chain: Toolchain | None = None) -> tuple[str, ...]:
-    """:meth:`Compiler.lto_flags` of this machine's compiler (the native FMUs' own, for
-    a helper that must be built as they are: the floor's models), or ()."""
-    key = host_platform()
-    compiler = (chain or select()).for_platform(key) if key else None
-    return compiler.lto_flags(PLATFORMS[key]) if compiler is not None and key else ()
+    optimise = compiler.lto_flags(platform) if lto else ()
+    return [*compiler.argv(platform), *shared, *optimise, *compiler.link_extra(platform)]
