@@ -123,11 +123,16 @@ def test_rows_of_many_columns_are_comma_separated_lines(lib):
     assert text.splitlines()[0] == ",".join(repr(v) for v in values[:17].tolist())
 
 
-def test_the_portable_128_bit_multiply_gives_the_same_text(tmp_path):
+def test_the_portable_128_bit_multiply_and_bit_counts_give_the_same_text(tmp_path):
     from glider_fmi import toolchain
 
     try:
-        cmd = [*toolchain.host_command(), *fastloop.FLAGS, "-DGLIDER_PORTABLE_MUL128"]
+        cmd = [
+            *toolchain.host_command(),
+            *fastloop.FLAGS,
+            "-DGLIDER_PORTABLE_MUL128",
+            "-DGLIDER_PORTABLE_BITS",
+        ]
     except OSError:
         pytest.skip("no C compiler")
     out = tmp_path / f"shortest{'.dll' if sys.platform == 'win32' else '.so'}"
