@@ -69,20 +69,14 @@ static inline int floor_log10_pow2(int q) { return (q * 315653) >> 20; }
 static inline int floor_log10_three_quarters_pow2(int q) { return (q * 315653 - 131237) >> 20; }
 static inline int floor_log2_pow10(int e) { return (e * 1741647) >> 19; }
 
-/* Leading and trailing zero bits of x != 0 (GLIDER_PORTABLE_BITS: without the builtins,
+/* Leading zero bits of x != 0 (GLIDER_PORTABLE_BITS: without the builtins,
  * for the tests). */
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(GLIDER_PORTABLE_BITS)
 static inline int clz64(uint64_t x) { return __builtin_clzll(x); }
-static inline int ctz64(uint64_t x) { return __builtin_ctzll(x); }
 #else
 static inline int clz64(uint64_t x) {
     int n = 0;
     while (!(x >> 63)) x <<= 1, ++n;
-    return n;
-}
-static inline int ctz64(uint64_t x) {
-    int n = 0;
-    while (!(x & 1)) x >>= 1, ++n;
     return n;
 }
 #endif
@@ -165,30 +159,32 @@ int glider_repr(double v, char *out) {
     uint64_t f_short = up_in ? sp10 : tp10;
     uint64_t pick = (uint64_t)0 - (uint64_t)(up_in != wp_in);
     f = (f_short & pick) | (f_long & ~pick);
-    /* the 18 digits of f < 10^18, leading zeros included, at buf; the zeros before and
-     * after the digits counted from the words (a zero digit is a zero byte). The copies
-     * below read up to 34 bytes into buf: fixed sizes, so the compiler makes them a few
-     * moves, never a call (what they take past the digits lands past the text in out,
-     * where it is overwritten by the next value or never read). */
-    char buf[48];
+    /* f as 17 digits (times ten while it has fewer: at most once for a normal double,
+     * whose s is at least 2^52; more for a subnormal), made eight at a time; the digits
+     * and their layout go straight from the words to out, never through a buffer (a copy
+     * from one read back at another offset stalls: its bytes are still in the stores) */
+    while (f < UINT64_C(1000000000000000)) {
+        f *= 10;
+        --k;
+    }
+    int fewer = f < UINT64_C(10000000000000000);
+    f = fewer ? f * 10 : f;
+    k -= fewer;
     uint64_t hi = f / 100000000u;
-    uint32_t top = (uint32_t)(hi / 100000000u);
-    uint64_t mid8 = digits8((uint32_t)(hi - (uint64_t)top * 100000000u));
+    uint32_t first = (uint32_t)(hi / 100000000u);
+    uint64_t mid8 = digits8((uint32_t)(hi - (uint64_t)first * 100000000u));
     uint64_t low = digits8((uint32_t)(f - hi * 100000000u));
+    int trail = low ? clz64(low) / 8 : mid8 ? 8 + clz64(mid8) / 8 : 16;
+    int nd = 17 - trail;
+    int x = k + 16; /* v ~ d.ddd 10^x */
+    char c0 = (char)('0' + first);
     uint64_t zeros = UINT64_C(0x3030303030303030);
-    memcpy(buf, DIGIT_PAIRS + 2 * top, 2);
-    store_le64(buf + 2, mid8 + zeros);
-    store_le64(buf + 10, low + zeros);
-    int lead = top >= 10 ? 0 : top ? 1 : mid8 ? 2 + ctz64(mid8) / 8 : 10 + ctz64(low) / 8;
-    int trail = low ? clz64(low) / 8 : mid8 ? 8 + clz64(mid8) / 8 : top % 10 ? 16 : 17;
-    char *d = buf + lead, *end = buf + 18 - trail;
-    k += trail;
-    int nd = (int)(end - d);
-    int x = k + nd - 1; /* v ~ d.ddd 10^x */
+    uint64_t m = mid8 + zeros, l = low + zeros; /* digits 2-9 and 10-17 */
     if (x < -4 || x >= 16) {
-        p[0] = d[0];
+        p[0] = c0;
         p[1] = '.';
-        memcpy(p + 2, d + 1, 16);
+        store_le64(p + 2, m);
+        store_le64(p + 10, l);
         p += nd > 1 ? nd + 1 : 1;
         p[0] = 'e';
         p[1] = x < 0 ? '-' : '+';
@@ -201,21 +197,34 @@ int glider_repr(double v, char *out) {
             memcpy(p + 2, DIGIT_PAIRS + 2 * ax, 2);
             p += 4;
         }
-    } else if (k >= 0) { /* an integer: digits, zeros, ".0" (nd + k <= 16) */
-        memcpy(p, d, 16);
-        memset(p + nd, '0', 16);
-        p += nd + k;
-        memcpy(p, ".0", 2);
-        p += 2;
-    } else if (x >= 0) { /* the point among the digits (x + 1 < nd <= 17) */
-        memcpy(p, d, 16);
-        p[x + 1] = '.';
-        memcpy(p + x + 2, d + x + 1, 16);
-        p += nd + 1;
-    } else { /* 0.000ddd (x = -1 .. -4) */
+    } else if (x < 0) { /* 0.000ddd (x = -1 .. -4) */
         memcpy(p, "0.000", 5);
-        memcpy(p + 1 - x, d, 17);
+        p[1 - x] = c0;
+        store_le64(p + 2 - x, m);
+        store_le64(p + 10 - x, l);
         p += 1 - x + nd;
+    } else {
+        /* the 17 digits, then: an integer (the digits past the nd-th are zeros) gets
+         * ".0" after its x + 1 digits; else the point goes after them, and the digits
+         * after it are written again one place on: '.' and the words shifted by x bytes */
+        p[0] = c0;
+        store_le64(p + 1, m);
+        store_le64(p + 9, l);
+        if (x + 1 >= nd) {
+            memcpy(p + x + 1, ".0", 2);
+            p += x + 3;
+        } else {
+            uint64_t a = x >= 8 ? l : m, b = l; /* the digits from x + 2 on */
+            int bits = 8 * (x & 7);
+            if (bits) {
+                a = a >> bits | b << (64 - bits);
+                b >>= bits;
+            }
+            store_le64(p + x + 1, a << 8 | '.');
+            store_le64(p + x + 9, b << 8 | a >> 56);
+            p[17] = (char)(l >> 56); /* the 17th digit (for x = 0 past the words above) */
+            p += nd + 1;
+        }
     }
     return (int)(p - out);
 }
