@@ -7,6 +7,7 @@ import ctypes
 import importlib
 import importlib.util
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -285,3 +286,41 @@ def test_a_csv_the_c_writer_thread_cannot_create_is_named_as_open_would(tmp_path
         open(path, "wb")  # noqa: SIM115 - the message Python's open gives
     assert str(err.value) == str(opened.value)
     assert not path.parent.exists()
+
+
+def test_the_c_writer_thread_creates_the_file_when_the_recorder_is_made(tmp_path, lib):
+    # before the run knows its columns (while the FMUs initialise): the thread's start and
+    # ext4's create are not in the run; the header comes with start
+    path = tmp_path / "early.csv"
+    rec = CsvRecorder(path)
+    assert rec._native is not None
+    for _ in range(1000):  # the thread creates it: soon, not at once
+        if path.exists():
+            break
+        time.sleep(0.005)
+    assert path.read_bytes() == b""
+    rec.start(["a", "b"])
+    rec.row([0.1, -0.0])
+    rec.close()
+    assert path.read_text() == "a,b\n0.1,-0.0\n"
+
+
+def test_a_recorder_closed_before_its_start_leaves_no_file(tmp_path, lib):
+    path = tmp_path / "never.csv"  # a run that failed before its first row
+    rec = CsvRecorder(path)
+    rec.close()
+    assert not path.exists()
+    rec.close()  # closed: nothing more
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").exists(), reason="no /proc/self/fd")
+def test_a_recorder_dropped_without_close_ends_its_thread_and_file(tmp_path, lib):
+    import gc
+
+    before = len(os.listdir("/proc/self/fd"))
+    threads = len(os.listdir("/proc/self/task"))
+    for i in range(5):
+        CsvRecorder(tmp_path / f"dropped{i}.csv")  # no close: the finalizer closes it
+    gc.collect()
+    assert len(os.listdir("/proc/self/fd")) == before
+    assert len(os.listdir("/proc/self/task")) == threads

@@ -91,9 +91,11 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
         lib.glider_format_rows_17g.restype = ctypes.c_long
         lib.glider_csv_open.restype = ctypes.c_void_p
-        lib.glider_csv_open.argtypes = (ctypes.c_char_p, ctypes.c_char_p, ctypes.c_long,
-                                        ctypes.c_int, ctypes.c_int)  # fmt: skip
+        lib.glider_csv_open.argtypes = (ctypes.c_char_p, ctypes.c_int)
+        lib.glider_csv_start.argtypes = (ctypes.c_void_p, ctypes.c_char_p, ctypes.c_long,
+                                         ctypes.c_int)  # fmt: skip
         lib.glider_csv_put.restype = lib.glider_csv_close.restype = ctypes.c_int
+        lib.glider_csv_start.restype = ctypes.c_int
         lib.glider_csv_put.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
         lib.glider_csv_close.argtypes = (ctypes.c_void_p,)
         for name in SHIMS.values():

@@ -6,6 +6,7 @@ import ctypes
 import os
 import queue
 import threading
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -137,23 +138,49 @@ class CsvRecorder:
         self._queue: queue.Queue | None = None
         self._writer: threading.Thread | None = None
         self._native: int | None = None  # csvwriter.c's writer, while it runs
+        self._closer: weakref.finalize | None = None  # closes it if the recorder is dropped
+        self._started = False
         self._error: BaseException | None = None  # the writer's, raised once
         self._reported = False
+        if self.THREADED and self.C_THREAD:
+            self._open_native()
+
+    def _open_native(self) -> None:
+        """Start csvwriter.c's thread, which creates the file now: while the FMUs
+        initialise, not in the run (0.3-0.6 ms here: the thread's start and ext4's
+        create). Where it cannot start, :meth:`start` opens the file."""
+        from ..master.fastloop import library
+
+        lib = library(release_gil=True)
+        handle = lib.glider_csv_open(os.fsencode(self.path), self.QUEUED) if lib else None
+        if handle:
+            self._lib, self._native = lib, handle
+            self._closer = weakref.finalize(self, lib.glider_csv_close, handle)
+
+    def _close_native(self) -> int:
+        """End csvwriter.c's thread (what was handed over written): its errno, or 0."""
+        err = self._closer() if self._closer is not None else 0
+        self._native = self._closer = None
+        return err or 0
 
     def start(self, columns: Sequence[str]) -> None:
         from ..master.fastloop import library
 
         header = (",".join(columns) + "\n").encode()
         self._ncol = len(columns)
+        self._started = True
+        if self._native is not None and columns:  # the C thread made the file: its header
+            self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
+            err = self._lib.glider_csv_start(self._native, header, len(header), self._ncol)
+            if not err:
+                return
+            self._close_native()
+            raise self._os_error(err)
+        if self._native is not None:  # no columns: the header alone, written here
+            self._close_native()
         self._lib = library(release_gil=True) if columns else None
         if self._lib is not None:
             self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
-            if self.THREADED and self.C_THREAD:  # the C thread creates the file itself
-                self._native = self._lib.glider_csv_open(os.fsencode(self.path), header,
-                                                         len(header), self._ncol,
-                                                         self.QUEUED) or None  # fmt: skip
-                if self._native is not None:
-                    return
             self._buf = ctypes.create_string_buffer(self.BLOCK * self._ncol * 25 + 64)
         self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
         self._f.write(header)
@@ -253,9 +280,10 @@ class CsvRecorder:
                 self._flush()
         finally:
             if self._native is not None:
-                err = self._lib.glider_csv_close(self._native)
-                self._native = None
-                if err and self._error is None:
+                err = self._close_native()
+                if not self._started:  # made at construction, never started: no run wrote it
+                    self.path.unlink(missing_ok=True)
+                elif err and self._error is None:
                     self._error = self._os_error(err)
             if self._writer is not None:
                 self._queue.put(None)

@@ -72,6 +72,16 @@ def test_the_writer_is_clean_under_asan_and_ubsan(asan, tmp_path):
     assert (p.returncode, p.stdout) == (0, f"put {errno.ENOENT} close {errno.ENOENT}\n"), p.stderr
 
 
+def test_a_writer_closed_before_its_start_leaves_the_file_it_made_empty(asan, tmp_path):
+    # made when the recorder is made, before the run knows its columns: a put before the
+    # start is refused (EINVAL), close ends the thread cleanly (the recorder removes it)
+    csv = tmp_path / "idle.csv"
+    p = subprocess.run([str(asan), "idle", str(csv)], capture_output=True, text=True,
+                       timeout=300)  # fmt: skip
+    assert (p.returncode, p.stdout) == (0, f"put {errno.EINVAL} close 0\n"), p.stderr
+    assert csv.read_bytes() == b""
+
+
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
 def test_a_full_disk_is_reported_by_the_next_put_and_by_close(asan):
     # the header's write fails at once; the puts that follow return ENOSPC (the rows are
@@ -106,4 +116,4 @@ def test_the_windows_stub_compiles_warning_free(tmp_path):
                     str(source.parent), "-o", str(obj)], check=True)  # fmt: skip
     symbols = subprocess.run(["x86_64-w64-mingw32-nm", str(obj)],
                              capture_output=True, text=True, check=True).stdout  # fmt: skip
-    assert all(f" T glider_csv_{f}" in symbols for f in ("open", "put", "close")), symbols
+    assert all(f" T glider_csv_{f}" in symbols for f in ("open", "start", "put", "close")), symbols
