@@ -113,13 +113,16 @@ class CsvRecorder:
     back to the same double (``0.1``, ``1e-05``, ``-0.0``, ``inf``, ``nan``). Where the C
     helper of :mod:`glider_cosim.master.fastloop` is available, rows are collected in
     blocks (of :attr:`BLOCK` rows handed one by one, or the fast loop's blocks) and a
-    writer thread formats them (``shortest.c``: the same bytes, about 0.03 us a value
+    writer thread formats them (``shortest.c``: the same bytes, about 0.024 us a value
     against 0.25-0.5 us for ``%.17g``) and writes them, in order, while the next block
     steps, on another core; at most :attr:`QUEUED` blocks wait for it. That thread is C's
-    own (``csvwriter.c``: handing a block over is a copy, the GIL never changes hands);
-    where it cannot start (Windows) it is a Python thread calling the C formatter with
-    the GIL released. :attr:`THREADED` False: formatted and written in the caller's
-    thread. Without the helper, rows are formatted in Python in the caller's thread. An
+    own (``csvwriter.c``: handing a block over is a copy, the GIL never changes hands),
+    started when the recorder is made, when it creates the file (so that both overlap
+    the FMUs' initialisation; closed before :meth:`start`, the recorder removes that
+    empty file); where it cannot start (Windows) it is a Python thread calling the C
+    formatter with the GIL released, and :meth:`start` opens the file.
+    :attr:`THREADED` False: formatted and written in the caller's thread. Without the
+    helper, rows are formatted in Python in the caller's thread. An
     error of the writer (a full disk) is raised by the next call that hands rows over,
     else by ``close``.
     """
