@@ -321,6 +321,14 @@ def test_a_recorder_dropped_without_close_ends_its_thread_and_file(tmp_path, lib
     threads = len(os.listdir("/proc/self/task"))
     for i in range(5):
         CsvRecorder(tmp_path / f"dropped{i}.csv")  # no close: the finalizer closes it
+    rec = CsvRecorder(tmp_path / "started.csv")
+    rec.start(["a"])
+    rec.rows_block((ctypes.c_double * 1)(1.5), 1, 1)  # handed over: written by the thread
+    del rec
     gc.collect()
     assert len(os.listdir("/proc/self/fd")) == before
     assert len(os.listdir("/proc/self/task")) == threads
+    # never started: no file (as a run that failed before its first row); started: what
+    # was handed over is written (rows still collected in Python are not: close is needed)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["started.csv"]
+    assert (tmp_path / "started.csv").read_text() == "a\n1.5\n"

@@ -106,6 +106,15 @@ def csv_lines(data: Any) -> bytes:
     return ctypes.string_at(buf, n)
 
 
+def _end_writer(lib: Any, handle: int, path: Path, started: bool) -> int:
+    """End csvwriter.c's writer ``handle`` (what was handed over written): its errno, or
+    0. One never started leaves no file: the empty one it made is removed."""
+    err = lib.glider_csv_close(handle)
+    if not started:
+        path.unlink(missing_ok=True)
+    return err
+
+
 class CsvRecorder:
     """Streams rows to a CSV file (constant memory); ``close`` flushes.
 
@@ -158,10 +167,10 @@ class CsvRecorder:
         handle = lib.glider_csv_open(os.fsencode(self.path), self.QUEUED) if lib else None
         if handle:
             self._lib, self._native = lib, handle
-            self._closer = weakref.finalize(self, lib.glider_csv_close, handle)
+            self._closer = weakref.finalize(self, _end_writer, lib, handle, self.path, False)
 
     def _close_native(self) -> int:
-        """End csvwriter.c's thread (what was handed over written): its errno, or 0."""
+        """End csvwriter.c's thread (:func:`_end_writer`): its errno, or 0."""
         err = self._closer() if self._closer is not None else 0
         self._native = self._closer = None
         return err or 0
@@ -175,7 +184,10 @@ class CsvRecorder:
         if self._native is not None and columns:  # the C thread made the file: its header
             self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
             err = self._lib.glider_csv_start(self._native, header, len(header), self._ncol)
-            if not err:
+            if not err:  # started: its file stays, even if the recorder is dropped
+                self._closer.detach()
+                self._closer = weakref.finalize(self, _end_writer, self._lib, self._native,
+                                                self.path, True)  # fmt: skip
                 return
             self._close_native()
             raise self._os_error(err)
@@ -283,10 +295,8 @@ class CsvRecorder:
                 self._flush()
         finally:
             if self._native is not None:
-                err = self._close_native()
-                if not self._started:  # made at construction, never started: no run wrote it
-                    self.path.unlink(missing_ok=True)
-                elif err and self._error is None:
+                err = self._close_native()  # never started: its empty file removed
+                if err and self._started and self._error is None:
                     self._error = self._os_error(err)
             if self._writer is not None:
                 self._queue.put(None)
