@@ -5,7 +5,9 @@ the PNGs' own), every sample kept, the library's JavaScript inline once per page
 the page's size in bytes; its load time in headless Chromium (the wall time of
 ``chromium --headless --dump-dom`` on the page minus that on an empty page, median of
 ``--repeat``); and what writing ``plots.html`` adds to ``glider-cosim run`` (the spec and
-the page, against the PNGs alone). ``--json``: one JSON object on stdout.
+the page, against the PNGs alone). ``--json``: one JSON object on stdout. plotly is not
+a dependency of glider-cosim: without it (``pip install plotly`` for the comparison) the
+plotly figures are ``null`` and a line on stderr says so. Chromium is Debian's.
 
     python bench/results_pages.py [--repeat 5] [--json]
 """
@@ -13,6 +15,7 @@ the page, against the PNGs alone). ``--json``: one JSON object on stdout.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import shutil
 import statistics
@@ -90,14 +93,21 @@ def main() -> None:
         write_run_page(result, tmp / "run", specs)
         t_page = time.perf_counter() - t0
         bokeh = write_page(tmp / "bokeh.html", "default", specs, run_settings(result.metrics))
-        plotly = plotly_page(tmp / "plotly.html", specs, "default")
+        plotly = None
+        if importlib.util.find_spec("plotly") is None:
+            print("results_pages: plotly is not installed (pip install plotly): bokeh alone",
+                  file=sys.stderr)  # fmt: skip
+        else:
+            plotly = plotly_page(tmp / "plotly.html", specs, "default")
         out = {
             "rows": int(len(result.data)),
             "figures": len(specs),
             "bokeh_bytes": bokeh.stat().st_size,
-            "plotly_bytes": plotly.stat().st_size,
+            "plotly_bytes": plotly.stat().st_size if plotly else None,
             "bokeh_load_s": round(chromium_load_s(bokeh, args.repeat, tmp), 3),
-            "plotly_load_s": round(chromium_load_s(plotly, args.repeat, tmp), 3),
+            "plotly_load_s": round(chromium_load_s(plotly, args.repeat, tmp), 3)
+            if plotly
+            else None,
             "pngs_s": round(t_png, 3),
             "plots_html_s": round(t_page, 3),
         }
