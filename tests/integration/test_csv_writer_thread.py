@@ -72,13 +72,19 @@ def test_the_writer_is_clean_under_asan_and_ubsan(asan, tmp_path):
     assert (p.returncode, p.stdout) == (0, f"put {errno.ENOENT} close {errno.ENOENT}\n"), p.stderr
 
 
-def test_a_writer_closed_before_its_start_leaves_the_file_it_made_empty(asan, tmp_path):
+@pytest.mark.parametrize("sanitizer", ["asan", "tsan"])
+def test_a_writer_closed_before_its_start_leaves_the_file_it_made_empty(
+    sanitizer, request, tmp_path
+):
     # made when the recorder is made, before the run knows its columns: a put before the
     # start is refused (EINVAL), close ends the thread cleanly (the recorder removes it)
+    exe = request.getfixturevalue(sanitizer)
     csv = tmp_path / "idle.csv"
-    p = subprocess.run([str(asan), "idle", str(csv)], capture_output=True, text=True,
+    env = {**os.environ, "TSAN_OPTIONS": "halt_on_error=1 exitcode=66"}
+    p = subprocess.run([str(exe), "idle", str(csv)], capture_output=True, text=True, env=env,
                        timeout=300)  # fmt: skip
     assert (p.returncode, p.stdout) == (0, f"put {errno.EINVAL} close 0\n"), p.stderr
+    assert "Sanitizer" not in p.stderr
     assert csv.read_bytes() == b""
 
 
