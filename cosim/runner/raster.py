@@ -170,6 +170,12 @@ def _ticks(lim: Sequence[float], nbins: int) -> np.ndarray:
     return nice_ticks(float(lim[0]), float(lim[1]), nbins)
 
 
+def _y_ticks(p: dict[str, Any], height_px: float) -> np.ndarray:
+    """A panel's y ticks for its box's height: one rule for the margin (:func:`layout`)
+    and the drawing (:func:`_draw_panel`), so the margin fits the labels drawn."""
+    return _ticks(p["ylim"], _nbins(round(height_px), 2 * FONT_PT))
+
+
 def _to_px(v: np.ndarray, lim: Sequence[float], length: float, flip: bool) -> np.ndarray:
     lo, hi = lim
     f = (np.asarray(v, dtype=float) - lo) / (hi - lo)
@@ -249,8 +255,7 @@ def layout(spec: dict[str, Any]) -> tuple[tuple[int, int], list[tuple[float, ...
     w_in, h_in = spec["size_in"]
     size = (round(w_in * DPI) * SCALE, round(h_in * DPI) * SCALE)
     heights = [b[3] - b[1] for b in _panel_boxes(spec, size, spec["margins"]["left"])]
-    labels = [tick_labels(_ticks(p["ylim"], _nbins(h, 2 * FONT_PT))) for p, h in
-              zip(panels, heights, strict=True)]  # fmt: skip
+    labels = [tick_labels(_y_ticks(p, h)) for p, h in zip(panels, heights, strict=True)]
     return size, _panel_boxes(spec, size, _left_margin(spec, size[0], labels))
 
 
@@ -273,7 +278,7 @@ def _draw_panel(im: Image.Image, draw: Any, p: dict[str, Any], box: tuple, last:
     panel = Image.new("RGB", (aw, ah), (255, 255, 255))
     flip_y = not p.get("inverted", False)
     xt = _ticks(p["xlim"], _nbins(aw, 3 * FONT_PT))
-    yt = _ticks(p["ylim"], _nbins(ah, 2 * FONT_PT))
+    yt = _y_ticks(p, ah)
     xpx = _to_px(xt, p["xlim"], aw, False)
     ypx = _to_px(yt, p["ylim"], ah, flip_y)
     pd = ImageDraw.Draw(panel)
