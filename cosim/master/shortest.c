@@ -13,9 +13,9 @@
  * (the even one on a tie) when both are: the same choice as Python's dtoa mode 0.
  *
  * The choice is made without branches (which candidate wins is as good as random: a
- * mispredicted branch cost more than the rest of the choice), and the digits are made
- * eight at a time in the bytes of one 64-bit word (digits8), their leading and trailing
- * zeros counted from the words' bits.
+ * mispredicted branch cost more than the rest of the choice); the digits, scaled to 17,
+ * are made eight at a time in the bytes of one 64-bit word (digits8), their trailing
+ * zeros counted from the words' bits, and stored from the words into the text.
  *
  * C99 plus a 64x64->128-bit multiply: unsigned __int128 where the compiler has it (gcc,
  * clang, zig cc on 64-bit targets), else four 32-bit products (GLIDER_PORTABLE_MUL128
@@ -160,9 +160,12 @@ int glider_repr(double v, char *out) {
     uint64_t pick = (uint64_t)0 - (uint64_t)(up_in != wp_in);
     f = (f_short & pick) | (f_long & ~pick);
     /* f as 17 digits (times ten while it has fewer: at most once for a normal double,
-     * whose s is at least 2^52; more for a subnormal), made eight at a time; the digits
-     * and their layout go straight from the words to out, never through a buffer (a copy
-     * from one read back at another offset stalls: its bytes are still in the stores) */
+     * whose s is at least 2^52; more for a subnormal; never more than 17: s < 10 * 2^53),
+     * made eight at a time; the digits and their layout go straight from the words to
+     * out, never through a buffer (a copy from one read back at another offset stalls:
+     * its bytes are still in the stores). The 8-byte stores reach at most 32 bytes past
+     * out (GLIDER_REPR_ROOM): what lies past the text is overwritten by the next value or
+     * never read. */
     while (f < UINT64_C(1000000000000000)) {
         f *= 10;
         --k;
