@@ -70,3 +70,39 @@ def test_the_run_path_imports_no_plotting_package():
     # nor PIL: 0.4-0.5 s; the drawing process imports them, not the run
     code = "import glider_cosim.runner.run, glider_cosim.runner.drawing, glider_cosim.cli.main"
     assert _imported(code) & {"matplotlib", "PIL"} == set()
+
+
+def _cli(*argv: str) -> subprocess.CompletedProcess:
+    module, func = _entry_point()
+    code = f"import sys; from {module} import {func}; sys.argv[0] = 'glider-cosim'; {func}()"
+    return subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                          timeout=60, check=False)  # fmt: skip
+
+
+def test_version_prints_the_installed_version():
+    from importlib.metadata import version
+
+    proc = _cli("--version")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == f"glider-cosim {version('glider-cosim')}\n"
+
+
+def test_a_bare_command_lists_every_command_and_the_first_to_try():
+    from glider_cosim.cli import build_parser
+
+    proc = _cli()
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    sub = next(a for a in build_parser()._actions if hasattr(a, "_choices_actions"))
+    listed = re.findall(r"^  (\S+)  ", proc.stdout, re.M)
+    assert listed == [c.dest for c in sub._choices_actions]
+    assert len(listed) >= 10
+    assert "First try: glider-cosim run" in proc.stdout
+
+
+@pytest.mark.parametrize("argv", [["--version"], []])
+def test_version_and_overview_import_no_heavy_package(argv):
+    module, func = _entry_point()
+    code = (f"import sys; sys.argv = ['glider-cosim', *{argv!r}]\n"
+            f"from {module} import {func}\ntry:\n    {func}()\nexcept SystemExit:\n    pass")  # fmt: skip
+    assert _imported(code).isdisjoint(HEAVY)

@@ -22,7 +22,7 @@ from typing import NoReturn
 from ..inputs.text import one_line
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
-from .parser import build_parser
+from .parser import build_parser, overview
 
 
 def _terminate(signum: int, frame: object) -> None:
@@ -74,7 +74,11 @@ def _matplotlib_cache() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``glider-cosim`` console script (returns the exit code; notes and
     warnings one line each)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:  # a bare ``glider-cosim``: the commands and the first to try
+        sys.stdout.write(overview(parser))
+        return 0
     _notes_to_stderr()
     _matplotlib_cache()
     with warnings.catch_warnings():

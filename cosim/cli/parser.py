@@ -86,10 +86,47 @@ def _count(text: str) -> int:
     return int(text)
 
 
+def _version() -> str:
+    """The installed distribution's version ("unknown" from a checkout not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("glider-cosim")
+    except PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+#: the first command to try, named by a bare ``glider-cosim``
+FIRST_COMMAND = "glider-cosim run"
+
+
+def overview(parser: argparse.ArgumentParser) -> str:
+    """What a bare ``glider-cosim`` prints: every command with its one-line help, and the
+    first one to try."""
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    width = max(len(c.dest) for c in sub._choices_actions)
+    lines = [f"usage: glider-cosim COMMAND [options]  (glider-cosim {_version()})", "",
+             "commands:"]  # fmt: skip
+    lines += [f"  {c.dest:{width}s}  {_plain(c.help or '')}" for c in sub._choices_actions]
+    lines += [
+        "",
+        f"First try: {FIRST_COMMAND}   (builds the FMUs once, runs the default scenario,",
+        "writes out/default/). Each command's options: glider-cosim COMMAND --help",
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``glider-cosim`` parser: every subcommand, its options and their defaults."""
     p = _Parser(prog="glider-cosim", description=__doc__)
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p.add_argument(
+        "--version",
+        action="version",
+        version=f"glider-cosim {_version()}",
+        help="print glider-cosim's version and exit",
+    )
+    # not required: a bare ``glider-cosim`` lists the commands (main.py, :func:`overview`)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
     b.add_argument(

@@ -3,7 +3,9 @@
 ``{glider-cli}`` walks :func:`glider_cosim.cli.build_parser` and writes one section per
 subcommand (usage, description, every option with its default); at ``builder-inited`` the
 checked-in FMU interface page is compared with the tables generated from freshly built
-FMUs' model descriptions, and a stale page is a warning (an error under ``-W``).
+FMUs' model descriptions, and a stale page is a warning (an error under ``-W``); and the
+README's picture (:data:`README_PICTURE`, the default run's glide angle) is drawn from a
+run of the default scenario, rewritten only when its bytes change.
 """
 
 from __future__ import annotations
@@ -150,8 +152,37 @@ def check_fmu_interfaces(app: Sphinx) -> None:
         )
 
 
+#: the README's one picture, relative to the docs' source folder
+README_PICTURE = Path("_static") / "default-glide-angle.png"
+
+
+def draw_readme_picture() -> bytes:
+    """The README's picture: the glide-angle PNG of ``glider-cosim run`` (the default
+    scenario, Python flavor, in memory), as the run draws it (``runner.plots``)."""
+    import tempfile
+
+    from glider_cosim.runner import simulate
+    from glider_cosim.runner.plots import build_specs
+    from glider_cosim.runner.raster import render_png
+
+    result = simulate("default", out=None, plots=False)
+    with tempfile.TemporaryDirectory(prefix="glider_docs_") as tmp:
+        ((spec, path, meta),) = build_specs(result, Path(tmp), names=("glide_angle",))
+        return Path(render_png(spec, path, meta)).read_bytes()
+
+
+def write_readme_picture(app: Sphinx) -> None:
+    """Draw the README's picture into the docs' ``_static`` folder (only if it changed)."""
+    path = Path(app.srcdir) / README_PICTURE
+    png = draw_readme_picture()
+    if not (path.is_file() and path.read_bytes() == png):
+        path.write_bytes(png)
+        LOG.info("drew %s (the default run's glide angle)", path)
+
+
 def setup(app: Sphinx) -> dict[str, object]:
     app.add_directive("glider-cli", CliDirective)
     app.add_directive("glider-cli-summary", CliSummaryDirective)
     app.connect("builder-inited", check_fmu_interfaces)
+    app.connect("builder-inited", write_readme_picture)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
