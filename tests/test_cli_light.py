@@ -104,5 +104,6 @@ def test_a_bare_command_lists_every_command_and_the_first_to_try():
 def test_version_and_overview_import_no_heavy_package(argv):
     module, func = _entry_point()
     code = (f"import sys; sys.argv = ['glider-cosim', *{argv!r}]\n"
-            f"from {module} import {func}\ntry:\n    {func}()\nexcept SystemExit:\n    pass")  # fmt: skip
+            f"from {module} import {func}\n"
+            f"try:\n    {func}()\nexcept SystemExit:\n    pass")  # fmt: skip
     assert _imported(code).isdisjoint(HEAVY)

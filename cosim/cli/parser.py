@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="print glider-cosim's version and exit",
     )
     # not required: a bare ``glider-cosim`` lists the commands (main.py, :func:`overview`)
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
     b.add_argument(
