@@ -157,6 +157,28 @@ def test_a_wrong_value_is_described_with_case_variable_time_and_values():
     assert compare(case, run, atol=2e-3).passed
 
 
+def test_outputs_one_step_late_are_named_as_such():
+    """Issue 45 item 7: outputs equal to the reference shifted by one step get a one-line
+    note naming the docs paragraph; other errors, and a shift by two steps, do not."""
+    case = load_case("controller", "passivity")
+    late = Run(case.ref_columns, case.reference.copy())
+    late.data[1:, 1] = case.reference[:-1, 1]
+    late.data[0, 1] = 0.0
+    r = compare(case, late)
+    assert not r.passed and r.time == 0.0 and f"{r.max_error:.3g}" == "0.00219"
+    assert r.note == (
+        "the outputs equal the reference one step (0.02 s) late: they are computed in doStep, "
+        "not from the inputs when read (docs/how-to/verify-a-component.md, 'Where outputs are "
+        "computed')"
+    )
+    two = Run(case.ref_columns, case.reference.copy())
+    two.data[2:, 1] = case.reference[:-2, 1]
+    assert compare(case, two).note == ""
+    off = Run(case.ref_columns, case.reference.copy())
+    off.data[100, 1] += 1e-3
+    assert compare(case, off).note == ""
+
+
 @pytest.mark.parametrize("bad", ["-1", "nan", "inf", "x", ""])
 def test_a_bad_tolerance_is_one_line(bad, capsys):
     with pytest.raises(SystemExit) as exit_:
@@ -183,6 +205,27 @@ def test_not_an_fmu_is_one_line(capsys, tmp_path):
     assert capsys.readouterr().err == (
         f"glider-cosim verify: error: FMU {tmp_path / 'missing.fmu'} does not exist\n"
     )
+
+
+def test_an_ssp_is_named_as_an_ssp_with_what_to_pass_instead(capsys, tmp_path):
+    """Issue 45 item 9: an SSP (or its .ssd) is not an FMU, and verify says which FMUs to
+    pass instead."""
+    ssp = tmp_path / "glider.ssp"
+    with zipfile.ZipFile(ssp, "w") as z:
+        z.writestr("SystemStructure.ssd", "<ssd:SystemStructureDescription/>")
+        z.writestr("resources/GliderPlant.fmu", b"")
+        z.writestr("resources/GliderController.fmu", b"")
+    assert main(["verify", str(ssp)]) == 2
+    assert capsys.readouterr().err == (
+        "glider-cosim verify: error: 'glider.ssp' is an SSP (a system of FMUs), not an FMU: "
+        "verify one of its FMUs (resources/GliderPlant.fmu, resources/GliderController.fmu, "
+        f"unzipped from it); run the whole system with glider-cosim run {ssp}\n"
+    )
+    ssd = tmp_path / "SystemStructure.ssd"
+    ssd.write_text("<ssd:SystemStructureDescription/>")
+    with pytest.raises(VerifyInputError, match=r"^'SystemStructure.ssd' is an SSP system "
+                       r"description \(.ssd\), not an FMU: verify one of its FMUs; run"):  # fmt: skip
+        verify(ssd)
 
 
 def test_an_fmi1_fmu_is_refused_in_one_line(capsys, tmp_path):

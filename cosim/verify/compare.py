@@ -118,8 +118,34 @@ def compare(case: Case, run: Run, rtol: float | None = None, atol: float | None 
     _, var, err, tol, t, y, y_ref = worst
     if var is not None and not err <= tol:
         passed = False
+        if _one_step_late(case, run, col, n, rtol, atol):
+            notes.append(ONE_STEP_LATE.format(step=case.step))
     return CaseResult(case, passed, var, float(err), float(tol), t, y, y_ref, run.seconds,
                       "; ".join(notes), rtol, atol)  # fmt: skip
+
+
+#: the note of a case whose outputs equal the reference one communication step late
+ONE_STEP_LATE = (
+    "the outputs equal the reference one step ({step:g} s) late: they are computed in "
+    "doStep, not from the inputs when read (docs/how-to/verify-a-component.md, "
+    "'Where outputs are computed')"
+)
+
+
+def _one_step_late(
+    case: Case, run: Run, col: dict[str, int], n: int, rtol: float, atol: float
+) -> bool:
+    """Whether every compared output at row ``k + 1`` equals the reference at row ``k``
+    (within the tolerances), over at least two rows: outputs one communication step late."""
+    ref = case.reference
+    assert ref is not None
+    if n < 3:
+        return False
+    for j, name in enumerate(case.ref_columns[1:], start=1):
+        y, y_ref = run.data[1:n, col[name]], ref[: n - 1, j]
+        if not np.all(np.abs(y - y_ref) <= atol + rtol * np.abs(y_ref)):
+            return False
+    return True
 
 
 # ------------------------------------------------------------------- the front door

@@ -124,11 +124,33 @@ def _fmi_version(path: Path) -> str | None:
     return m.group(1) if m else None
 
 
+def _refuse_ssp(path: Path) -> None:
+    """Raise :class:`VerifyInputError` naming ``path`` as an SSP (an ``.ssd`` file, or a
+    zip with ``SystemStructure.ssd``) and what to pass instead: one of its FMUs."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+    except (OSError, zipfile.BadZipFile, ValueError):
+        names = None
+    if names is None and path.suffix.lower() == ".ssd":
+        what, fmus = "an SSP system description (.ssd)", []
+    elif names is not None and "SystemStructure.ssd" in names:
+        what, fmus = "an SSP (a system of FMUs)", [n for n in names if n.endswith(".fmu")]
+    else:
+        return
+    inside = f" ({', '.join(fmus)}, unzipped from it)" if fmus else ""
+    raise VerifyInputError(
+        f"{quote(path.name)} is {what}, not an FMU: verify one of its FMUs{inside}; "
+        f"run the whole system with glider-cosim run {path}"
+    )
+
+
 def open_fmu(fmu: str | Path) -> Any:
     """Check ``fmu`` and return its model description (one-line error if it cannot run)."""
     path = Path(fmu)
     try:
         regular_file(path, "verify", "FMU")
+        _refuse_ssp(path)
         version = _fmi_version(path)
         if version is not None and version not in RUNNERS:
             raise VerifyInputError(

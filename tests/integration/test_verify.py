@@ -33,6 +33,7 @@ from glider_cosim.verify import (
     write_references,
 )
 from glider_cosim.verify.cases import DEFAULT_CASE
+from glider_cosim.verify.compare import ONE_STEP_LATE
 from glider_cosim.verify.run import open_fmu
 
 pytestmark = pytest.mark.integration
@@ -135,6 +136,37 @@ class CorePlant(GliderPlant):
     V_0, theta_g_0, alpha_0 = 0.2, -0.6108652381980153, 0.017453292519943295
 ''',
     ),
+    "UsualController": (
+        (glider_controller, glider_plant, glider_fmi),
+        '''
+import math
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+
+from glider_controller.laws import passivity_law
+from glider_plant.model import equilibrium
+from glider_plant.params import GliderParams
+
+
+class UsualController(Fmi2Slave):
+    """The passivity law written the usual pythonfmu way: delta_cmd computed in do_step
+    from the inputs of the step's start, and held until the next step."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.V_hat, self.theta_g_hat, self.delta_cmd = 0.2, -0.4, 0.0
+        self.register_variable(Real("V_hat", causality=Fmi2Causality.input))
+        self.register_variable(Real("theta_g_hat", causality=Fmi2Causality.input))
+        self.register_variable(Real("delta_cmd", causality=Fmi2Causality.output))
+        self.p = GliderParams()
+        self.eq = equilibrium(self.p)
+
+    def do_step(self, current_time, step_size):
+        self.delta_cmd = passivity_law(self.V_hat, self.theta_g_hat, 10.0, self.p, self.eq,
+                                       math.pi / 2)
+        return True
+''',
+    ),
     "HalfPlant": (
         (),
         '''
@@ -224,6 +256,35 @@ def test_a_controller_with_its_sign_flipped_fails_the_feedback_cases(broken):
     assert lines[0] == "1 of 1 controller cases fail:"
     assert lines[1].startswith("FlippedController.fmu: controller case 'p' fails; delta_cmd = ")
     assert "s, reference " in lines[1] and "> tolerance" in lines[1]
+
+
+def test_outputs_computed_in_do_step_are_named_one_step_late(broken, capsys):
+    """Issue 45 item 7: a controller written the usual pythonfmu way fails the passivity
+    case at t = 0, equals the reference one step later, and verify says so in one line
+    that names the docs paragraph (which exists)."""
+    fmu = broken["UsualController"]
+    report = verify(fmu)
+    assert [r.case.name for r in report.results] == ["passivity"] and not report.passed
+    r = report.results[0]
+    assert r.variable == "delta_cmd" and r.time == 0.0 and f"{r.max_error:.3g}" == "0.00219"
+    assert r.note == ONE_STEP_LATE.format(step=0.02)
+    # really one step late: row k + 1 of the run is row k of the reference, bit for bit
+    case = load_case("controller", "passivity")
+    run = RUNNERS["2.0"](fmu, open_fmu(fmu), case, ["delta_cmd"])
+    assert np.array_equal(run.data[1:, 1], case.reference[:-1, 1])
+    assert main(["verify", str(fmu)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    row = next(line for line in out if line.startswith("passivity "))
+    assert row.split()[1] == "FAIL" and row.endswith(
+        "the outputs equal the reference one step (0.02 s) late: they are computed in doStep, "
+        "not from the inputs when read (docs/how-to/verify-a-component.md, 'Where outputs are "
+        "computed')"
+    )
+    page = (Path(__file__).parents[2] / "docs/how-to/verify-a-component.md").read_text()
+    assert "\n## Where outputs are computed\n" in page
+    # a defect that is not a shift gets no such note
+    flipped = verify(broken["FlippedController"])
+    assert all("late" not in r.note for r in flipped.results)
 
 
 def test_cli_table_and_exit_codes(fmu_dir, broken, capsys):
