@@ -107,3 +107,20 @@ def test_version_and_overview_import_no_heavy_package(argv):
             f"from {module} import {func}\n"
             f"try:\n    {func}()\nexcept SystemExit:\n    pass")  # fmt: skip
     assert _imported(code).isdisjoint(HEAVY)
+
+
+def test_export_fmu_help_and_its_page_say_the_one_fmu_runs_jacobi_coupling(capsys):
+    """Issue 45 item 4: the one-FMU export's Jacobi coupling, which explains its 0.47 deg
+    from `run`, is said in `export-fmu --help` and in docs/how-to/export.md (the figure is
+    measured by tests/integration/test_onefmu.py)."""
+    from glider_cosim.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["export-fmu", "--help"])
+    assert exit_.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Inside, the FMUs run with Jacobi coupling" in text
+    assert "equal `glider-cosim run --coupling jacobi` bit for bit" in text
+    assert "differ from the default run by up to 0.47 deg in glide angle" in text
+    page = " ".join((ROOT / "docs" / "how-to" / "export.md").read_text().split())
+    assert "**The one FMU runs Jacobi coupling**" in page and "0.47 deg" in page

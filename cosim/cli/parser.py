@@ -283,7 +283,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="print the FMU runtime's Python configuration instead (for GLIDER_FMI_PYTHON_CONFIG)",
     )
 
-    xf = sub.add_parser("export-fmu", help="the closed loop as one co-simulation FMU")
+    xf = sub.add_parser(
+        "export-fmu",
+        help="the closed loop as one co-simulation FMU",
+        description="Write a scenario's closed loop as one FMI 2.0 co-simulation FMU (a container\n"
+        "of the three FMUs). Inside, the FMUs run with Jacobi coupling: all step, then the\n"
+        "outputs are copied to the inputs, one sample more from measurement to actuation\n"
+        "than the Gauss-Seidel coupling `glider-cosim run` uses by default. Its results\n"
+        "equal `glider-cosim run --coupling jacobi` bit for bit and differ from the\n"
+        "default run by up to 0.47 deg in glide angle on the default scenario.",
+    )
     xf.add_argument("out", metavar="OUT", help="output .fmu file, in a folder that exists")
     xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
     add_fmu_options(xf)

@@ -54,6 +54,13 @@ def test_closed_loop_as_one_fmu(loop_fmu, fmu_dir, jacobi):
     gs = simulate(None, None, fmu_dir=fmu_dir, build=False)
     diff = np.degrees(np.abs(th - gs.column("plant.theta_g")).max())
     assert 0.1 < diff < 0.6  # 0.47 deg: one more sample of delay than Gauss-Seidel
+    # the figure that `export-fmu --help` and docs/how-to/export.md give
+    help_ = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "export-fmu", "--help"],
+                           capture_output=True, text=True, check=True).stdout  # fmt: skip
+    assert f"up to {diff:.2f} deg in glide angle" in " ".join(help_.split())
+    assert f"up to {diff:.2f} deg in glide angle" in " ".join(
+        (Path(__file__).parents[2] / "docs" / "how-to" / "export.md").read_text().split()
+    )
 
 
 def test_container_carries_units_and_exposes_parameters(loop_fmu, fmu_dir):
