@@ -44,3 +44,18 @@ def test_the_shipped_scenarios_table_is_the_shipped_scenarios():
         n for row in table.splitlines()[2:] for n in re.findall(r"`([\w.+-]+)`", row.split("|")[1])
     }
     assert named == set(shipped_scenarios())
+
+
+def test_use_the_fmus_opens_with_recipes_and_the_test_tables_are_on_the_reliability_page():
+    """Issue 45 item 4: the page opens with the recipes (fmpy loop, fmusim, libcosim, Ecos,
+    a C host), each a code block; the flavor and platform tables are on the reliability
+    page."""
+    page = (DOCS / "how-to" / "use-the-fmus.md").read_text()
+    heads = re.findall(r"^## (.*)$", _prose(page), flags=re.M)
+    assert heads[:5] == ["Your own loop in fmpy", "fmusim", "libcosim (OSP)", "Ecos", "A C host"]
+    before_recipes = page[: page.index("## Your own loop in fmpy")]
+    assert "|---|" not in before_recipes and "```" not in before_recipes
+    assert "| flavor | build |" not in page and "| platform |" not in page
+    reliability = (DOCS / "explanation" / "reliability.md").read_text()
+    assert "\n## The FMUs: flavors, platforms and hosts tested\n" in reliability
+    assert "| flavor | build |" in reliability and "| platform |" in reliability
