@@ -140,7 +140,6 @@ def test_the_c_host_equals_run_jacobi_bit_for_bit(native_dir, tmp_path):
 
 @pytest.mark.parametrize("flavor", ["python", "native"])
 def test_the_ecos_recipe_prints_run_jacobis_value(flavor, request, tmp_path):
-    pytest.importorskip("ecospy")  # a test dependency; its library needs libtbb12
     folder = request.getfixturevalue("fmu_dir" if flavor == "python" else "native_dir")
     ssp = export_ssp(tmp_path / "glider.ssp", None, folder)
     (tmp_path / "recipe.py").write_text(block("python", "EcosSimulation"))
