@@ -229,3 +229,19 @@ def test_an_ssp_without_a_stop_time_needs_stop_time(ssps, tmp_path):
                        r"--stop-time"):  # fmt: skip
         load_ssp(bare, step=0.02)
     assert load_ssp(bare, step=0.02, stop_time=3.0)[1:] == (0.02, 3.0)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_our_master_reads_the_fmus_messages_by_the_hash_rule(ssps, tmp_path, fmi):
+    """An instance named with a '#' (an SSP component may be): the FMU writes it '##'
+    (FMI's rule), our master reads it back as one '#' in the run's failure message."""
+
+    def edit(text: str) -> str:
+        text = text.replace('name="observer"', 'name="observer#1"')
+        text = text.replace('Element="observer"', 'Element="observer#1"')
+        return re.sub(r'(<ssv:Parameter name="K_c">\s*<ssv:(?:Real|Float64) value=")[^"]*',
+                      r"\g<1>2.0", text)  # fmt: skip  # K_c = 2: the observer stalls
+
+    r = run_ssp(rewrite(ssps[fmi], tmp_path / "hash.ssp", edit), None, stop_time=20.0)
+    assert r.status == "stopped"
+    assert "Discard] observer#1: observer estimate glider stalled" in r.message, r.message
