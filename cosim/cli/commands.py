@@ -92,7 +92,8 @@ def _run(args: argparse.Namespace) -> int:
         from ..inputs.ssp_files import ssp_name
         from ..interop.ssp_import import load_ssp
 
-        system, step, stop = load_ssp(args.scenario)  # checks the SSP before anything runs
+        # checks the SSP before anything runs; --step/--stop-time stand in for what it lacks
+        system, step, stop = load_ssp(args.scenario, step=args.step, stop_time=args.stop_time)
         scenario = args.scenario
         name, source = ssp_name(args.scenario), shown_path(args.scenario)
         # our FMUs inside: their parameter tables' ranges
@@ -335,7 +336,11 @@ def dispatch(args: argparse.Namespace) -> int:
         if args.command == "export-fmu":
             from ..interop.onefmu import export_one_fmu as export
         else:
-            from ..interop.ssp_export import export_ssp as export
+            from functools import partial
+
+            from ..interop.ssp_export import export_ssp
+
+            export = partial(export_ssp, ssp_version=args.ssp_version)
         try:
             print(f"wrote {export(out, args.scenario, args.fmu_dir)}")
         except OSError as err:

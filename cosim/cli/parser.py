@@ -269,9 +269,19 @@ def build_parser() -> argparse.ArgumentParser:
     ob.add_argument("--target", default=None, help="zig target, e.g. aarch64-linux-musl")
     ob.add_argument("--out", required=True, help="output folder")
 
-    e = sub.add_parser("export-ssp", help="write the system as an SSP 1.0 archive")
+    e = sub.add_parser(
+        "export-ssp", help="write the system as an SSP archive (1.0; 2.0 for FMI 3.0 FMUs)"
+    )
     e.add_argument("out", metavar="OUT", help="output .ssp file, in a folder that exists")
     e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
+    e.add_argument(
+        "--ssp-version",
+        choices=("1.0", "2.0"),
+        default=None,
+        help="SSP version to write (default: 1.0 for FMI 2.0 FMUs, 2.0 for FMI 3.0 ones; "
+        "1.0 for FMI 3.0 FMUs types them as SSP 1.0's Real/Integer, for importers that "
+        "read only 1.0, such as Ecos 0.7)",
+    )
     add_fmu_options(e, fmi=True)
 
     he = sub.add_parser(

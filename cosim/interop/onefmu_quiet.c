@@ -10,7 +10,13 @@
  *
  * (container_configure(), called from fmi2Instantiate; its logger() forwards every
  * warning and error). Every other message, from the container or an embedded FMU, at
- * any time, reaches the host unchanged. See glider_cosim/onefmu.py.
+ * any time, reaches the host, written by FMI's '#' rule (FMI 2.0 section 2.1.5: '#'
+ * opens a variable reference such as #r12#, a literal '#' is "##"). The container
+ * writes plain text ("FMU#0: loading ..."): each of its '#' goes doubled. It passes an
+ * embedded FMU's message on as "%s: %s" (the FMU's name, its message, which is written
+ * by the rule): that message is read by the rule first ("##" a '#'; a reference kept as
+ * its text, since it names a variable of the embedded FMU, not of this one), then
+ * written again. See glider_cosim/onefmu.py.
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -57,18 +63,66 @@ static int is_boot_line(fmi2Status status, const char *text) {
     return 0;
 }
 
+/* Is in[i..] a variable reference of FMI 2's rule, '#' [ribs] digits '#'? Its length. */
+static size_t reference_length(const char *in) {
+    size_t n = 2;
+    if (in[0] != '#' || in[1] == '\0' || !strchr("ribs", in[1]) || in[2] < '0' || in[2] > '9')
+        return 0;
+    while (in[n] >= '0' && in[n] <= '9')
+        n += 1;
+    return in[n] == '#' ? n + 1 : 0;
+}
+
+/* Append `in` to out[0..*used] (size `size`, kept NUL-terminated) with every '#' doubled;
+ * `decode`: `in` is written by the rule, so its "##" is one '#' and a reference is text.
+ * A '#' is never cut from its pair at the end of the buffer. */
+static void append_escaped(char *out, size_t size, size_t *used, const char *in, int decode) {
+    size_t i = 0, ref = 0;
+    while (in[i] != '\0') {
+        char c = in[i];
+        size_t need = c == '#' ? 2 : 1;
+        if (*used + need >= size)
+            break;
+        if (decode && ref == 0 && c == '#') {
+            if (in[i + 1] == '#')
+                i += 1; /* "##": one literal '#' */
+            else
+                ref = reference_length(in + i); /* its characters go as text */
+        }
+        if (ref > 0)
+            ref -= 1;
+        out[(*used)++] = c;
+        if (c == '#')
+            out[(*used)++] = '#';
+        i += 1;
+    }
+    out[*used] = '\0';
+}
+
 static void quiet_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
                          fmi2String category, fmi2String message, ...) {
     const wrap_t *w = (const wrap_t *)env;
-    char text[4096];
+    char text[4096], out[8192];
+    size_t used = 0;
     va_list ap;
+    out[0] = '\0';
     va_start(ap, message);
-    vsnprintf(text, sizeof(text), message ? message : "", ap);
-    va_end(ap);
-    if (instantiating && is_boot_line(status, text))
-        return;
+    if (message && strcmp(message, "%s: %s") == 0) { /* an embedded FMU's message */
+        const char *name = va_arg(ap, const char *);
+        const char *msg = va_arg(ap, const char *);
+        append_escaped(out, sizeof(out), &used, name ? name : "", 0);
+        append_escaped(out, sizeof(out), &used, ": ", 0);
+        append_escaped(out, sizeof(out), &used, msg ? msg : "", 1);
+        va_end(ap);
+    } else { /* the container's own: plain text */
+        vsnprintf(text, sizeof(text), message ? message : "", ap);
+        va_end(ap);
+        if (instantiating && is_boot_line(status, text))
+            return;
+        append_escaped(out, sizeof(out), &used, text, 0);
+    }
     if (w && w->logger)
-        w->logger(w->env, instance, status, category, "%s", text);
+        w->logger(w->env, instance, status, category, "%s", out);
 }
 
 static void *load(void) {

@@ -10,7 +10,14 @@ NS = {
     "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
+
+#: the SSD versions read (SSP 2.0 keeps SSP 1.0's namespaces and adds FMI 3's types)
+SSD_VERSIONS = ("1.0", "2.0")
+
+
+OMS_ANNOTATION_TYPE = "org.openmodelica"
 
 
 OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
@@ -35,6 +42,16 @@ FMU_MIME = "application/x-fmu-sharedlibrary"
 VALUE_TYPES = ("Real", "Integer", "Boolean")
 
 
+#: SSP 2.0's FMI 3 types as the SSP 1.0 ones our FMUs' variables are compared with
+SSP2_TYPE_AS_SSP1 = {"Float64": "Real", "Int32": "Integer"}
+
+
+def as_ssp1_type(tag: str) -> str:
+    """An SSP 1.0 or 2.0 type name (``Real``/``Float64``, ``Integer``/``Int32``,
+    ``Boolean``, ...) as SSP 1.0's (FMI 2's) name of the same type."""
+    return SSP2_TYPE_AS_SSP1.get(tag, tag)
+
+
 def qname(prefix: str, tag: str) -> str:
     """An SSP element or attribute name in ElementTree's ``{namespace}tag`` form."""
     return f"{{{NS[prefix]}}}{tag}"
@@ -46,7 +63,9 @@ def local_name(tag: str) -> str:
 
 
 def format_value(value: Any, type_: str) -> str:
-    """A parameter value as SSP 1.0 text for its type (``Real``, ``Integer``, ``Boolean``)."""
+    """A parameter value as SSP text for its type (``Real``/``Float64``,
+    ``Integer``/``Int32``, ``Boolean``)."""
+    type_ = as_ssp1_type(type_)
     if type_ == "Real":
         return repr(float(value))
     if type_ == "Boolean":

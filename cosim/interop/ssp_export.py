@@ -1,7 +1,9 @@
-"""The system as an SSP 1.0 archive (``glider-cosim export-ssp``)."""
+"""The system as an SSP archive (``glider-cosim export-ssp``): SSP 1.0 for FMI 2.0 FMUs,
+SSP 2.0 (FMI 3's types) when an FMU is FMI 3.0."""
 
 from __future__ import annotations
 
+import re
 import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -17,19 +19,30 @@ from .ssp_common import (
     OSP_ANNOTATION_TYPE,
     OSP_MD_ANNOTATION_TYPE,
     OSP_MD_NS,
+    SSD_VERSIONS,
     VALUE_TYPES,
-    as_fmi2_types,
+    as_ssp1_type,
     format_value,
     qname,
 )
+
+
+def ssd_name(scenario_name: str) -> str:
+    """The SSD's ``name``: a plain identifier (``glider_cosim_<scenario>``, every other
+    character an underscore), which every importer takes (OMSimulator's refuses others)."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", f"glider_cosim_{scenario_name}")
 
 
 def export_ssp(
     out_path: str | Path,
     scenario: Scenario | str | Path | None = None,
     fmu_dir: str | Path | None = None,
+    *,
+    ssp_version: str | None = None,
 ) -> Path:
-    """Write a scenario's system as an SSP 1.0 archive.
+    """Write a scenario's system as an SSP archive: SSP 1.0 when every FMU is FMI 2.0,
+    SSP 2.0 (``version="2.0"``, connectors and values typed ``Float64``/``Int32`` as
+    FMI 3's) when one is FMI 3.0.
 
     Parameters
     ----------
@@ -43,6 +56,10 @@ def export_ssp(
     fmu_dir : path, optional
         Where our FMUs are (built there first if missing or stale; default: the per-user
         cache).
+    ssp_version : {"1.0", "2.0"}, optional
+        The SSP version to write; default 2.0 when an FMU is FMI 3.0, else 1.0. SSP 1.0
+        of FMI 3.0 FMUs types their Float64/Int32 variables as SSP 1.0's Real/Integer
+        (for importers that read only SSP 1.0, such as Ecos 0.7).
 
     Returns
     -------
@@ -52,7 +69,8 @@ def export_ssp(
     Raises
     ------
     SSPError
-        The scenario cannot be expressed in SSP 1.0, or names a variable the FMUs lack.
+        The scenario cannot be expressed in SSP, names a variable the FMUs lack, or
+        ``ssp_version`` is not 1.0 or 2.0.
     """
     from fmpy import read_model_description
 
@@ -84,16 +102,25 @@ def export_ssp(
         if found is not None:
             ospmd[inst] = (f"resources/{Path(resources[inst]).stem}{osp.SUFFIX}", found[1])
 
+    mds = {inst: read_model_description(str(fmus[inst])) for inst in insts}
+    fmi3 = {inst: str(md.fmiVersion).startswith("3") for inst, md in mds.items()}
+    if ssp_version not in (None, *SSD_VERSIONS):
+        raise SSPError(
+            f"ssp_version {ssp_version!r} is invalid: expected " + " or ".join(SSD_VERSIONS)
+        )
+    version = ssp_version or ("2.0" if any(fmi3.values()) else "1.0")
     root = ET.Element(
         qname("ssd", "SystemStructureDescription"),
-        {"version": "1.0", "name": f"glider-cosim-{sc.name}"},
+        {"version": version, "name": ssd_name(sc.name)},
     )
     system = ET.SubElement(root, qname("ssd", "System"), {"name": "glider"})
     elements = ET.SubElement(system, qname("ssd", "Elements"))
     comps = {}
     for inst in insts:
-        md = as_fmi2_types(read_model_description(str(fmus[inst])))
+        md = mds[inst]
         variables = {v.name: v for v in md.modelVariables}
+        # FMI 3's type names (SSP 2.0) for an FMI 3 FMU, SSP 1.0's (FMI 2's) otherwise
+        as_tag = (lambda t: t) if fmi3[inst] and version == "2.0" else as_ssp1_type
         comp = comps[inst] = ET.SubElement(
             elements,
             qname("ssd", "Component"),
@@ -101,11 +128,11 @@ def export_ssp(
         )
         connectors = ET.SubElement(comp, qname("ssd", "Connectors"))
         for v in md.modelVariables:
-            if v.causality in ("input", "output") and v.type in VALUE_TYPES:
+            if v.causality in ("input", "output") and as_ssp1_type(v.type) in VALUE_TYPES:
                 c = ET.SubElement(
                     connectors, qname("ssd", "Connector"), {"name": v.name, "kind": v.causality}
                 )
-                ET.SubElement(c, qname("ssc", v.type))
+                ET.SubElement(c, qname("ssc", as_tag(v.type)))
         values = dict(
             with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc)).get(inst, {})
         )
@@ -118,7 +145,9 @@ def export_ssp(
         binding = ET.SubElement(bindings, qname("ssd", "ParameterBinding"))
         pvalues = ET.SubElement(binding, qname("ssd", "ParameterValues"))
         pset = ET.SubElement(
-            pvalues, qname("ssv", "ParameterSet"), {"version": "1.0", "name": f"{inst}-parameters"}
+            pvalues,
+            qname("ssv", "ParameterSet"),
+            {"version": version, "name": f"{inst}-parameters"},
         )
         params = ET.SubElement(pset, qname("ssv", "Parameters"))
         for name, value in values.items():
@@ -128,10 +157,10 @@ def export_ssp(
                     f"{sc.source}: key '{inst}.{name}': {fmus[inst].name} has no parameter or "
                     f"input '{name}'"
                 )
-            if v.type not in VALUE_TYPES:
+            if as_ssp1_type(v.type) not in VALUE_TYPES:
                 raise SSPError(f"{sc.source}: key '{inst}.{name}': type {v.type} is not supported")
             p = ET.SubElement(params, qname("ssv", "Parameter"), {"name": name})
-            ET.SubElement(p, qname("ssv", v.type), {"value": format_value(value, v.type)})
+            ET.SubElement(p, qname("ssv", as_tag(v.type)), {"value": format_value(value, v.type)})
     for inst, (path, _) in ospmd.items():  # Annotations come last in an ssd:Component
         annotation = ET.SubElement(
             ET.SubElement(comps[inst], qname("ssd", "Annotations")),

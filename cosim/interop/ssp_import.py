@@ -15,9 +15,12 @@ from ..master.spec import System
 from .ssp_common import (
     FMU_MIME,
     NS,
+    OMS_ANNOTATION_TYPE,
     OSP_ANNOTATION_TYPE,
+    SSD_VERSIONS,
     VALUE_TYPES,
     as_fmi2_types,
+    as_ssp1_type,
     local_name,
     qname,
 )
@@ -31,6 +34,8 @@ class _Component:
     fmu: Path
     variables: dict[str, Any]
     connectors: dict[str, str]
+    #: the FMU's own ``DefaultExperiment stepSize`` (s), if it gives one
+    step_size: str | None = None
 
 
 def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
@@ -72,13 +77,19 @@ def _read_component(el: ET.Element, folder: Path, where: str) -> _Component:
             raise SSPError(
                 f"{cwhere}: connector '{cname}' is declared {kind} but is {v.causality} in {source}"
             )
-        types = [local_name(t.tag) for t in c if local_name(t.tag) in (*VALUE_TYPES, "String")]
+        types = [
+            as_ssp1_type(local_name(t.tag))
+            for t in c
+            if as_ssp1_type(local_name(t.tag)) in (*VALUE_TYPES, "String")
+        ]
         if types and types[0] != v.type:
             raise SSPError(
                 f"{cwhere}: connector '{cname}' is declared {types[0]} but is {v.type} in {source}"
             )
         connectors[cname] = kind or v.causality
-    return _Component(name, source, fmu, variables, connectors)
+    exp = md.defaultExperiment
+    step_size = None if exp is None or exp.stepSize is None else str(exp.stepSize)
+    return _Component(name, source, fmu, variables, connectors, step_size)
 
 
 def _read_parameters(
@@ -119,7 +130,7 @@ def _read_parameters(
             typed = [t for t in p if local_name(t.tag) != "Annotations"]
             if not typed:
                 raise SSPError(f"{pwhere} has no value")
-            tag = local_name(typed[0].tag)
+            tag = as_ssp1_type(local_name(typed[0].tag))
             if tag not in VALUE_TYPES:
                 raise SSPError(f"{pwhere}: ssv:{tag} values are not supported")
             if tag != v.type:
@@ -131,47 +142,74 @@ def _read_parameters(
     return values
 
 
-def _read_step(root: ET.Element, where: str) -> float:
-    algs = [
-        alg
+def _positive(text: str | None) -> float:
+    """A step or stop time's text as a finite number > 0, or NaN."""
+    try:
+        value = float(text) if text is not None else math.nan
+    except ValueError:
+        return math.nan
+    return value if math.isfinite(value) and value > 0 else math.nan
+
+
+def _read_step(root: ET.Element, comps: dict[str, _Component], where: str) -> float:
+    """The communication step (s) of an SSP, wherever the tool that wrote it put it:
+    the OSP annotation of ``ssd:DefaultExperiment`` (ours, libcosim's), OMSimulator's
+    ``oms:FixedStepMaster stepSize`` on the top ``ssd:System``, or else the FMUs' own
+    ``DefaultExperiment stepSize`` when every FMU that gives one gives the same."""
+    found = [
+        ("osp:FixedStepAlgorithm baseStepSize", alg.get("baseStepSize"))
         for ann in root.iterfind("ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation", NS)
         if ann.get("type") == OSP_ANNOTATION_TYPE
         for alg in ann.iterfind("osp:Algorithm/osp:FixedStepAlgorithm", NS)
+    ] + [
+        ("oms:FixedStepMaster stepSize", master.get("stepSize"))
+        for ann in root.iterfind("ssd:System/ssd:Annotations/ssc:Annotation", NS)
+        if ann.get("type") == OMS_ANNOTATION_TYPE
+        for master in ann.iterfind(".//oms:SimulationInformation/oms:FixedStepMaster", NS)
     ]
-    if not algs:
+    if found:
+        what, text = found[0]
+        step = _positive(text)
+        if math.isnan(step):
+            raise SSPError(
+                f"{where}: {what} = {text!r} is invalid: expected a number > 0 (s), or give "
+                "one with --step"
+            )
+        return step
+    given = {c.name: c.step_size for c in comps.values() if c.step_size is not None}
+    steps = {_positive(text) for text in given.values()}
+    if len(steps) == 1 and not math.isnan(step := steps.pop()):
+        return step
+    if given:
+        listed = ", ".join(f"{name} {text}" for name, text in given.items())
         raise SSPError(
-            f"{where}: no osp:FixedStepAlgorithm baseStepSize in ssd:DefaultExperiment's "
-            f"annotations (type '{OSP_ANNOTATION_TYPE}'): the communication step is missing"
+            f"{where}: the FMUs' DefaultExperiment stepSize values differ or are invalid "
+            f"({listed} s): give the communication step with --step"
         )
-    text = algs[0].get("baseStepSize")
-    try:
-        step = float(text) if text is not None else math.nan
-    except ValueError:
-        step = math.nan
-    if not (math.isfinite(step) and step > 0):
-        raise SSPError(
-            f"{where}: osp:FixedStepAlgorithm baseStepSize = {text!r} is invalid: expected a "
-            "number > 0 (s)"
-        )
-    return step
+    raise SSPError(
+        f"{where}: no communication step (no osp:FixedStepAlgorithm, oms:FixedStepMaster or "
+        "FMU DefaultExperiment stepSize): give one with --step"
+    )
 
 
-def _read_stop_time(root: ET.Element, where: str) -> float:
+def _read_stop_time(root: ET.Element, where: str, given: bool) -> float:
+    """``ssd:DefaultExperiment stopTime`` (s); NaN when it is missing and ``given``
+    (the caller's stop time is used)."""
     exp = root.find("ssd:DefaultExperiment", NS)
-    if exp is None:
-        raise SSPError(f"{where}: no ssd:DefaultExperiment (its stopTime is the run's end)")
-    start, stop = exp.get("startTime", "0"), exp.get("stopTime")
+    start, stop = (None, None) if exp is None else (exp.get("startTime"), exp.get("stopTime"))
     try:
-        start_f = float(start)
+        start_f = float(start) if start is not None else 0.0
     except ValueError:
         start_f = math.nan
     if start_f != 0.0:
         raise SSPError(f"{where}: ssd:DefaultExperiment startTime = {start!r}: only 0 is supported")
-    try:
-        stop_f = float(stop) if stop is not None else math.nan
-    except ValueError:
-        stop_f = math.nan
-    if not (math.isfinite(stop_f) and stop_f > 0):
+    if stop is None:
+        if given:
+            return math.nan
+        missing = "no ssd:DefaultExperiment" if exp is None else "no ssd:DefaultExperiment stopTime"
+        raise SSPError(f"{where}: {missing}: give the end of the run with --stop-time")
+    stop_f = _positive(stop)
+    if math.isnan(stop_f):
         raise SSPError(
             f"{where}: ssd:DefaultExperiment stopTime = {stop!r} is invalid: expected a "
             "number > 0 (s)"
@@ -179,29 +217,41 @@ def _read_stop_time(root: ET.Element, where: str) -> float:
     return stop_f
 
 
-def load_ssp(path: str | Path) -> tuple[System, float, float]:
-    """Read an SSP into our master's :class:`~glider_cosim.master.System`.
+def load_ssp(
+    path: str | Path, *, step: float | None = None, stop_time: float | None = None
+) -> tuple[System, float, float]:
+    """Read an SSP 1.0 or 2.0 into our master's :class:`~glider_cosim.master.System`.
 
     Parameters
     ----------
     path : path
         An ``.ssp`` archive (unpacked to a temporary folder, removed at exit), a
         ``.ssd`` file, or a folder holding ``SystemStructure.ssd``.
+    step : float, optional
+        The communication step (s), used instead of the SSP's (``--step``); needed when
+        the SSP gives none.
+    stop_time : float, optional
+        The end of the run (s), used instead of ``ssd:DefaultExperiment stopTime``
+        (``--stop-time``); needed when the SSP gives none.
 
     Returns
     -------
     (System, float, float)
         The system (FMU paths, parameter values, connections, unconnected Real inputs
         driven at their start or bound value, every output recorded), the communication
-        step from ``osp:FixedStepAlgorithm baseStepSize`` (s) and
-        ``ssd:DefaultExperiment stopTime`` (s).
+        step (s) and the stop time (s). The step is ``step`` if given, else the SSP's:
+        ``osp:FixedStepAlgorithm baseStepSize`` (ours, libcosim's), OMSimulator's
+        ``oms:FixedStepMaster stepSize``, or the FMUs' ``DefaultExperiment stepSize``
+        when they agree. The stop time is ``stop_time`` if given, else
+        ``ssd:DefaultExperiment stopTime``.
 
     Raises
     ------
     SSPError
         Missing or unreadable file or FMU, unknown component, connector or variable,
         connection that does not go from an output to an input of the same type,
-        unsupported SSP feature, missing or non-positive step or stop time. Only model
+        unsupported SSP feature or version, a step or stop time that is missing (the
+        message names ``--step`` or ``--stop-time``) or not positive. Only model
         descriptions are read: no FMU is loaded or instantiated.
     """
     path = Path(path)
@@ -214,8 +264,11 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
     except ET.ParseError as err:
         raise SSPError(f"{where}: {ssd.name} is not valid XML ({err})") from None
     if root.tag != qname("ssd", "SystemStructureDescription"):
+        raise SSPError(f"{where}: the root element is not an SSP ssd:SystemStructureDescription")
+    if root.get("version") not in SSD_VERSIONS:
         raise SSPError(
-            f"{where}: the root element is not an SSP 1.0 ssd:SystemStructureDescription"
+            f"{where}: SSD version {root.get('version')!r} is not supported: expected "
+            + " or ".join(SSD_VERSIONS)
         )
     system = root.find("ssd:System", NS)
     if system is None:
@@ -224,8 +277,7 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
         raise SSPError(f"{where}: nested ssd:System elements (sub-systems) are not supported")
     if system.find("ssd:Elements/ssd:SignalDictionaryReference", NS) is not None:
         raise SSPError(f"{where}: ssd:SignalDictionaryReference is not supported")
-    step = _read_step(root, where)
-    stop_time = _read_stop_time(root, where)
+    stop = _read_stop_time(root, where, stop_time is not None)
 
     comps: dict[str, _Component] = {}
     values: dict[str, dict[str, float | int | bool]] = {}
@@ -237,6 +289,8 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
         values[comp.name] = _read_parameters(el, comp, folder, where)
     if not comps:
         raise SSPError(f"{where}: the system has no ssd:Component")
+    h = float(step) if step is not None else _read_step(root, comps, where)
+    stop = float(stop_time) if stop_time is not None else stop
 
     connections: list[tuple[str, str]] = []
     sources: dict[str, str] = {}
@@ -298,4 +352,4 @@ def load_ssp(path: str | Path) -> tuple[System, float, float]:
         parameters=parameters,
         driven=driven,
     )
-    return system_, step, stop_time
+    return system_, h, stop

@@ -159,7 +159,8 @@ class Instance:
         names = STATUS3 if self.fmi == 3 else STATUS
 
         def logger(env, instance_name, status, category, message):
-            text = message.decode("utf-8", "replace") if message else ""
+            # read by FMI's '#' rule (FMI 2.0 section 2.1.5): "##" is a literal '#'
+            text = message.decode("utf-8", "replace").replace("##", "#") if message else ""
             self.log.append(f"[{names.get(status, status)}] {text}")
             del self.log[:-50]
 

@@ -225,7 +225,7 @@ def simulate(
             raise TypeError(f"{key} {quote(value)} is invalid: expected a number (s)")
     ssp_system = None
     if isinstance(scenario, str | Path) and str(scenario).endswith((".ssp", ".ssd")):
-        ssp_system, ssp_step, ssp_stop = load_ssp(scenario)
+        ssp_system, ssp_step, ssp_stop = load_ssp(scenario, step=step, stop_time=stop_time)
         scenario = Scenario(name=ssp_name(scenario), source=str(scenario), step=ssp_step,
                             stop_time=ssp_stop, parameters=ssp_system.parameters)  # fmt: skip
     if not isinstance(scenario, Scenario):

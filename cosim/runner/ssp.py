@@ -13,6 +13,7 @@ def run_ssp(
     out: str | Path | None = None,
     coupling: str = "gauss-seidel",
     *,
+    step: float | None = None,
     stop_time: float | None = None,
     plots: bool = True,
 ) -> RunResult:
@@ -28,8 +29,11 @@ def run_ssp(
     coupling : str
         ``"gauss-seidel"`` or ``"jacobi"`` (SSP 1.0 has no coupling scheme; libcosim's
         fixed-step algorithm is ``"jacobi"``).
+    step : float, optional
+        The communication step (s): overrides the SSP's (an OSP or OMSimulator
+        annotation, or the FMUs' ``DefaultExperiment stepSize``); needed when it has none.
     stop_time : float, optional
-        Overrides ``ssd:DefaultExperiment stopTime`` (s).
+        Overrides ``ssd:DefaultExperiment stopTime`` (s); needed when it has none.
     plots : bool
         Write PNG plots (with ``out``).
 
@@ -41,10 +45,13 @@ def run_ssp(
     Raises
     ------
     SSPError
-        The SSP is malformed (``simulate`` reads it, every check before any FMU is
+        The SSP is malformed, or gives no step or stop time and none is passed
+        (``simulate`` reads it, every check before any FMU is
         instantiated).
     """
     p = Path(path)
     if p.is_dir():
         p = p / SSD_NAME
-    return simulate(p, out, coupling=coupling, stop_time=stop_time, plots=plots, build=False)
+    return simulate(
+        p, out, coupling=coupling, step=step, stop_time=stop_time, plots=plots, build=False
+    )

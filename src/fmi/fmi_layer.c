@@ -214,27 +214,28 @@ static int should_log(const Instance *inst, Status status, int category) {
     return inst->logging_on && (inst->cat_on & (bit | all)) != 0;
 }
 
-/* FMI 2's logger takes a printf format: the text goes with every '%' doubled. FMI 3's
- * takes the message as it is. */
+/* What reaches the host's logger follows FMI's '#' rule (FMI 2.0 section 2.1.5, FMI 3.0
+ * logMessage): '#' opens a variable reference (#r12# in FMI 2, #12# in FMI 3), so every
+ * literal '#' goes doubled ("##"); our messages reference no variable. FMI 2's logger
+ * takes a printf format besides: every '%' goes doubled too. */
 static void emit(const HostLogger *logger, const char *name, int status, const char *category,
                  const char *text) {
     size_t n = strlen(text), extra = 0, i;
-    char *fmt, *o;
-    if (logger->fmi3) {
-        if (logger->log3) logger->log3(logger->env, status, category, text);
-        return;
-    }
-    if (!logger->log2) return;
-    for (i = 0; i < n; ++i) extra += text[i] == '%';
-    if (!(fmt = malloc(n + extra + 1))) return;
-    o = fmt;
+    char *msg, *o;
+    if (logger->fmi3 ? !logger->log3 : !logger->log2) return;
+    for (i = 0; i < n; ++i) extra += text[i] == '#' || (!logger->fmi3 && text[i] == '%');
+    if (!(msg = malloc(n + extra + 1))) return;
+    o = msg;
     for (i = 0; i < n; ++i) {
         *o++ = text[i];
-        if (text[i] == '%') *o++ = '%';
+        if (text[i] == '#' || (!logger->fmi3 && text[i] == '%')) *o++ = text[i];
     }
     *o = '\0';
-    logger->log2(logger->env, name, status, category, fmt);
-    free(fmt);
+    if (logger->fmi3)
+        logger->log3(logger->env, status, category, msg);
+    else
+        logger->log2(logger->env, name, status, category, msg);
+    free(msg);
 }
 
 /* ------------------------------------------------------------------ call framing */

@@ -276,7 +276,8 @@ def test_cli_build_run_and_export_ssp_with_fmi3(tmp_path):
         for name in NAMES:
             z.extract(f"resources/{name}.fmu", tmp_path / "ssp")
     assert folder_fmi(tmp_path / "ssp" / "resources") == 3
-    assert ssd.count("<ssc:Real") >= 10  # FMI 3 Float64 connectors as SSP 1.0 Real
+    # SSP 2.0: FMI 3's Float64 connectors as they are
+    assert 'version="2.0"' in ssd and ssd.count("<ssc:Float64") >= 10 and "<ssc:Real" not in ssd
     p = cli("run", "x.ssp", "--no-plots", "--stop-time", "2", "--out", "s", cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     a = np.loadtxt(tmp_path / "o" / "results.csv", delimiter=",", skiprows=1)
@@ -355,21 +356,29 @@ print(json.dumps(rows))
 def test_ecos_runs_the_fmi3_ssp_equal_to_our_jacobi_master(fmi3_dirs, tmp_path):
     """Ecos (ecospy, a test dependency; its library needs Debian's libtbb12, which
     ``.ci/run`` installs) on the SSP of the native FMI 3 FMUs, in a subprocess (it steps
-    on its own thread pool)."""
+    on its own thread pool). Ecos 0.7.2 reads only SSP 1.0 (its parser refuses any other
+    version): it refuses the default SSP 2.0 export and runs the ``ssp_version="1.0"``
+    one (``export-ssp --ssp-version 1.0``)."""
     import json
 
     from glider_cosim.interop.ssp_export import export_ssp
     from glider_cosim.runner import run_ssp
 
-    ssp = export_ssp(tmp_path / "glider3.ssp", None, fmi3_dirs["native"])
+    ssp2 = export_ssp(tmp_path / "glider3-2.ssp", None, fmi3_dirs["native"])
+    ssp = export_ssp(tmp_path / "glider3.ssp", None, fmi3_dirs["native"], ssp_version="1.0")
     scratch = tmp_path / "ecos_tmp"  # Ecos leaves its unpacked SSP in $TMPDIR
     scratch.mkdir()
     env = {**os.environ, "TMPDIR": str(scratch)}
+    p = subprocess.run([sys.executable, "-c", ECOS_SCRIPT, str(ssp2)], capture_output=True,
+                       text=True, timeout=300, env=env)  # fmt: skip
+    assert p.returncode != 0 and "Unsupported SSP version: '2.0'" in p.stderr, p.stderr[-2000:]
     p = subprocess.run([sys.executable, "-c", ECOS_SCRIPT, str(ssp)], capture_output=True,
                        text=True, timeout=300, env=env)  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
     ecos = np.array(json.loads(p.stdout.strip().splitlines()[-1]))
     ours = run_ssp(ssp, None, coupling="jacobi", stop_time=20.0).column("plant.theta_g")
+    assert np.array_equal(ours, run_ssp(ssp2, None, coupling="jacobi", stop_time=20.0)
+                          .column("plant.theta_g"))  # fmt: skip
     assert ecos.shape == ours.shape == (1001,)
     print(f"Ecos on FMI 3 vs our jacobi master: max |d theta_g| = {np.abs(ecos - ours).max():.3g}")
     assert np.array_equal(ecos, ours)

@@ -146,6 +146,42 @@ def test_messages_other_than_the_start_lines_reach_the_host(loop_fmu, tmp_path):
     assert "Solver configure" not in p.stdout and "FMUContainer 'V" not in p.stdout
 
 
+ALL_MESSAGES = """
+import json, sys
+from fmpy import simulate_fmu
+seen = []
+def logger(env, instance, status, category, message):
+    seen.append(message.decode())
+for start in ({}, {"plant.noise_seed": -5}):
+    try:
+        simulate_fmu(sys.argv[1], stop_time=0.1, output_interval=0.02, start_values=start,
+                     debug_logging=True, logger=logger)
+    except Exception as err:
+        seen.append("raised " + type(err).__name__)
+print(json.dumps(seen))
+"""
+
+
+def test_every_message_of_the_export_follows_fmis_hash_rule(loop_fmu, tmp_path):
+    """What the forwarder passes to the host, logging on, in a good run and a failing one,
+    read by FMI's '#' rule as FMI Library reads it (the container writes "FMU#0: ..."
+    and passes the embedded FMUs' messages on)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from fmi_log_rule import parse_fmi_message
+
+    unpacked = extract(str(loop_fmu), unzipdir=str(tmp_path / "loop"))
+    p = subprocess.run([sys.executable, "-c", ALL_MESSAGES, unpacked], capture_output=True,
+                       text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    seen = json.loads(p.stdout.strip().splitlines()[-1])
+    assert seen[-1] == "raised FMICallException"
+    read = [parse_fmi_message(m, 2) for m in seen[:-1]]  # raises on a message that breaks it
+    assert all(refs == [] for _, refs in read)
+    texts = [t for t, _ in read]
+    assert any(t.startswith("FMU#0: ") for t in texts), texts[:5]  # the container's own
+    assert any("noise_seed" in t for t in texts)  # an embedded FMU's error
+
+
 @pytest.mark.parametrize(
     ("start", "sets"),
     [

@@ -145,7 +145,7 @@ MALFORMED = [
      r"osp:FixedStepAlgorithm baseStepSize = '-0.02' is invalid: expected a number > 0"),
     ('baseStepSize="0.02"', 'baseStepSize="fast"', r"baseStepSize = 'fast' is invalid"),
     ('<osp:FixedStepAlgorithm baseStepSize="0.02" />', "",
-     r"no osp:FixedStepAlgorithm baseStepSize .*the communication step is missing"),
+     r"no communication step \(no osp:FixedStepAlgorithm, .*\): give one with --step"),
     ('stopTime="60.0"', 'stopTime="0"', r"ssd:DefaultExperiment stopTime = '0' is invalid"),
     ('startConnector="theta_meas"', 'startConnector="pitch"',
      r"connection plant.pitch -> observer.theta_meas: 'plant' \(resources/GliderPlant.fmu\) "
