@@ -25,8 +25,8 @@ class FMUCallError(MasterError, RuntimeError):
     """An FMI call returned fmi2Error or fmi2Fatal (fmi3Error, fmi3Fatal).
 
     Attributes ``instance``, ``call``, ``time`` (s), ``status``, ``log`` (the FMU's own
-    messages for that instance) and ``fmi`` (the FMI version, 2 or 3: the call and the
-    status are named in its terms).
+    messages for that instance since it was instantiated or last reset: this run's) and
+    ``fmi`` (the FMI version, 2 or 3: the call and the status are named in its terms).
     """
 
     def __init__(
