@@ -4,7 +4,9 @@ Parameter specs (``--param INSTANCE.NAME=SPEC``, repeatable):
 
 - ``6,8,10,15``: a list of values (numbers, ``"X deg"`` for an angle, or in the
   variable's declared unit, ``"0.2 m/s"``), each checked like ``run --set`` before any run;
-- ``0.5:2.5:5``: ``num`` values from ``start`` to ``stop`` inclusive (linspace);
+- ``0.5:2.5:5``: ``num`` evenly spaced values from ``start`` to ``stop`` inclusive, each
+  the exact decimal rounded to 15 significant digits (``0.1:0.5:5`` is 0.1, 0.2, 0.3,
+  0.4, 0.5, as ``sweep.csv`` shows them; :func:`~glider_cosim.sweeps.spec.range_values`);
 - ``uniform(-20%,+20%)`` or ``uniform(LOW,HIGH)``: uniform random draws, relative to the
   nominal value (the scenario's, else the FMU's default) or absolute;
 - ``normal(20%)`` or ``normal(SD)``: normal random draws around the nominal value.
