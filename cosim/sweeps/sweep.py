@@ -23,7 +23,8 @@ instance that failed is discarded and replaced. Runs go to the workers in tasks 
 message; tasks of a worker that dies are retried elsewhere by Dask.
 
 Modules by purpose: :mod:`.spec` (specs, the list of runs, the up-front name check),
-:mod:`.store` (``sweep.csv``, safe to kill), :mod:`.cluster` (clients, version check,
+:mod:`.store` (``sweep.csv``, safe to kill), :mod:`.folder` (one sweep per folder:
+``sweep.json``), :mod:`.cluster` (clients, version check,
 FMUs sent to workers), :mod:`.worker` (the runs of a task, on the worker), :mod:`.plots`;
 this module holds the client loop and the CLI.
 """
@@ -49,6 +50,7 @@ from .cluster import (
     package_version,
     scatter_fmus,
 )
+from .folder import SweepFolderError, check_folder, start_folder
 from .plots import write_plots
 from .spec import (
     ParamSpec,
@@ -112,15 +114,21 @@ def run_sweep(
     restart: bool = False,
     progress: Callable[[int, int, int, float], None] | None = None,
     chunk: int = CHUNK,
+    spec: str = "",
 ) -> SweepResult:
     """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
     per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
-    runs with the same id are run once; see :mod:`glider_cosim.sweeps.store`)."""
+    runs with the same id are run once; see :mod:`glider_cosim.sweeps.store`).
+
+    A folder that holds another sweep's results is refused (:class:`SweepFolderError`,
+    before any run) unless ``restart``; ``spec`` (the sweep as the user wrote it) names
+    this sweep in ``sweep.json`` and in that message (:mod:`glider_cosim.sweeps.folder`).
+    """
     from distributed import as_completed
 
-    out.mkdir(parents=True, exist_ok=True)
     unique = list({r["run_id"]: r for r in runs}.values())
     ids = [r["run_id"] for r in unique]
+    start_folder(out, ids, spec, restart)
     param_cols = sorted({k for r in unique for k in r["params"]})
     cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
     traj = None
@@ -168,6 +176,23 @@ def run_sweep(
                        time.perf_counter() - t0, store.path, failed_total, failures)  # fmt: skip
 
 
+def spec_text(args: argparse.Namespace, specs: Sequence[ParamSpec]) -> str:
+    """The options that make a sweep's list of runs, as the user wrote them (shell-quoted),
+    e.g. ``--param controller.K_c=2:30:15 --stop-time 20``."""
+    import shlex
+
+    words = [args.scenario] if args.scenario else []
+    for item in args.param:
+        words += ["--param", item]
+    if any(s.random for s in specs):
+        words += ["--samples", str(args.samples), "--rng-seed", str(args.rng_seed)]
+    if args.seeds is not None:
+        words += ["--seeds", str(args.seeds)]
+    if args.stop_time is not None:
+        words += ["--stop-time", f"{args.stop_time:g}"]
+    return shlex.join(words)
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
@@ -193,6 +218,8 @@ def main(args: argparse.Namespace) -> int:
     check_targets(scenario, fmu_dir, ["plant.noise_seed"] * bool(seeds), specs)
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
+    spec = spec_text(args, specs)
+    check_folder(out, [r["run_id"] for r in runs], spec, args.restart)  # before Dask starts
 
     from ..runner.progress import sweep_line
 
@@ -205,7 +232,7 @@ def main(args: argparse.Namespace) -> int:
             print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
         res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
                         trajectories=args.trajectories, restart=args.restart,
-                        progress=progress)  # fmt: skip
+                        progress=progress, spec=spec)  # fmt: skip
     finally:
         client.close()
         if not args.scheduler and client.cluster is not None:
@@ -231,6 +258,7 @@ __all__ = [
     "ParamSpec",
     "ScenarioError",
     "SweepClusterError",
+    "SweepFolderError",
     "SweepResult",
     "SweepSpecError",
     "check_targets",

@@ -433,3 +433,29 @@ def test_each_failed_runs_message_is_its_own(flavor, fmu_dir, native_dir):
                        build=False, plots=False, stop_time=12.0)  # fmt: skip
         assert (row["status"], row["message"]) == (ref.status, ref.message)
     assert len(set(times)) == 4, times  # four different times: four different messages
+
+
+def test_a_sweep_into_another_sweeps_folder_is_refused(native_dir, tmp_path, capsys):
+    """Issue 45: a second sweep with another --param into the same --out was appended to
+    the first one's sweep.csv. Now: one line, exit 2, nothing written; the same sweep
+    resumes; --restart replaces it."""
+    common = ["--stop-time", "1", "--workers", "1", "--fmu-dir", str(native_dir),
+              "--out", str(tmp_path), "--no-plots"]  # fmt: skip
+    assert cli_main(["sweep", "--param", "controller.K_c=8,10", *common]) == 0
+    before = (tmp_path / "sweep.csv").read_bytes()
+    capsys.readouterr()
+    assert cli_main(["sweep", "--param", "plant.V_0=0.2,0.3", *common]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err == (
+        f"glider-cosim sweep: error: {tmp_path} holds the results of another sweep (--param "
+        "controller.K_c=8,10 --stop-time 1, 2 runs), not of this one (--param "
+        "plant.V_0=0.2,0.3 --stop-time 1, 2 runs): give another --out, remove "
+        f"{tmp_path}, or pass --restart to replace them\n"
+    )
+    assert (tmp_path / "sweep.csv").read_bytes() == before
+    assert cli_main(["sweep", "--param", "controller.K_c=8,10", *common]) == 0
+    assert "2 runs (2 already done), 0 run now" in capsys.readouterr().out
+    assert cli_main(["sweep", "--param", "plant.V_0=0.2,0.3", "--restart", *common]) == 0
+    assert [r["plant.V_0"] for r in rows(tmp_path / "sweep.csv")] in (
+        ["0.2", "0.3"], ["0.3", "0.2"])  # fmt: skip
