@@ -80,7 +80,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..inputs.check import check_ranges, our_kinds
     from ..master.spec import count_steps
     from ..runner.metrics import describe_outcome
-    from ..runner.provenance import overrides_text
+    from ..runner.provenance import overrides_echo, overrides_text
     from ..runner.run import origin_of, simulate
     from ..scenarios.overrides import apply_overrides, parse_sets
     from ..scenarios.scenario import load_scenario
@@ -172,6 +172,9 @@ def _run(args: argparse.Namespace) -> int:
         + f": {m['rows']} rows to t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, "
         f"step {_time(m['step_s'])} s"
     )
+    if getattr(scenario, "overrides", None):  # with units, from the model descriptions
+        fmus = {k: f["file"] for k, f in (m.get("run") or {}).get("fmus", {}).items()}
+        print(f"  set: {overrides_echo(scenario.overrides, fmus)}")
     print(
         f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"
         f", overshoot {fmt('overshoot_rad', deg, ' deg')}, effort "
