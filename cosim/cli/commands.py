@@ -10,8 +10,8 @@ import sys
 from pathlib import Path
 
 from ..fmus.folders import default_dir
-from ..inputs.text import one_line, quote, shown_path
-from ..master.errors import SystemSpecError
+from ..inputs.text import command_line, one_line, quote, shown_path
+from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from .parser import UsageError
@@ -157,6 +157,11 @@ def _run(args: argparse.Namespace) -> int:
         )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
+    except Interrupted as err:  # the console's last line: where the rows are, what next
+        m = getattr(err.result, "metrics", None) or {}
+        rows = f"{m['rows']} rows to t = {_time(m.get('end_time_s'))} s in " if "rows" in m else ""
+        err.kept = f"{rows}{out}; run it again with: {command_line(getattr(args, 'argv', []))}"
+        raise
     m = result.metrics
     scenario = result.scenario
     deg = 57.29577951308232

@@ -61,12 +61,17 @@ class FMUStopped(FMUCallError):
 class Interrupted(KeyboardInterrupt):
     """The run was stopped by SIGINT (Ctrl-C) or SIGTERM at a communication point.
 
-    ``signum`` is the signal's number.
+    ``signum`` is the signal's number; ``result`` what the run returned before it was
+    raised (a :class:`~glider_cosim.runner.RunResult`, or None); ``kept`` says, for the
+    console, where the results so far are and how to go on (set by the command, e.g.
+    ``37 of 240 runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...``).
     """
 
     def __init__(self, signum: int = signal.SIGINT):
         super().__init__(signum)
         self.signum = int(signum)
+        self.result: object = None
+        self.kept = ""
 
     def describe(self) -> str:
         """``"interrupted by the user (Ctrl-C)"`` or ``"terminated (SIGTERM)"``."""

@@ -39,6 +39,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..inputs.text import command_line
+from ..master.errors import Interrupted
 from ..scenarios.fields import ScenarioError
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import system_for
@@ -50,7 +52,7 @@ from .cluster import (
     package_version,
     scatter_fmus,
 )
-from .folder import SweepFolderError, check_folder, start_folder
+from .folder import TABLE_FILE, SweepFolderError, check_folder, recorded_ids, start_folder
 from .plots import write_plots
 from .spec import (
     ParamSpec,
@@ -193,6 +195,20 @@ def spec_text(args: argparse.Namespace, specs: Sequence[ParamSpec]) -> str:
     return shlex.join(words)
 
 
+def interrupted(
+    err: KeyboardInterrupt, out: Path, ids: Sequence[str], args: argparse.Namespace
+) -> Interrupted:
+    """``err`` as :class:`Interrupted`, with what the console says is kept: ``37 of 240
+    runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...`` (the command as
+    given, without ``--restart``)."""
+    stop = err if isinstance(err, Interrupted) else Interrupted()
+    table = out / TABLE_FILE
+    done = len(recorded_ids(table) & set(ids))
+    stop.kept = (f"{done} of {len(set(ids))} runs in {table}; resume with: "
+                 f"{command_line(getattr(args, 'argv', []), drop=['--restart'])}")  # fmt: skip
+    return stop
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
@@ -225,18 +241,21 @@ def main(args: argparse.Namespace) -> int:
 
     progress = sweep_line()  # None in a pipe or CI: nothing printed
 
-    client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:
-        check_workers(client)
-        if args.dashboard:
-            print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
-        res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
-                        trajectories=args.trajectories, restart=args.restart,
-                        progress=progress, spec=spec)  # fmt: skip
-    finally:
-        client.close()
-        if not args.scheduler and client.cluster is not None:
-            client.cluster.close()
+        client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
+        try:
+            check_workers(client)
+            if args.dashboard:
+                print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
+            res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
+                            trajectories=args.trajectories, restart=args.restart,
+                            progress=progress, spec=spec)  # fmt: skip
+        finally:
+            client.close()
+            if not args.scheduler and client.cluster is not None:
+                client.cluster.close()
+    except KeyboardInterrupt as err:  # Ctrl-C (SIGTERM: Interrupted): say what is kept
+        raise interrupted(err, out, [r["run_id"] for r in runs], args) from None
     if args.format == "parquet":
         import pyarrow.csv as pacsv
         import pyarrow.parquet as pq
