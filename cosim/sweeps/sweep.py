@@ -204,8 +204,10 @@ def interrupted(
     stop = err if isinstance(err, Interrupted) else Interrupted()
     table = out / TABLE_FILE
     done = len(recorded_ids(table) & set(ids))
+    argv = getattr(args, "argv", [])
+    restart = [w for w in argv if len(w) > 3 and "--restart".startswith(w)]  # "--rest" too
     stop.kept = (f"{done} of {len(set(ids))} runs in {table}; resume with: "
-                 f"{command_line(getattr(args, 'argv', []), drop=['--restart'])}")  # fmt: skip
+                 f"{command_line(argv, drop=restart)}")  # fmt: skip
     return stop
 
 

@@ -20,9 +20,16 @@ pytestmark = pytest.mark.integration
 CLI = "from glider_cosim.cli import console_main; console_main()"
 
 
+def _as_in_a_terminal() -> None:
+    """SIGINT as a shell in a terminal leaves it: not ignored (a test session started in
+    the background of a script inherits it ignored, and so would the command)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-c", CLI, *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_as_in_a_terminal)  # fmt: skip
 
 
 def wait_for(predicate, what: str, timeout: float = 120) -> None:
@@ -44,8 +51,8 @@ def test_ctrl_c_in_a_sweep_names_the_table_and_the_resume_command(native_dir, tm
     wait_for(lambda: table.is_file() and table.read_bytes().count(b"\n") > 1, "a first row")
     assert p.poll() is None, "the sweep ended before it could be interrupted"
     p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=120)
-    assert p.returncode == 130, err
+    out_text, err = p.communicate(timeout=120)
+    assert p.returncode == 130, out_text + err
     with open(table, newline="") as f:
         kept = len(list(csv.DictReader(f)))
     assert 0 < kept < 100
