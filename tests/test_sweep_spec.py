@@ -58,3 +58,41 @@ def test_run_ids_are_deterministic():
     assert a == run_id({"controller.K_c": 6.0}, 1, sc, 60.0)
     assert a != run_id({"controller.K_c": 6.0}, 2, sc, 60.0)
     assert a != run_id({"controller.K_c": 8.0}, 1, sc, 60.0)
+
+
+@pytest.mark.parametrize(
+    ("spec", "shown"),
+    [
+        ("0.1:0.5:5", ["0.1", "0.2", "0.3", "0.4", "0.5"]),
+        ("2:30:15", [f"{k}.0" for k in range(2, 31, 2)]),
+        ("0:0.1:6", ["0.0", "0.02", "0.04", "0.06", "0.08", "0.1"]),
+        ("0:1:4", ["0.0", "0.333333333333333", "0.666666666666667", "1.0"]),
+        ("1e-3:2e-3:3", ["0.001", "0.0015", "0.002"]),
+        ("0.3,0.7", ["0.3", "0.7"]),
+        ("7:7:1", ["7.0"]),
+    ],
+)
+def test_swept_values_are_written_as_the_user_gave_them(spec, shown, tmp_path):
+    """A range's values are its exact decimals (15 significant digits at most), and the
+    number passed on is float() of the text sweep.csv shows (linspace gave
+    0.30000000000000004 for 0.1:0.5:5)."""
+    import csv
+
+    from glider_cosim.sweeps.store import SweepStore
+
+    values = parse_param(f"controller.K_c={spec}").values
+    assert [repr(v) for v in values] == shown
+    assert all(float(t) == v for t, v in zip(shown, values, strict=True))
+    with SweepStore(tmp_path / "sweep.csv", ["run_id", "controller.K_c", "status"]) as store:
+        for i, v in enumerate(values):
+            store.add({"run_id": f"r{i}", "controller.K_c": v, "status": "ok"})
+    with open(tmp_path / "sweep.csv", newline="") as f:
+        assert [r["controller.K_c"] for r in csv.DictReader(f)] == shown
+
+
+def test_a_range_in_degrees_steps_in_degrees():
+    values = parse_param("plant.theta_g_0=-30 deg:-20 deg:3").values
+    assert values == tuple(math.radians(d) for d in (-30.0, -25.0, -20.0))
+    from glider_cosim.inputs.values import parse_quantity
+
+    assert values[1] == parse_quantity("-25 deg")  # as --set "X deg" reads it

@@ -10,8 +10,8 @@ import sys
 from pathlib import Path
 
 from ..fmus.folders import default_dir
-from ..inputs.text import one_line, quote, shown_path
-from ..master.errors import SystemSpecError
+from ..inputs.text import command_line, one_line, quote, shown_path
+from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from .parser import UsageError
@@ -80,7 +80,7 @@ def _run(args: argparse.Namespace) -> int:
     from ..inputs.check import check_ranges, our_kinds
     from ..master.spec import count_steps
     from ..runner.metrics import describe_outcome
-    from ..runner.provenance import overrides_text
+    from ..runner.provenance import overrides_echo, overrides_text
     from ..runner.run import origin_of, simulate
     from ..scenarios.overrides import apply_overrides, parse_sets
     from ..scenarios.scenario import load_scenario
@@ -158,6 +158,11 @@ def _run(args: argparse.Namespace) -> int:
         )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
+    except Interrupted as err:  # the console's last line: where the rows are, what next
+        m = getattr(err.result, "metrics", None) or {}
+        rows = f"{m['rows']} rows to t = {_time(m.get('end_time_s'))} s in " if "rows" in m else ""
+        err.kept = f"{rows}{out}; run it again with: {command_line(getattr(args, 'argv', []))}"
+        raise
     m = result.metrics
     scenario = result.scenario
     deg = 57.29577951308232
@@ -173,6 +178,9 @@ def _run(args: argparse.Namespace) -> int:
         + f": {m['rows']} rows to t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, "
         f"step {_time(m['step_s'])} s"
     )
+    if getattr(scenario, "overrides", None):  # with units, from the model descriptions
+        fmus = {k: f["file"] for k, f in (m.get("run") or {}).get("fmus", {}).items()}
+        print(f"  set: {overrides_echo(scenario.overrides, fmus)}")
     print(
         f"  rise {fmt('rise_time_s', unit=' s')}, settling {fmt('settling_time_s', unit=' s')}"
         f", overshoot {fmt('overshoot_rad', deg, ' deg')}, effort "

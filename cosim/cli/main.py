@@ -79,6 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:  # a bare ``glider-cosim``: the commands and the first to try
         sys.stdout.write(overview(parser))
         return 0
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # for "resume with: ..."
     _notes_to_stderr()
     _matplotlib_cache()
     with warnings.catch_warnings():
@@ -120,11 +121,14 @@ def _main(args: argparse.Namespace) -> int:
         print(f"{error}{_message(err, command)}", file=sys.stderr)
         code = 1
     except KeyboardInterrupt as err:
+        kept = getattr(err, "kept", "")  # where the results are, how to go on
+        kept = f": {kept}" if kept else ""
         if isinstance(err, Interrupted) and err.signum == signal.SIGTERM:
-            print(f"{error}terminated (SIGTERM); results so far are written", file=sys.stderr)
+            print(f"{error}terminated (SIGTERM); results so far are written{kept}",
+                  file=sys.stderr)  # fmt: skip
             code = 143
         else:
-            print(f"{error}interrupted; results so far are written", file=sys.stderr)
+            print(f"{error}interrupted; results so far are written{kept}", file=sys.stderr)
             code = 130
     except OSError as err:
         print(f"{error}{_message(err, command)}", file=sys.stderr)

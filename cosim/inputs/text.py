@@ -59,3 +59,13 @@ def did_you_mean(word: Any, choices: Iterable[Any]) -> str:
     names = {str(c).lower(): str(c) for c in choices}
     close = difflib.get_close_matches(word.lower(), list(names), n=1, cutoff=0.6)
     return f"; did you mean {names[close[0]]!r}?" if close else ""
+
+
+def command_line(argv: Iterable[str], drop: Iterable[str] = ()) -> str:
+    """``glider-cosim`` and its arguments ``argv`` as a shell would take them back
+    (quoted where needed), without the flags in ``drop`` (e.g. ``--restart`` in a resume
+    command): ``glider-cosim sweep --param 'plant.V_0=0.2 m/s'``."""
+    import shlex
+
+    dropped = set(drop)
+    return shlex.join(["glider-cosim", *(w for w in argv if w not in dropped)])

@@ -22,8 +22,8 @@ _BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 #: a number and a unit: ``"0.2 m/s"``, ``"-30 deg"``, ``"10Hz"`` (a unit that starts with
-#: a digit, e.g. ``1/s``, needs the space)
-_QUANTITY = re.compile(rf"^\s*({_NUMBER})(?:\s*([A-Za-z%][^\s]*)|\s+([^\s]+))\s*$")
+#: a digit, e.g. ``1/s``, needs the space; ``1e-3`` is a number, not 1 in "e-3")
+_QUANTITY = re.compile(rf"^\s*({_NUMBER})(?![eE][-+]?\d)(?:\s*([A-Za-z%][^\s]*)|\s+([^\s]+))\s*$")
 
 
 class Quantity(float):

@@ -209,7 +209,8 @@ class CoSimulation(DrivenInputs):
         pythonfmu's reset restores the defaults, so the system's parameters (updated
         with ``parameters``, per instance, or replaced by them with ``replace``: then
         every parameter not given returns to the FMU's default) are set again. Value
-        references, call plans and loaded libraries are kept. Raises
+        references, call plans and loaded libraries are kept; each instance's log starts
+        empty, so a failure of the next run is told by that run's messages. Raises
         :class:`MasterError` if an instance is in a fatal state (it cannot be reset:
         build a new :class:`CoSimulation`).
         """
@@ -227,6 +228,7 @@ class CoSimulation(DrivenInputs):
             for inst, params in (parameters or {}).items():
                 self.system.parameters.setdefault(inst, {}).update(params)
         for inst in self.instances.values():
+            inst.log.clear()  # a run's failure is told by its own messages only
             self._call(inst, "fmi2Reset", inst.slave.reset)
             inst.failed = False
         self._setup_instances()

@@ -25,8 +25,8 @@ class FMUCallError(MasterError, RuntimeError):
     """An FMI call returned fmi2Error or fmi2Fatal (fmi3Error, fmi3Fatal).
 
     Attributes ``instance``, ``call``, ``time`` (s), ``status``, ``log`` (the FMU's own
-    messages for that instance) and ``fmi`` (the FMI version, 2 or 3: the call and the
-    status are named in its terms).
+    messages for that instance since it was instantiated or last reset: this run's) and
+    ``fmi`` (the FMI version, 2 or 3: the call and the status are named in its terms).
     """
 
     def __init__(
@@ -61,12 +61,17 @@ class FMUStopped(FMUCallError):
 class Interrupted(KeyboardInterrupt):
     """The run was stopped by SIGINT (Ctrl-C) or SIGTERM at a communication point.
 
-    ``signum`` is the signal's number.
+    ``signum`` is the signal's number; ``result`` what the run returned before it was
+    raised (a :class:`~glider_cosim.runner.RunResult`, or None); ``kept`` says, for the
+    console, where the results so far are and how to go on (set by the command, e.g.
+    ``37 of 240 runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...``).
     """
 
     def __init__(self, signum: int = signal.SIGINT):
         super().__init__(signum)
         self.signum = int(signum)
+        self.result: object = None
+        self.kept = ""
 
     def describe(self) -> str:
         """``"interrupted by the user (Ctrl-C)"`` or ``"terminated (SIGTERM)"``."""

@@ -175,7 +175,9 @@ class Instance:
 
     def instantiate(self, callbacks: Any, t0: float) -> None:
         """fmi2Instantiate (fmi3InstantiateCoSimulation) with :meth:`callbacks`; raises
-        :class:`FMUCallError` at ``t0`` s if it fails."""
+        :class:`FMUCallError` at ``t0`` s if it fails. The log starts empty: an earlier
+        instance's messages never explain this one's failure."""
+        self.log.clear()
         try:
             if self.fmi == 3:
                 self.slave.instantiate(log_message=callbacks, loggingOn=True)

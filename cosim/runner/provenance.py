@@ -246,6 +246,53 @@ def overrides_text(metrics: dict[str, Any]) -> str:
     return ", ".join(_overrides((metrics.get("run") or {}).get("overrides", {})))
 
 
+def _echo(ref: str, value: Any, md: Any) -> str:
+    """``plant.alpha_0 = 1 rad (57.3 deg)``: one override with its variable's unit."""
+    from ..inputs.values import Degrees, Quantity, has_unit, is_angle, unit_of
+
+    inst, _, name = ref.partition(".")
+    var = None if md is None else next((v for v in md.modelVariables if v.name == name), None)
+    if isinstance(value, Degrees):
+        return f"{ref} = {value.text} ({float(value):.4g} rad)"
+    if isinstance(value, Quantity):
+        return f"{ref} = {value.text}"
+    if name == "law" and inst == "controller" and value in LAW_NAMES:
+        return f"{ref} = {value} ({LAW_NAMES[value]})"
+    shown = _short(value)
+    if var is None or not has_unit(var) or unit_of(var) == "1" or isinstance(value, bool):
+        return f"{ref} = {shown}"
+    if is_angle(md, var) and isinstance(value, int | float):
+        return f"{ref} = {shown} {unit_of(var)} ({math.degrees(value):.4g} deg)"
+    return f"{ref} = {shown} {unit_of(var)}"
+
+
+def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
+    """Every override with the unit of its variable, an angle in rad in degrees too (one
+    given in degrees in rad too): ``"controller.K_c = 6, plant.alpha_0 = 1 rad (57.3
+    deg), plant.V_0 = 0.2 m/s"`` ("" if none).
+
+    Parameters
+    ----------
+    overrides : dict
+        ``instance.variable`` -> value as given (a number, or a ``"X deg"`` / ``"0.2 m/s"``
+        :class:`~glider_cosim.inputs.values.Quantity`): a scenario's ``overrides``.
+    fmus : dict
+        Instance -> its FMU file: the units come from its model description (an FMU that
+        cannot be read gives none).
+    """
+    from fmpy import read_model_description
+
+    descriptions: dict[str, Any] = {}
+    for inst in {ref.partition(".")[0] for ref in overrides}:
+        try:
+            descriptions[inst] = read_model_description(str(fmus[inst]))
+        except Exception:  # noqa: BLE001 - fmpy raises plain Exception; no unit then
+            descriptions[inst] = None
+    return ", ".join(
+        _echo(ref, value, descriptions[ref.partition(".")[0]]) for ref, value in overrides.items()
+    )
+
+
 def settings_text(metrics: dict[str, Any]) -> str:
     """``"scenario default; controller.K_c=6, --step 0.01"``: what a plot's subtitle says."""
     run = metrics.get("run") or {}

@@ -358,6 +358,7 @@ def simulate(
                     draw_plots(result, out) if drawer is None else drawer.draw(result, out)
                 )
         if interrupt is not None:
+            interrupt.result = result  # what was kept, for the console's last line
             raise interrupt
         return result
     finally:

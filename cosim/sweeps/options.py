@@ -13,7 +13,8 @@ _DESCRIPTION = """Run a parameter sweep or a Monte Carlo study on Dask.
 Each --param INSTANCE.NAME=SPEC (repeatable) is a list (6,8,10), a range START:STOP:NUM
 (NUM values, both ends included) or random draws around the nominal value,
 uniform(-20%,+20%) or normal(20%) (absolute: uniform(LOW,HIGH), normal(SD)); lists and
-ranges form a full grid. An interrupted sweep resumes where it stopped."""
+ranges form a full grid. An interrupted sweep resumes where it stopped; a folder that
+holds another sweep's results is refused."""
 
 
 def add_parser(sub: Any) -> None:
@@ -29,12 +30,14 @@ def add_parser(sub: Any) -> None:
     s.add_argument("--rng-seed", type=int, default=0, help="seed of the random draws")
     s.add_argument("--workers", type=int, default=2, help="local worker processes")
     s.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
-    s.add_argument("--out", default="out/sweep", help="results folder")
+    s.add_argument("--out", default="out/sweep",
+                   help="results folder: one sweep's (the same sweep resumes there)")  # fmt: skip
     s.add_argument("--format", choices=("csv", "parquet"), default="csv",
                    help="format of the sweep's table (parquet needs pyarrow)")  # fmt: skip
     s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
     s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
     add_fmu_options(s)
-    s.add_argument("--restart", action="store_true", help="ignore results already in --out")
+    s.add_argument("--restart", action="store_true",
+                   help="replace the results in --out (another sweep's too)")  # fmt: skip
     s.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")

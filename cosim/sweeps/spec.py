@@ -80,6 +80,53 @@ def _value(text: str, where: str) -> float:
     return v
 
 
+#: significant digits of a range's values (:func:`range_values`): every decimal of at
+#: most 15 digits is a distinct double whose shortest ``repr`` is that decimal
+RANGE_DIGITS = 15
+
+
+def range_values(
+    start_text: str, stop_text: str, start: float, stop: float, num: int
+) -> tuple[float, ...]:
+    """The ``num`` values of the range ``START:STOP:NUM`` as a user expects them printed.
+
+    Each value is ``start + i (stop - start) / (num - 1)`` computed exactly (in rational
+    arithmetic) from the ends as written, rounded to :data:`RANGE_DIGITS` significant
+    digits (half to even), and passed to the FMU as the double nearest that decimal: its
+    ``repr`` (what ``sweep.csv`` shows) is the decimal, e.g. ``0.1:0.5:5`` gives 0.1,
+    0.2, 0.3, 0.4, 0.5 (numpy's ``linspace`` gives 0.30000000000000004), ``0:1:4`` gives
+    0.333333333333333. Ends written with the same unit are interpolated in that unit
+    (``-30 deg:-20 deg:3`` is -30, -25, -20 deg, each converted to rad as ``--set "X
+    deg"`` converts it); other ends by their values in the variable's unit.
+    """
+    from decimal import Decimal, localcontext
+    from fractions import Fraction
+
+    from ..inputs.values import _QUANTITY, Degrees, Quantity
+
+    def written(text: str, value: float) -> Fraction:
+        if isinstance(value, Quantity):
+            return Fraction(Decimal(_QUANTITY.match(value.text).group(1)))
+        return Fraction(Decimal(text.strip()))
+
+    same_unit = type(start) is type(stop) and (
+        not isinstance(start, Quantity) or start.unit == stop.unit
+    )
+    if same_unit:
+        a, b = written(start_text, start), written(stop_text, stop)
+    else:
+        a, b = Fraction(float(start)), Fraction(float(stop))
+    out = []
+    for i in range(num):
+        exact = a if num == 1 else a + (b - a) * i / (num - 1)
+        with localcontext() as ctx:
+            ctx.prec = RANGE_DIGITS
+            text = Decimal(exact.numerator) / Decimal(exact.denominator)
+        value = float(text)
+        out.append(math.radians(value) if same_unit and isinstance(start, Degrees) else value)
+    return tuple(out)
+
+
 def parse_param(item: str) -> ParamSpec:
     """Parse ``INSTANCE.NAME=SPEC`` (grammar in the module docstring)."""
     where = f"--param {item!r}"
@@ -122,7 +169,7 @@ def parse_param(item: str) -> ParamSpec:
             raise SweepSpecError(f"{where}: NUM {parts[2]!r} must be a whole number") from None
         if num < 1:
             raise SweepSpecError(f"{where}: NUM must be >= 1")
-        values = tuple(float(v) for v in np.linspace(start, stop, num))
+        values = range_values(parts[0], parts[1], start, stop, num)
         return ParamSpec(target, values=values, given=(start, stop), item=item)
     given = tuple(_value(v, where) for v in spec.split(",") if v.strip())
     if not given:

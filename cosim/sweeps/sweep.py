@@ -4,7 +4,9 @@ Parameter specs (``--param INSTANCE.NAME=SPEC``, repeatable):
 
 - ``6,8,10,15``: a list of values (numbers, ``"X deg"`` for an angle, or in the
   variable's declared unit, ``"0.2 m/s"``), each checked like ``run --set`` before any run;
-- ``0.5:2.5:5``: ``num`` values from ``start`` to ``stop`` inclusive (linspace);
+- ``0.5:2.5:5``: ``num`` evenly spaced values from ``start`` to ``stop`` inclusive, each
+  the exact decimal rounded to 15 significant digits (``0.1:0.5:5`` is 0.1, 0.2, 0.3,
+  0.4, 0.5, as ``sweep.csv`` shows them; :func:`~glider_cosim.sweeps.spec.range_values`);
 - ``uniform(-20%,+20%)`` or ``uniform(LOW,HIGH)``: uniform random draws, relative to the
   nominal value (the scenario's, else the FMU's default) or absolute;
 - ``normal(20%)`` or ``normal(SD)``: normal random draws around the nominal value.
@@ -21,7 +23,8 @@ instance that failed is discarded and replaced. Runs go to the workers in tasks 
 message; tasks of a worker that dies are retried elsewhere by Dask.
 
 Modules by purpose: :mod:`.spec` (specs, the list of runs, the up-front name check),
-:mod:`.store` (``sweep.csv``, safe to kill), :mod:`.cluster` (clients, version check,
+:mod:`.store` (``sweep.csv``, safe to kill), :mod:`.folder` (one sweep per folder:
+``sweep.json``), :mod:`.cluster` (clients, version check,
 FMUs sent to workers), :mod:`.worker` (the runs of a task, on the worker), :mod:`.plots`;
 this module holds the client loop and the CLI.
 """
@@ -36,6 +39,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..inputs.text import command_line
+from ..master.errors import Interrupted
 from ..scenarios.fields import ScenarioError
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import system_for
@@ -47,6 +52,7 @@ from .cluster import (
     package_version,
     scatter_fmus,
 )
+from .folder import TABLE_FILE, SweepFolderError, check_folder, recorded_ids, start_folder
 from .plots import write_plots
 from .spec import (
     ParamSpec,
@@ -110,15 +116,21 @@ def run_sweep(
     restart: bool = False,
     progress: Callable[[int, int, int, float], None] | None = None,
     chunk: int = CHUNK,
+    spec: str = "",
 ) -> SweepResult:
     """Run ``runs`` on a Dask ``client`` in tasks of up to ``chunk`` runs; append one row
     per finished run to ``out/sweep.csv`` (resuming: runs already there are skipped,
-    runs with the same id are run once; see :mod:`glider_cosim.sweeps.store`)."""
+    runs with the same id are run once; see :mod:`glider_cosim.sweeps.store`).
+
+    A folder that holds another sweep's results is refused (:class:`SweepFolderError`,
+    before any run) unless ``restart``; ``spec`` (the sweep as the user wrote it) names
+    this sweep in ``sweep.json`` and in that message (:mod:`glider_cosim.sweeps.folder`).
+    """
     from distributed import as_completed
 
-    out.mkdir(parents=True, exist_ok=True)
     unique = list({r["run_id"]: r for r in runs}.values())
     ids = [r["run_id"] for r in unique]
+    start_folder(out, ids, spec, restart)
     param_cols = sorted({k for r in unique for k in r["params"]})
     cols = ["run_id", "seed", *param_cols, "status", "message", *METRIC_KEYS]
     traj = None
@@ -166,6 +178,39 @@ def run_sweep(
                        time.perf_counter() - t0, store.path, failed_total, failures)  # fmt: skip
 
 
+def spec_text(args: argparse.Namespace, specs: Sequence[ParamSpec]) -> str:
+    """The options that make a sweep's list of runs, as the user wrote them (shell-quoted),
+    e.g. ``--param controller.K_c=2:30:15 --stop-time 20``."""
+    import shlex
+
+    words = [args.scenario] if args.scenario else []
+    for item in args.param:
+        words += ["--param", item]
+    if any(s.random for s in specs):
+        words += ["--samples", str(args.samples), "--rng-seed", str(args.rng_seed)]
+    if args.seeds is not None:
+        words += ["--seeds", str(args.seeds)]
+    if args.stop_time is not None:
+        words += ["--stop-time", f"{args.stop_time:g}"]
+    return shlex.join(words)
+
+
+def interrupted(
+    err: KeyboardInterrupt, out: Path, ids: Sequence[str], args: argparse.Namespace
+) -> Interrupted:
+    """``err`` as :class:`Interrupted`, with what the console says is kept: ``37 of 240
+    runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...`` (the command as
+    given, without ``--restart``)."""
+    stop = err if isinstance(err, Interrupted) else Interrupted()
+    table = out / TABLE_FILE
+    done = len(recorded_ids(table) & set(ids))
+    argv = getattr(args, "argv", [])
+    restart = [w for w in argv if len(w) > 3 and "--restart".startswith(w)]  # "--rest" too
+    stop.kept = (f"{done} of {len(set(ids))} runs in {table}; resume with: "
+                 f"{command_line(argv, drop=restart)}")  # fmt: skip
+    return stop
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
@@ -191,23 +236,28 @@ def main(args: argparse.Namespace) -> int:
     check_targets(scenario, fmu_dir, ["plant.noise_seed"] * bool(seeds), specs)
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
     out = Path(args.out)
+    spec = spec_text(args, specs)
+    check_folder(out, [r["run_id"] for r in runs], spec, args.restart)  # before Dask starts
 
     from ..runner.progress import sweep_line
 
     progress = sweep_line()  # None in a pipe or CI: nothing printed
 
-    client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
     try:
-        check_workers(client)
-        if args.dashboard:
-            print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
-        res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
-                        trajectories=args.trajectories, restart=args.restart,
-                        progress=progress)  # fmt: skip
-    finally:
-        client.close()
-        if not args.scheduler and client.cluster is not None:
-            client.cluster.close()
+        client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
+        try:
+            check_workers(client)
+            if args.dashboard:
+                print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
+            res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
+                            trajectories=args.trajectories, restart=args.restart,
+                            progress=progress, spec=spec)  # fmt: skip
+        finally:
+            client.close()
+            if not args.scheduler and client.cluster is not None:
+                client.cluster.close()
+    except KeyboardInterrupt as err:  # Ctrl-C (SIGTERM: Interrupted): say what is kept
+        raise interrupted(err, out, [r["run_id"] for r in runs], args) from None
     if args.format == "parquet":
         import pyarrow.csv as pacsv
         import pyarrow.parquet as pq
@@ -229,6 +279,7 @@ __all__ = [
     "ParamSpec",
     "ScenarioError",
     "SweepClusterError",
+    "SweepFolderError",
     "SweepResult",
     "SweepSpecError",
     "check_targets",

@@ -153,3 +153,41 @@ def test_replacing_results_made_otherwise_says_what_they_were(fmu_dir, tmp_path,
     )
     assert main([*common, "--set", "controller.K_c=6"]) == 0  # the same settings: no note
     assert capsys.readouterr().err == ""
+
+
+def test_the_summary_echoes_every_override_with_its_unit(native_dir, tmp_path, capsys):
+    """Issue 45: `--set plant.alpha_0=1` ran at 57.3 deg and nothing said so. The summary
+    names each override with its variable's unit (from the FMUs' model descriptions), an
+    angle in rad in degrees too, one given in degrees in rad too."""
+    sets = ["plant.alpha_0=1", "controller.K_c=6", "plant.theta_g_0=-30 deg",
+            "plant.V_0=0.2 m/s", "controller.law=2"]  # fmt: skip
+    argv = ["run", "--stop-time", "0.1", "--no-plots", "--fmu-dir", str(native_dir), "--out",
+            str(tmp_path)]  # fmt: skip
+    for item in sets:
+        argv += ["--set", item]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1] == (
+        "  set: plant.alpha_0 = 1 rad (57.3 deg), controller.K_c = 6, plant.theta_g_0 = -30 "
+        "deg (-0.5236 rad), plant.V_0 = 0.2 m/s, controller.law = 2 (p)"
+    )
+
+
+def test_the_units_of_the_echo_are_the_model_descriptions(native_dir, tmp_path):
+    """An FMU whose description says another unit is echoed in that unit: no table of
+    names in the code."""
+    import zipfile
+
+    from glider_cosim.runner.provenance import overrides_echo
+
+    src = native_dir / "GliderPlant.fmu"
+    fmu = tmp_path / "GliderPlant.fmu"
+    with zipfile.ZipFile(src) as a, zipfile.ZipFile(fmu, "w") as b:
+        for item in a.infolist():
+            data = a.read(item)
+            if item.filename == "modelDescription.xml":
+                assert b'unit="m/s"' in data
+                data = data.replace(b"m/s", b"km/h")
+            b.writestr(item, data)
+    assert overrides_echo({"plant.V_0": 0.2}, {"plant": fmu}) == "plant.V_0 = 0.2 km/h"
+    assert overrides_echo({"plant.V_0": 0.2}, {"plant": src}) == "plant.V_0 = 0.2 m/s"

@@ -402,3 +402,60 @@ def test_local_workers_start_without_dasks_malloc_trim():
 
     assert workers_see({}) == "[None]"
     assert workers_see({"MALLOC_TRIM_THRESHOLD_": "262144"}) == "['262144']"
+
+
+@pytest.mark.parametrize("flavor", ["native", "python"])
+def test_each_failed_runs_message_is_its_own(flavor, fmu_dir, native_dir):
+    """K_c = 2 stalls the observer at a time that depends on V_0 (2.48, 9.08, 5.1, 10.4 s):
+    in one task (one co-simulation, reset between runs) each row's message names its own
+    run's time, in the master's words and in the FMU's, and is the message of a separate
+    run of the point (a reset used to keep the log, and the message was the first run's)."""
+    from glider_cosim.runner import simulate
+    from glider_cosim.scenarios.overrides import apply_overrides
+    from glider_cosim.scenarios.system import system_for
+    from glider_cosim.sweeps.worker import _SIMS
+
+    folder = native_dir if flavor == "native" else fmu_dir
+    _SIMS.clear()
+    sc = load_scenario(None)
+    fmus = {k: str(v) for k, v in system_for(sc, folder).fmus.items()}
+    points = [{"controller.K_c": 2.0, "plant.V_0": v} for v in (0.1, 0.2, 0.3, 0.4)]
+    runs = [{"run_id": f"v{i}", "params": p, "seed": None} for i, p in enumerate(points)]
+    rows_ = run_many(sc, runs, fmus, stop_time=12.0)
+    assert [r["status"] for r in rows_] == ["stopped"] * 4
+    times = []
+    for row, point in zip(rows_, points, strict=True):
+        said = re.findall(r"at t = ([0-9.]+) s", row["message"])
+        assert len(said) == 2 and said[0] == said[1], row["message"]
+        assert float(said[0]) == pytest.approx(row["end_time_s"], abs=1e-9), row["message"]
+        times.append(said[0])
+        ref = simulate(apply_overrides(load_scenario(None), point), None, fmu_dir=folder,
+                       build=False, plots=False, stop_time=12.0)  # fmt: skip
+        assert (row["status"], row["message"]) == (ref.status, ref.message)
+    assert len(set(times)) == 4, times  # four different times: four different messages
+
+
+def test_a_sweep_into_another_sweeps_folder_is_refused(native_dir, tmp_path, capsys):
+    """Issue 45: a second sweep with another --param into the same --out was appended to
+    the first one's sweep.csv. Now: one line, exit 2, nothing written; the same sweep
+    resumes; --restart replaces it."""
+    common = ["--stop-time", "1", "--workers", "1", "--fmu-dir", str(native_dir),
+              "--out", str(tmp_path), "--no-plots"]  # fmt: skip
+    assert cli_main(["sweep", "--param", "controller.K_c=8,10", *common]) == 0
+    before = (tmp_path / "sweep.csv").read_bytes()
+    capsys.readouterr()
+    assert cli_main(["sweep", "--param", "plant.V_0=0.2,0.3", *common]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err == (
+        f"glider-cosim sweep: error: {tmp_path} holds the results of another sweep (--param "
+        "controller.K_c=8,10 --stop-time 1, 2 runs), not of this one (--param "
+        "plant.V_0=0.2,0.3 --stop-time 1, 2 runs): give another --out, remove "
+        f"{tmp_path}, or pass --restart to replace them\n"
+    )
+    assert (tmp_path / "sweep.csv").read_bytes() == before
+    assert cli_main(["sweep", "--param", "controller.K_c=8,10", *common]) == 0
+    assert "2 runs (2 already done), 0 run now" in capsys.readouterr().out
+    assert cli_main(["sweep", "--param", "plant.V_0=0.2,0.3", "--restart", *common]) == 0
+    assert [r["plant.V_0"] for r in rows(tmp_path / "sweep.csv")] in (
+        ["0.2", "0.3"], ["0.3", "0.2"])  # fmt: skip
