@@ -284,6 +284,20 @@ def _analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def _swapped(args: argparse.Namespace) -> set[str]:
+    """Our FMUs the command's scenario swaps in its ``[fmus]`` table: not built in (nor
+    checked in) ``--fmu-dir``, whose file of that name may be the user's FMU swapped in."""
+    scenario = getattr(args, "scenario", None)
+    if args.command not in ("run", "sweep", "export-ssp") or (
+        scenario is not None and str(scenario).endswith((".ssp", ".ssd"))
+    ):
+        return set()
+    from ..scenarios.scenario import load_scenario
+    from ..scenarios.system import swapped
+
+    return swapped(load_scenario(scenario))
+
+
 def runs_here(args: argparse.Namespace) -> bool:
     """True if the command runs our FMUs on this machine alone (a run, a sweep or a
     report without a Dask scheduler elsewhere): the cache's host-only set serves it.
@@ -307,7 +321,9 @@ def dispatch(args: argparse.Namespace) -> int:
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         try:
             fmi, here = getattr(args, "fmi", None), runs_here(args)
-            args.fmu_dir = str(prepare_fmus(folder, args.flavor, fmi, host_only=here))
+            args.fmu_dir = str(prepare_fmus(folder, args.flavor, fmi, host_only=here,
+                                            overwrite=args.overwrite_fmus,
+                                            skip=_swapped(args)))  # fmt: skip
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
@@ -322,7 +338,8 @@ def dispatch(args: argparse.Namespace) -> int:
         from glider_fmi.toolchain import ToolchainError
 
         try:
-            built = build_all(out, flavor=args.flavor, fmi=args.fmi)
+            built = build_all(out, flavor=args.flavor, fmi=args.fmi,
+                              overwrite=args.overwrite_fmus, option="--out")  # fmt: skip
         except ToolchainError as err:  # a compiler chosen is missing or failed
             raise UsageError(str(err)) from None
         except OSError as err:

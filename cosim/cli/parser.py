@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import re
 
-from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options
+from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options, add_overwrite_option
 from ..inputs.text import did_you_mean, one_line, quote
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
         "gcc, clang, x86_64-w64-mingw32-gcc, each building the platform it targets, zig "
         "the others (default: $GLIDER_COSIM_COMPILER, else zig)",
     )
+    add_overwrite_option(b, "--out")
 
     r = sub.add_parser(
         "run",

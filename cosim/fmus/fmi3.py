@@ -18,6 +18,7 @@ import hashlib
 import logging
 import tempfile
 import zipfile
+from collections.abc import Collection
 from pathlib import Path
 
 from glider_fmi import compile as runtime
@@ -81,15 +82,21 @@ def _repackage(fmu2: Path, out: Path, binary: dict[str, Path]) -> Path:
 
 
 def build_fmi3(
-    out: Path | str, flavor: str = "python", only_stale: bool = False, host_only: bool | None = None
+    out: Path | str,
+    flavor: str = "python",
+    only_stale: bool = False,
+    host_only: bool | None = None,
+    names: Collection[str] | None = None,
 ) -> dict:
-    """Build the three FMI 3.0 FMUs of a flavor into ``out``; model identifier -> path
-    (``host_only``: see :func:`glider_cosim.fmus.native.build_native`)."""
+    """Build the three FMI 3.0 FMUs of a flavor (those of ``names`` if given) into
+    ``out``; model identifier -> path (``host_only``: see
+    :func:`glider_cosim.fmus.native.build_native`)."""
     out = Path(out)
     if flavor == "native":
-        return native.build_native(out, only_stale, fmi=3, host_only=host_only)
-    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
-    todo = [c for c in COMPONENTS if not (only_stale and is_current(result[c.name], c.name))]
+        return native.build_native(out, only_stale, fmi=3, host_only=host_only, names=names)
+    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS if names is None or c.name in names}
+    chosen = [c for c in COMPONENTS if c.name in result]
+    todo = [c for c in chosen if not (only_stale and is_current(result[c.name], c.name))]
     if not todo:
         return result
     with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp:

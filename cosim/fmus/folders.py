@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 import tempfile
 import zipfile
+from collections.abc import Collection
 from pathlib import Path
 
 from glider_fmi import compile as runtime
 from glider_fmi.toolchain import host_platform
 
-from . import osp
+from ..inputs.text import quote
+from . import osp, record
 from .files import CACHE_ENV, cache_root, fmu_flavor, package_version  # noqa: F401 (re-exported)
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
@@ -22,6 +25,9 @@ from .python import (
     is_current,
     source_hash,
 )
+from .record import FmuFolderError  # noqa: F401 (re-exported)
+
+log = logging.getLogger(__name__)
 
 #: the infix of a host-only set's cache folder (:func:`cache_dir`)
 HOST_ONLY = "-only-"
@@ -106,8 +112,20 @@ def build_all(
     flavor: str | None = None,
     fmi: int | None = None,
     host_only: bool | None = None,
+    *,
+    overwrite: bool = False,
+    skip: Collection[str] = (),
+    option: str = "--fmu-dir",
 ) -> dict[str, Path]:
     """Build GliderPlant, GliderObserver and GliderController into ``out``.
+
+    Nothing of the user's is written over (:mod:`glider_cosim.fmus.record`): the folder's
+    record ``.glider-cosim-fmus.json`` names the files glider-cosim built there, with
+    their SHA-256; a file under one of our names that is not in it (foreign), differs from
+    it (changed) or is no FMU (corrupt), and a set of ours of another flavor or FMI
+    version than ``flavor``/``fmi``, are refused unless ``overwrite``. The record is
+    written after each build. In the per-user cache (glider-cosim's own) such a file is
+    replaced, with a warning.
 
     Parameters
     ----------
@@ -116,45 +134,128 @@ def build_all(
     only_stale : bool
         Rebuild only FMUs that are missing or were built from other sources.
     flavor : {"python", "native"} or None
-        Which build: None keeps the flavor the FMUs already in ``out`` record (so a folder
-        of native FMUs is never rebuilt as Python ones), Python if there are none.
+        Which build: None keeps the flavor the FMUs of ours in ``out`` record (so a
+        folder of native FMUs is never rebuilt as Python ones), Python if there are none.
     fmi : {2, 3} or None
-        FMI version: None keeps the one the FMUs already in ``out`` declare (a folder of
+        FMI version: None keeps the one the FMUs of ours in ``out`` declare (a folder of
         FMI 3.0 FMUs stays FMI 3.0), 2 if there are none.
     host_only : bool or None
         Native flavor: True builds this machine's binary alone (a set to run here; a
         current full set is kept), False every platform's (a set to hand out: exports),
         None keeps what the FMUs in ``out`` hold with ``only_stale``, else every
         platform's (:func:`glider_cosim.fmus.native.build_native`).
+    overwrite : bool
+        Replace foreign, changed and corrupt files under our names, and a set of another
+        flavor or FMI version (``--overwrite-fmus``).
+    skip : collection of str
+        Model identifiers of ours neither built nor checked: the ones a scenario's
+        ``[fmus]`` table swaps (a user's FMU named like ours stays as it is).
+    option : str
+        The option that named ``out``, for the messages (``--fmu-dir``, ``--out``).
 
     Returns
     -------
     dict
-        Model identifier -> path of the ``.fmu``.
+        Model identifier -> path of the ``.fmu`` (those not skipped).
+
+    Raises
+    ------
+    FmuFolderError
+        A file under one of our names is not ours, or the set is of another flavor or
+        FMI version (one line naming the file and what to do).
     """
     out = Path(out)
-    if flavor is None:
-        flavor = folder_flavor(out) or "python"
-    if flavor not in FLAVORS:
+    if flavor is not None and flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
-    if fmi is None:
-        fmi = folder_fmi(out) or 2
-    if fmi not in FMI_VERSIONS:
+    if fmi is not None and fmi not in FMI_VERSIONS:
         raise ValueError(f"FMI version {fmi!r} is invalid: expected 2 or 3")
+    names = [c.name for c in COMPONENTS if c.name not in skip]
+    if not names:
+        return {}
+    with record.locked(out):
+        trusted = in_cache(out)
+        try:
+            rec = record.read_record(out, option)
+        except FmuFolderError:
+            if not (overwrite or trusted):
+                raise
+            rec = {}
+        held = record.survey(out, [f"{n}.fmu" for n in names], rec)
+        ours = [h for h in held.values() if h.state == "ours" and h.name.endswith(".fmu")]
+        flavor = flavor or next((h.flavor for h in ours if h.flavor), None) or "python"
+        fmi = fmi or next((h.fmi for h in ours if h.fmi), None) or 2
+        other = [h for h in ours if (h.flavor, h.fmi) != (flavor, fmi)]
+        if other and not (overwrite or trusted):
+            shown = ", ".join(h.name for h in other)
+            held_set = record.describe_set(other[0].flavor, other[0].fmi)
+            raise FmuFolderError(
+                f"{option} {quote(str(out))} holds {held_set} "
+                f"FMUs ({shown}), not the {record.describe_set(flavor, fmi)} ones asked for: a set "
+                "is not converted in place; use another folder"
+                + (" (or none: the per-user cache)" if option == "--fmu-dir" else "")
+                + f" or pass {record.OVERWRITE_FLAG} to rebuild them there"
+            )
+        for h in held.values():
+            if h.state in ("foreign", "changed", "corrupt"):
+                if not (overwrite or trusted):
+                    raise FmuFolderError(record.refusal(out, h, option))
+                if trusted:
+                    log.warning(f"{quote(str(out / h.name))}: not the file glider-cosim built in "
+                                f"its cache ({h.state}): rebuilt")  # fmt: skip
+                (out / h.name).unlink()  # replaced by ours, as asked (or in the cache)
+        built = _build(out, only_stale, flavor, fmi, host_only, names)
+        _update_record(out, names, held, rec)
+        return built
+
+
+def _build(
+    out: Path, only_stale: bool, flavor: str, fmi: int, host_only: bool | None, names: list[str]
+) -> dict[str, Path]:
+    """:func:`build_all`'s build, once the folder is checked: the FMUs ``names``."""
     if fmi == 3:
-        return build_fmi3(out, flavor, only_stale, host_only)
-    if only_stale and any(fmu_fmi_version(out / f"{c.name}.fmu") == 3 for c in COMPONENTS):
+        return build_fmi3(out, flavor, only_stale, host_only, names=names)
+    if only_stale and any(fmu_fmi_version(out / f"{n}.fmu") == 3 for n in names):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
-        return _with_osp(build_native(out, only_stale, host_only=host_only))
-    todo = [c for c in COMPONENTS if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
-    result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS}
+        return _with_osp(build_native(out, only_stale, host_only=host_only, names=names))
+    wanted = [c for c in COMPONENTS if c.name in names]
+    todo = [c for c in wanted if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
+    result = {c.name: out / f"{c.name}.fmu" for c in wanted}
     if todo:
         with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
             binary = runtime.compile_runtimes(tmp)
             for c in todo:
                 result[c.name] = build_component(c, out, binary)
     return _with_osp(result)
+
+
+def _update_record(
+    out: Path, names: list[str], held: dict[str, record.Held], rec: dict[str, dict] | None
+) -> None:
+    """Write ``out``'s record after a build: every file of ours there with its SHA-256
+    (a folder without a record gets one when something was written in it)."""
+    files = {k: v for k, v in (rec or {}).items() if (out / k).is_file()}
+    written = False
+    for n in names:
+        for fname in (f"{n}.fmu", record.osp_name(f"{n}.fmu")):
+            path = out / fname
+            if not path.is_file():
+                files.pop(fname, None)
+                continue
+            sha = record.sha256_of(path)
+            written |= sha != held[fname].sha256
+            old = files.get(fname)
+            files[fname] = old if old and old["sha256"] == sha else record.entry_for(path)
+    if written or (rec is not None and files != rec):
+        record.write_record(out, files)
+
+
+def in_cache(folder: Path | str) -> bool:
+    """True if ``folder`` is in the per-user cache (:func:`cache_root`)."""
+    try:
+        return Path(folder).resolve().is_relative_to(cache_root().resolve())
+    except OSError:
+        return False
 
 
 def _with_osp(fmus: dict[str, Path]) -> dict[str, Path]:
@@ -169,11 +270,18 @@ def prepare_fmus(
     flavor: str | None,
     fmi: int | None = None,
     host_only: bool = False,
+    *,
+    overwrite: bool = False,
+    skip: Collection[str] = (),
 ) -> Path:
     """The FMU folder a command's ``--fmu-dir``/``--flavor``/``--fmi`` name. Without a
     folder: the per-user cache's (:func:`cache_dir`), built there first if missing or
     stale. With a folder and ``--flavor`` or ``--fmi``: the FMUs there are built in that
-    flavor and FMI version first if missing, stale or of another flavor or version.
+    flavor and FMI version first if missing or stale; a set of another flavor or version,
+    or a file there not built by glider-cosim, is refused (:func:`build_all`) unless
+    ``overwrite`` (``--overwrite-fmus``: then they are replaced, the folder's flavor and
+    version kept if none is given). ``skip``: our FMUs the command does not take from
+    the folder (a scenario's ``[fmus]`` swaps), neither built nor checked.
 
     ``host_only``: the FMUs are run on this machine and nowhere else (a run, a local
     sweep): from the cache, the native flavor's full set if it is current, else a set
@@ -189,8 +297,8 @@ def prepare_fmus(
         build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2, host_only=host_only)
         return folder
     folder = Path(fmu_dir)
-    if flavor is not None or fmi is not None:
-        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi)  # kept as it is
+    if flavor is not None or fmi is not None or overwrite:  # else kept as it is
+        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi, overwrite=overwrite, skip=skip)
     return folder
 
 

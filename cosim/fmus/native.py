@@ -21,6 +21,7 @@ import logging
 import math
 import tempfile
 import zipfile
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -355,8 +356,10 @@ def build_native(
     fmi: int = 2,
     compiler: str | None = None,
     host_only: bool | None = None,
+    names: Collection[str] | None = None,
 ) -> dict[str, Path]:
-    """Build the three native FMUs of FMI ``fmi`` into ``out``; model identifier -> path.
+    """Build the three native FMUs of FMI ``fmi`` (those of ``names`` if given) into
+    ``out``; model identifier -> path.
 
     ``compiler`` is ``--compiler`` (None: ``$GLIDER_COSIM_COMPILER``, else zig). When the
     compilers chosen cannot build some platforms (zig not installed), those are left out
@@ -373,8 +376,9 @@ def build_native(
     if host_only is None:
         host_only = only_stale and holds_host_only(out, chain)
     wanted = wanted_platforms(chain, host_only)
-    result = {c.name: out / f"{c.name}.fmu" for c in NATIVE_COMPONENTS}
-    todo = [c for c in NATIVE_COMPONENTS
+    chosen = [c for c in NATIVE_COMPONENTS if names is None or c.name in names]
+    result = {c.name: out / f"{c.name}.fmu" for c in chosen}
+    todo = [c for c in chosen
             if not (only_stale and is_current(result[c.name], c, fmi, chain, wanted))]  # fmt: skip
     if not todo:
         return result

@@ -11,6 +11,19 @@ FLAVORS = ("python", "native")
 FMI_VERSIONS = (2, 3)
 
 
+def add_overwrite_option(parser: Any, folder: str = "--fmu-dir") -> None:
+    """``--overwrite-fmus``: let a build replace, in the FMU folder ``folder`` names, what
+    glider-cosim did not build there (see :mod:`glider_cosim.fmus.record`)."""
+    parser.add_argument(
+        "--overwrite-fmus",
+        action="store_true",
+        help=f"replace what {folder} holds under our FMUs' names (GliderPlant.fmu, ...) even "
+        "if glider-cosim did not build it there, it changed since or it is another flavor or "
+        "FMI version (default: off: such a folder is refused, naming the file; its record of "
+        "what glider-cosim built is .glider-cosim-fmus.json)",
+    )
+
+
 def add_fmu_options(parser: Any, fmi: bool = False) -> None:
     """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
     with ``fmi``)."""
@@ -28,6 +41,7 @@ def add_fmu_options(parser: Any, fmi: bool = False) -> None:
         help="which FMUs: the Python reference or the native C99 build (default: the "
         "flavor the FMU folder holds, python if it is empty)",
     )
+    add_overwrite_option(parser)
     if fmi:
         parser.add_argument(
             "--fmi",

@@ -77,7 +77,7 @@ def export_ssp(
     from ..fmus.folders import build_all, fmu_folder
     from ..scenarios.sampling import has_our_observer, with_sampling
     from ..scenarios.scenario import Scenario, load_scenario
-    from ..scenarios.system import FMU_NAMES, default_connections
+    from ..scenarios.system import FMU_NAMES, default_connections, swapped
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if sc.events or sc.disturbances:
@@ -88,7 +88,11 @@ def export_ssp(
         )
     insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
     ours = set(insts) - set(sc.fmus)  # handed on: every platform's binary
-    built = build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False) if ours else {}
+    built = (
+        build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False, skip=swapped(sc))
+        if ours
+        else {}
+    )
     fmus: dict[str, Path] = {}
     for inst in insts:
         fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]

@@ -30,7 +30,7 @@ from ..realtime.pacing import Pacer, RealTime, TooLate, paced_run
 from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
-from ..scenarios.system import DISTURBANCE_INPUTS, system_for
+from ..scenarios.system import DISTURBANCE_INPUTS, swapped, system_for
 from .drawing import draw_plots, start_drawer
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
@@ -249,7 +249,7 @@ def simulate(
             with_sampling(system.parameters, h, scenario.source)
     else:
         if build:
-            build_all(fmu_dir, only_stale=True)
+            build_all(fmu_dir, only_stale=True, skip=swapped(scenario))
         system = system_for(scenario, fmu_dir, h)
     sim = CoSimulation(system, step=h, coupling=coupling or scenario.coupling, max_steps=max_steps)
     origin = origin_of(scenario, ssp_system is not None)

@@ -33,6 +33,12 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
     return conns
 
 
+def swapped(scenario: Scenario) -> set[str]:
+    """Our FMUs (model identifiers) a run of ``scenario`` does not take from the FMU
+    folder: the instances its ``[fmus]`` table swaps (neither built nor checked there)."""
+    return {FMU_NAMES[inst] for inst in scenario.fmus}
+
+
 def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
     """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
     run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it

@@ -43,7 +43,7 @@ from ..inputs.text import command_line
 from ..master.errors import Interrupted
 from ..scenarios.fields import ScenarioError
 from ..scenarios.scenario import Scenario, load_scenario
-from ..scenarios.system import system_for
+from ..scenarios.system import swapped, system_for
 from .cluster import (
     FmuBlob,
     SweepClusterError,
@@ -231,7 +231,7 @@ def main(args: argparse.Namespace) -> int:
     specs = [parse_param(p) for p in args.param]
     check_ranges_of(specs, scenario)  # units and valid ranges, as run --set: before any run
     fmu_dir = Path(args.fmu_dir).resolve()
-    build_all(fmu_dir, only_stale=True)
+    build_all(fmu_dir, only_stale=True, skip=swapped(scenario))
     seeds = list(range(args.seeds)) if args.seeds is not None else None
     check_targets(scenario, fmu_dir, ["plant.noise_seed"] * bool(seeds), specs)
     runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)

@@ -6,6 +6,7 @@ import argparse
 import json
 from collections.abc import Callable
 
+from ..fmus.options import add_overwrite_option
 from ..inputs.text import one_line, quote
 from .cases import COMPONENTS, VerifyInputError, kit_root
 
@@ -54,6 +55,7 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
         help="our FMUs for --write-references/--export, built if missing or stale "
         "(default: the per-user cache)",
     )
+    add_overwrite_option(p)
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -67,6 +69,10 @@ def run_command(args: argparse.Namespace) -> int:
     if args.write_references or args.export:
         if args.fmu is not None:
             raise VerifyInputError("give an FMU or --write-references/--export, not both")
+        if args.overwrite_fmus and args.fmu_dir is not None:
+            from ..fmus.folders import prepare_fmus
+
+            prepare_fmus(args.fmu_dir, None, overwrite=True)  # then ours, current
         if args.write_references:
             files = write_references(args.fmu_dir)
             print(f"wrote {len(files)} files under {kit_root()}")
