@@ -181,6 +181,16 @@ def build_all(
                 raise
             rec = {}
         held = record.survey(out, [f"{n}.fmu" for n in names], rec)
+        for h in held.values():
+            if h.state in ("foreign", "changed", "corrupt"):
+                if not (overwrite or trusted):
+                    raise FmuFolderError(record.refusal(out, h, option))
+                if trusted:
+                    log.warning(f"{quote(str(out / h.name))}: not the file glider-cosim built in "
+                                f"its cache ({h.state}): rebuilt")  # fmt: skip
+                # replaced by ours, as asked (or in the cache), each in one step when its
+                # build is done (files.replacing): kept if the build fails
+                only_stale = only_stale and not h.name.endswith(".fmu")
         ours = [h for h in held.values() if h.state == "ours" and h.name.endswith(".fmu")]
         flavor = flavor or next((h.flavor for h in ours if h.flavor), None) or "python"
         fmi = fmi or next((h.fmi for h in ours if h.fmi), None) or 2
@@ -195,14 +205,6 @@ def build_all(
                 + (" (or none: the per-user cache)" if option == "--fmu-dir" else "")
                 + f" or pass {record.OVERWRITE_FLAG} to rebuild them there"
             )
-        for h in held.values():
-            if h.state in ("foreign", "changed", "corrupt"):
-                if not (overwrite or trusted):
-                    raise FmuFolderError(record.refusal(out, h, option))
-                if trusted:
-                    log.warning(f"{quote(str(out / h.name))}: not the file glider-cosim built in "
-                                f"its cache ({h.state}): rebuilt")  # fmt: skip
-                (out / h.name).unlink()  # replaced by ours, as asked (or in the cache)
         built = _build(out, only_stale, flavor, fmi, host_only, names)
         _update_record(out, names, held, rec)
         return built
@@ -213,7 +215,7 @@ def _build(
 ) -> dict[str, Path]:
     """:func:`build_all`'s build, once the folder is checked: the FMUs ``names``."""
     if fmi == 3:
-        return build_fmi3(out, flavor, only_stale, host_only, names=names)
+        return _with_osp(build_fmi3(out, flavor, only_stale, host_only, names=names))
     if only_stale and any(fmu_fmi_version(out / f"{n}.fmu") == 3 for n in names):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":

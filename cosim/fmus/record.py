@@ -208,7 +208,7 @@ def refusal(folder: Path, held: Held, option: str = "--fmu-dir") -> str:
         "modelDescription.xml) and glider-cosim did not build it there",
     }[held.state]
     ways = ["use another folder", f"pass {OVERWRITE_FLAG} to replace it with ours"]
-    if held.state == "foreign" and held.name.endswith(".fmu") and option == "--fmu-dir":
+    if held.state != "corrupt" and option == "--fmu-dir" and readable(folder / held.name):
         ways.append("name it in a scenario's [fmus] table to run it")
     return f"{where}: {what}: it is not written over; {', '.join(ways[:-1])} or {ways[-1]}"
 
