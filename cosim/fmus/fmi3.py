@@ -87,16 +87,18 @@ def build_fmi3(
     only_stale: bool = False,
     host_only: bool | None = None,
     names: Collection[str] | None = None,
+    force: Collection[str] = (),
 ) -> dict:
-    """Build the three FMI 3.0 FMUs of a flavor (those of ``names`` if given) into
-    ``out``; model identifier -> path (``host_only``: see
+    """Build the three FMI 3.0 FMUs of a flavor (those of ``names`` if given; ``force``:
+    rebuilt even if current) into ``out``; model identifier -> path (``host_only``: see
     :func:`glider_cosim.fmus.native.build_native`)."""
     out = Path(out)
     if flavor == "native":
-        return native.build_native(out, only_stale, fmi=3, host_only=host_only, names=names)
+        return native.build_native(out, only_stale, 3, None, host_only, names, force)
     result = {c.name: out / f"{c.name}.fmu" for c in COMPONENTS if names is None or c.name in names}
     chosen = [c for c in COMPONENTS if c.name in result]
-    todo = [c for c in chosen if not (only_stale and is_current(result[c.name], c.name))]
+    stale = [c for c in chosen if not (only_stale and is_current(result[c.name], c.name))]
+    todo = [c for c in chosen if c.name in force or c in stale]
     if not todo:
         return result
     with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp:

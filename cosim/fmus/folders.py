@@ -181,6 +181,7 @@ def build_all(
                 raise
             rec = {}
         held = record.survey(out, [f"{n}.fmu" for n in names], rec)
+        force: set[str] = set()  # rebuilt even if current: what was not ours
         for h in held.values():
             if h.state in ("foreign", "changed", "corrupt"):
                 if not (overwrite or trusted):
@@ -188,9 +189,9 @@ def build_all(
                 if trusted:
                     log.warning(f"{quote(str(out / h.name))}: not the file glider-cosim built in "
                                 f"its cache ({h.state}): rebuilt")  # fmt: skip
-                # replaced by ours, as asked (or in the cache), each in one step when its
-                # build is done (files.replacing): kept if the build fails
-                only_stale = only_stale and not h.name.endswith(".fmu")
+                # replaced by ours, as asked (or in the cache), in one step when its build
+                # is done (files.replacing): kept if the build fails
+                force.add(h.name.removesuffix(".fmu"))
         ours = [h for h in held.values() if h.state == "ours" and h.name.endswith(".fmu")]
         flavor = flavor or next((h.flavor for h in ours if h.flavor), None) or "python"
         fmi = fmi or next((h.fmi for h in ours if h.fmi), None) or 2
@@ -205,23 +206,31 @@ def build_all(
                 + (" (or none: the per-user cache)" if option == "--fmu-dir" else "")
                 + f" or pass {record.OVERWRITE_FLAG} to rebuild them there"
             )
-        built = _build(out, only_stale, flavor, fmi, host_only, names)
+        built = _build(out, only_stale, flavor, fmi, host_only, names, force)
         _update_record(out, names, held, rec)
         return built
 
 
 def _build(
-    out: Path, only_stale: bool, flavor: str, fmi: int, host_only: bool | None, names: list[str]
+    out: Path,
+    only_stale: bool,
+    flavor: str,
+    fmi: int,
+    host_only: bool | None,
+    names: list[str],
+    force: set[str],
 ) -> dict[str, Path]:
-    """:func:`build_all`'s build, once the folder is checked: the FMUs ``names``."""
+    """:func:`build_all`'s build, once the folder is checked: the FMUs ``names``
+    (``force``: rebuilt even if current)."""
     if fmi == 3:
-        return _with_osp(build_fmi3(out, flavor, only_stale, host_only, names=names))
+        return _with_osp(build_fmi3(out, flavor, only_stale, host_only, names, force))
     if only_stale and any(fmu_fmi_version(out / f"{n}.fmu") == 3 for n in names):
         only_stale = False  # FMI 3.0 FMUs (which keep the FMI 2.0 build's hash) to replace
     if flavor == "native":
-        return _with_osp(build_native(out, only_stale, host_only=host_only, names=names))
+        return _with_osp(build_native(out, only_stale, 2, None, host_only, names, force))
     wanted = [c for c in COMPONENTS if c.name in names]
-    todo = [c for c in wanted if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
+    stale = [c for c in wanted if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
+    todo = [c for c in wanted if c.name in force or c in stale]
     result = {c.name: out / f"{c.name}.fmu" for c in wanted}
     if todo:
         with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:

@@ -357,9 +357,10 @@ def build_native(
     compiler: str | None = None,
     host_only: bool | None = None,
     names: Collection[str] | None = None,
+    force: Collection[str] = (),
 ) -> dict[str, Path]:
     """Build the three native FMUs of FMI ``fmi`` (those of ``names`` if given) into
-    ``out``; model identifier -> path.
+    ``out``; model identifier -> path. ``force``: those rebuilt even if current.
 
     ``compiler`` is ``--compiler`` (None: ``$GLIDER_COSIM_COMPILER``, else zig). When the
     compilers chosen cannot build some platforms (zig not installed), those are left out
@@ -378,8 +379,8 @@ def build_native(
     wanted = wanted_platforms(chain, host_only)
     chosen = [c for c in NATIVE_COMPONENTS if names is None or c.name in names]
     result = {c.name: out / f"{c.name}.fmu" for c in chosen}
-    todo = [c for c in chosen
-            if not (only_stale and is_current(result[c.name], c, fmi, chain, wanted))]  # fmt: skip
+    todo = [c for c in chosen if c.name in force
+            or not (only_stale and is_current(result[c.name], c, fmi, chain, wanted))]  # fmt: skip
     if not todo:
         return result
     missing = missing_platforms(chain)

@@ -9,7 +9,7 @@
 - fmi3GetFMUState/SetFMUState and serialization round trip, bit for bit;
 - the call-sequence fuzz on FMI 3 calls: test_fmi_fuzz.py (fmi3_fuzz.py);
 - ``build --fmi 3``, ``run --fmi 3``/``--fmu-dir``, ``export-ssp --fmi 3``; build_all keeps
-  a folder's FMI version;
+  a folder's FMI version, and converts it only with ``overwrite`` (``--overwrite-fmus``);
 - Ecos (ecospy, a test dependency) on the FMI 3 SSP, equal to our Jacobi master;
 - the C host's FMI 3 path (tests/integration/c_host/host.c, -DGLIDER_HOST_FMI3) steps
   the native FMI 3 FMUs with no Python reachable and their win64 DLLs under wine, equal
@@ -41,7 +41,7 @@ from c_host_helpers import (
 )
 from fmpy.fmi3 import FMU3Slave
 
-from glider_cosim.fmus.folders import build_all, folder_flavor, folder_fmi
+from glider_cosim.fmus.folders import FmuFolderError, build_all, folder_flavor, folder_fmi
 from glider_cosim.master import CoSimulation
 from glider_cosim.runner import simulate
 from glider_cosim.scenarios.scenario import load_scenario
@@ -287,12 +287,16 @@ def test_cli_build_run_and_export_ssp_with_fmi3(tmp_path):
     assert p.returncode == 2 and "holds FMI 3.0 FMUs: the one-FMU export takes FMI 2.0" in p.stderr
 
 
-def test_build_all_keeps_a_folder_fmi3_and_fmi_2_replaces_it(fmi3_dirs, tmp_path):
+def test_build_all_keeps_a_folder_fmi3_and_converts_it_only_when_told(fmi3_dirs, tmp_path):
     folder = tmp_path / "n"
     shutil.copytree(fmi3_dirs["native"], folder)
     build_all(folder, only_stale=True)
     assert folder_fmi(folder) == 3 and folder_flavor(folder) == "native"
-    build_all(folder, only_stale=True, fmi=2)
+    with pytest.raises(FmuFolderError, match="holds FMI 3.0 native FMUs .*, not the FMI 2.0 "
+                       "native ones asked for: a set is not converted in place"):  # fmt: skip
+        build_all(folder, only_stale=True, fmi=2)
+    assert folder_fmi(folder) == 3
+    build_all(folder, only_stale=True, fmi=2, overwrite=True)  # --overwrite-fmus
     assert folder_fmi(folder) == 2 and folder_flavor(folder) == "native"
 
 
