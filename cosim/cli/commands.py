@@ -319,11 +319,11 @@ def dispatch(args: argparse.Namespace) -> int:
             log.warning(f"--fmu-dir {quote(str(folder))} does not exist: a fresh set of "
                         "FMUs is built there")  # fmt: skip
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
+        skip = _swapped(args) if folder is not None else set()  # a user's FMU swapped in
         try:
             fmi, here = getattr(args, "fmi", None), runs_here(args)
             args.fmu_dir = str(prepare_fmus(folder, args.flavor, fmi, host_only=here,
-                                            overwrite=args.overwrite_fmus,
-                                            skip=_swapped(args)))  # fmt: skip
+                                            overwrite=args.overwrite_fmus, skip=skip))  # fmt: skip
         except OSError as err:
             raise _os_error(err, {"--fmu-dir": folder or cache_root()}) from None
     if args.command == "build":
