@@ -287,3 +287,17 @@ def test_the_flag_and_its_default_are_in_the_help(capsys):
         text = " ".join(capsys.readouterr().out.split())
         assert "--overwrite-fmus" in text, command
         assert "(default: off: such a folder is refused, naming the file;" in text, command
+
+
+def test_builds_into_one_folder_take_turns(tmp_path):
+    import subprocess
+    import sys
+
+    probe = ("import fcntl, os, sys\nfd = os.open(sys.argv[1], os.O_RDONLY)\n"
+             "try:\n    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)\n"
+             "except BlockingIOError:\n    sys.exit(3)\n")  # fmt: skip
+    d = tmp_path / "D"
+    with record.locked(d):  # what build_all holds while it checks, builds and records
+        held = subprocess.run([sys.executable, "-c", probe, str(d)], timeout=60)
+    free = subprocess.run([sys.executable, "-c", probe, str(d)], timeout=60)
+    assert (held.returncode, free.returncode) == (3, 0)

@@ -4,6 +4,7 @@ first, then renamed into place."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib.metadata
 import os
 import sys
@@ -22,6 +23,15 @@ def package_version() -> str:
         return importlib.metadata.version("glider-cosim")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
+
+
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def fmu_flavor(fmu: Path) -> str | None:

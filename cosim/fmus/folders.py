@@ -14,7 +14,7 @@ from glider_fmi.toolchain import host_platform
 
 from ..inputs.text import quote
 from . import osp, record
-from .files import CACHE_ENV, cache_root, fmu_flavor, package_version  # noqa: F401 (re-exported)
+from .files import CACHE_ENV, cache_root, file_sha256, fmu_flavor, package_version  # noqa: F401
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
 from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
@@ -253,7 +253,7 @@ def _update_record(
             if not path.is_file():
                 files.pop(fname, None)
                 continue
-            sha = record.sha256_of(path)
+            sha = file_sha256(path)
             written |= sha != held[fname].sha256
             old = files.get(fname)
             files[fname] = old if old and old["sha256"] == sha else record.entry_for(path)

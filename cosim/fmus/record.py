@@ -33,7 +33,6 @@ files.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import logging
 import zipfile
@@ -43,7 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from ..inputs.text import quote
-from .files import FLAVOR_FILE, package_version, replacing
+from .files import FLAVOR_FILE, file_sha256, package_version, replacing
 from .fmi3 import FMI3_HASH_FILE
 from .native import NATIVE_HASH_FILE, PLATFORMS_FILE
 from .osp import SUFFIX as OSP_SUFFIX
@@ -84,15 +83,6 @@ class Held:
     flavor: str | None = None
     fmi: int | None = None
     sha256: str | None = None
-
-
-def sha256_of(path: Path) -> str:
-    """The SHA-256 of a file's bytes (hex)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def provenance(fmu: Path) -> dict[str, Any] | None:
@@ -174,7 +164,7 @@ def _judge(path: Path, record: Mapping[str, dict] | None, legacy) -> Held:
         return Held(path.name, "missing")
     if not path.is_file():
         return Held(path.name, "corrupt")
-    sha = sha256_of(path)
+    sha = file_sha256(path)
     fmu = path.suffix == ".fmu"
     if record is None:
         info = legacy()
@@ -221,7 +211,7 @@ def describe_set(flavor: str | None, fmi: int | None) -> str:
 
 def entry_for(path: Path) -> dict[str, Any]:
     """The record's entry of a file just written (an FMU's provenance with it)."""
-    entry: dict[str, Any] = {"sha256": sha256_of(path)}
+    entry: dict[str, Any] = {"sha256": file_sha256(path)}
     if path.suffix == ".fmu":
         entry.update(provenance(path) or {})
     return entry
@@ -262,6 +252,8 @@ def locked(folder: Path) -> Iterator[None]:
             log.warning(f"{quote(str(folder))}: another glider-cosim is building FMUs there: "
                         "waiting for it")  # fmt: skip
             fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:  # a file system without locks (some network ones): build unlocked
+            log.debug("%s: no lock on this file system", folder)
         yield
     finally:
         os.close(fd)  # releases the lock

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..fmus.files import package_version
+from ..fmus.files import file_sha256, package_version
 from .metrics import speed_stop
 
 #: files a run writes into its folder (removed before a run into the same folder)
@@ -52,14 +52,6 @@ def clear_owned(out: Path) -> list[Path]:
             path.unlink()
             removed.append(path)
     return removed
-
-
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _plain(value: Any) -> Any:

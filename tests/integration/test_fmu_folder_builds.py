@@ -30,7 +30,7 @@ import pytest
 
 from glider_cosim.fmus.files import fmu_flavor
 from glider_cosim.fmus.python import COMPONENTS, HASH_FILE, source_hash
-from glider_cosim.fmus.record import RECORD_FILE, sha256_of
+from glider_cosim.fmus.record import RECORD_FILE, file_sha256
 
 pytestmark = pytest.mark.integration
 SRC = Path(__file__).parent / "fmus_src"
@@ -74,13 +74,13 @@ def test_build_writes_the_record_of_what_it_built(built):
     for c in COMPONENTS:
         fmu = built / f"{c.name}.fmu"
         entry = files[fmu.name]
-        assert entry["sha256"] == sha256_of(fmu)
+        assert entry["sha256"] == file_sha256(fmu)
         assert (entry["flavor"], entry["fmi"]) == ("python", 2)
         assert entry["source_hash"] == source_hash(c)  # what a rebuild compares
         with zipfile.ZipFile(fmu) as z:
             assert z.read(HASH_FILE).decode().strip() == entry["source_hash"]
         osp = built / f"{c.name}_OspModelDescription.xml"
-        assert files[osp.name] == {"sha256": sha256_of(osp)}
+        assert files[osp.name] == {"sha256": file_sha256(osp)}
     assert not [p for p in built.iterdir() if p.name.endswith(".part")]
 
 
@@ -119,7 +119,7 @@ def test_a_users_controller_is_refused_and_the_flag_replaces_it(built, users_con
     assert mine.read_bytes() != before["GliderController.fmu"]
     assert fmu_flavor(mine) == "python"  # ours again
     entry = json.loads((d / RECORD_FILE).read_text())["files"]["GliderController.fmu"]
-    assert entry["sha256"] == sha256_of(mine)
+    assert entry["sha256"] == file_sha256(mine)
     assert snapshot(d)["GliderPlant.fmu"] == before["GliderPlant.fmu"]  # the rest kept
 
 
@@ -169,4 +169,4 @@ def test_a_corrupt_fmu_in_the_cache_is_rebuilt_with_a_warning(built, tmp_path):
     )
     assert zipfile.is_zipfile(plant)
     entry = json.loads((plant.parent / RECORD_FILE).read_text())["files"]["GliderPlant.fmu"]
-    assert entry["sha256"] == sha256_of(plant)
+    assert entry["sha256"] == file_sha256(plant)
