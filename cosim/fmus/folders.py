@@ -190,8 +190,10 @@ def build_all(
                     log.warning(f"{quote(str(out / h.name))}: not the file glider-cosim built in "
                                 f"its cache ({h.state}): rebuilt")  # fmt: skip
                 # replaced by ours, as asked (or in the cache), in one step when its build
-                # is done (files.replacing): kept if the build fails
-                force.add(h.name.removesuffix(".fmu"))
+                # is done (files.replacing): kept if the build fails; an OSP-IS file is
+                # rewritten beside its FMU (_with_osp)
+                if h.name.endswith(".fmu"):
+                    force.add(h.name.removesuffix(".fmu"))
         ours = [h for h in held.values() if h.state == "ours" and h.name.endswith(".fmu")]
         flavor = flavor or next((h.flavor for h in ours if h.flavor), None) or "python"
         fmi = fmi or next((h.fmi for h in ours if h.fmi), None) or 2
