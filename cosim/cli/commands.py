@@ -284,20 +284,6 @@ def _analyze(args: argparse.Namespace) -> int:
     return 0
 
 
-def _swapped(args: argparse.Namespace) -> set[str]:
-    """Our FMUs the command's scenario swaps in its ``[fmus]`` table: not built in (nor
-    checked in) ``--fmu-dir``, whose file of that name may be the user's FMU swapped in."""
-    scenario = getattr(args, "scenario", None)
-    if args.command not in ("run", "sweep", "export-ssp") or (
-        scenario is not None and str(scenario).endswith((".ssp", ".ssd"))
-    ):
-        return set()
-    from ..scenarios.scenario import load_scenario
-    from ..scenarios.system import swapped
-
-    return swapped(load_scenario(scenario))
-
-
 def runs_here(args: argparse.Namespace) -> bool:
     """True if the command runs our FMUs on this machine alone (a run, a sweep or a
     report without a Dask scheduler elsewhere): the cache's host-only set serves it.
@@ -319,7 +305,10 @@ def dispatch(args: argparse.Namespace) -> int:
             log.warning(f"--fmu-dir {quote(str(folder))} does not exist: a fresh set of "
                         "FMUs is built there")  # fmt: skip
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
-        skip = _swapped(args) if folder is not None else set()  # a user's FMU swapped in
+        from ..scenarios.system import swapped_in  # a user's FMU in --fmu-dir, swapped in
+
+        swaps = folder is not None and args.command in ("run", "sweep", "export-ssp")
+        skip = swapped_in(args.scenario) if swaps else set()
         try:
             fmi, here = getattr(args, "fmi", None), runs_here(args)
             args.fmu_dir = str(prepare_fmus(folder, args.flavor, fmi, host_only=here,

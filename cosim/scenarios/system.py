@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..master.spec import System
 from .sampling import has_our_observer, with_sampling
-from .scenario import Scenario
+from .scenario import Scenario, load_scenario
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 
@@ -37,6 +37,14 @@ def swapped(scenario: Scenario) -> set[str]:
     """Our FMUs (model identifiers) a run of ``scenario`` does not take from the FMU
     folder: the instances its ``[fmus]`` table swaps (neither built nor checked there)."""
     return {FMU_NAMES[inst] for inst in scenario.fmus}
+
+
+def swapped_in(scenario: str | Path | None) -> set[str]:
+    """:func:`swapped` of a scenario as a command names it (a TOML file, a shipped name,
+    None: the default); an SSP brings its own FMUs: none."""
+    if scenario is not None and str(scenario).endswith((".ssp", ".ssd")):
+        return set()
+    return swapped(load_scenario(scenario))
 
 
 def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:
