@@ -261,6 +261,20 @@ def test_the_survey_judges_each_file(tmp_path):
     }  # fmt: skip
 
 
+def test_an_osp_description_left_without_a_record_is_ours(tmp_path):
+    """A checkout's fmus/ (the OSP-IS files of an old build, tracked in git), or a folder
+    whose FMUs were deleted to rebuild them: the OSP-IS files there are ours."""
+    d = tmp_path / "fmus"
+    d.mkdir()
+    osp = Path(__file__).resolve().parents[1] / "fmus" / "GliderPlant_OspModelDescription.xml"
+    (d / osp.name).write_bytes(osp.read_bytes())
+    (d / "GliderController_OspModelDescription.xml").write_text("<OspModelDescription/>")
+    held = record.survey(d, [f"{n}.fmu" for n in NAMES], None)
+    assert held[osp.name].state == "ours"
+    assert held["GliderController_OspModelDescription.xml"].state == "foreign"  # not OSP-IS's
+    assert record.survey(d, ["GliderPlant.fmu"], {})[osp.name].state == "foreign"  # recorded
+
+
 def test_the_record_is_written_in_one_step_and_reads_back(tmp_path):
     d = our_set(tmp_path / "D")
     data = json.loads((d / RECORD_FILE).read_text())

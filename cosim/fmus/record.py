@@ -12,8 +12,8 @@ Before a build, each file under one of our names is judged (:func:`survey`):
 
 - *ours*: the record lists it with its SHA-256; in a folder without a record (one
   written before the record existed), an FMU that carries the provenance every FMU of
-  ours carries (its flavor and source hash in ``resources/``), and the OSP-IS
-  description beside such an FMU;
+  ours carries (its flavor and source hash in ``resources/``), and an OSP-IS description
+  (``<id>_OspModelDescription.xml``, its root element) under one of our names;
 - *foreign*: not in the record (a user's own ``GliderController.fmu``, a copy from
   elsewhere) or, without a record, no provenance;
 - *changed*: the record lists it with another SHA-256 (edited, repacked, truncated);
@@ -45,6 +45,7 @@ from ..inputs.text import quote
 from .files import FLAVOR_FILE, file_sha256, package_version, replacing
 from .fmi3 import FMI3_HASH_FILE
 from .native import NATIVE_HASH_FILE, PLATFORMS_FILE
+from .osp import NS as OSP_NS
 from .osp import SUFFIX as OSP_SUFFIX
 from .python import HASH_FILE
 
@@ -152,9 +153,25 @@ def survey(folder: Path, fmu_names: Iterable[str], record: Mapping[str, dict] | 
         fmu = folder / name
         held[name] = _judge(fmu, record, lambda fmu=fmu: provenance(fmu))
         beside = folder / osp_name(name)
-        fmu_ours = held[name].state == "ours"
-        held[beside.name] = _judge(beside, record, lambda ours=fmu_ours: {} if ours else None)
+        ours = held[name].state == "ours"
+        held[beside.name] = _judge(
+            beside, record, lambda p=beside, ours=ours: {} if ours or osp_description(p) else None
+        )
     return held
+
+
+def osp_description(path: Path) -> bool:
+    """True if ``path`` is an OSP-IS model description (its root element), as every build
+    writes beside an FMU: in a folder without a record, one under our names is ours."""
+    from xml.etree import ElementTree as ET
+
+    try:
+        if path.stat().st_size > 1 << 20:
+            return False
+        root = ET.fromstring(path.read_bytes())
+    except (OSError, ET.ParseError):
+        return False
+    return root.tag == f"{{{OSP_NS}}}OspModelDescription"
 
 
 def _judge(path: Path, record: Mapping[str, dict] | None, legacy) -> Held:

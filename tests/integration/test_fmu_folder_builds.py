@@ -156,6 +156,17 @@ def test_a_folder_without_a_record_runs_as_it_is(built, tmp_path):
     assert snapshot(d) == before  # current: nothing built, so no record either
 
 
+def test_build_into_a_checkouts_fmus_folder(tmp_path):
+    """The checkout's fmus/ holds the OSP-IS files of an old build (tracked in git), no
+    FMU and no record: ``glider-cosim build`` builds there as before."""
+    root = Path(__file__).resolve().parents[2]
+    shutil.copytree(root / "fmus", tmp_path / "fmus")
+    p = cli("build", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    files = json.loads((tmp_path / "fmus" / RECORD_FILE).read_text())["files"]
+    assert len(files) == 6
+
+
 def test_a_corrupt_fmu_in_the_cache_is_rebuilt_with_a_warning(built, tmp_path):
     env = {**os.environ, "GLIDER_COSIM_CACHE": str(tmp_path / "cache")}
     p = cli(*RUN, "--out", str(tmp_path / "o"), env=env)
