@@ -4,32 +4,14 @@ pitch not listed when it is the true one, the equilibrium speed on speed.png."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from report_fakes import THETA_E, FakeRun
 
 from glider_cosim.runner import plots as run_plots
-from glider_cosim.studies.figures import DEG, FIGURES, Figure, Run
+from glider_cosim.studies.figures import FIGURES, Figure, Run
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53
-
-THETA_E = -22.5 / DEG
-
-
-class FakeRun:
-    def __init__(self, cols: dict, status="ok", metrics=None, message="", feedback="full"):
-        self.columns = ["time", *cols]
-        self.data = np.column_stack([np.linspace(0, 10, 501)[: len(next(iter(cols.values())))],
-                                     *cols.values()])  # fmt: skip
-        self.status, self.message = status, message
-        self.metrics = {"theta_ge_rad": THETA_E, "events": [], "outcome": "settled",
-                        "settling_time_s": 5.0, **(metrics or {})}  # fmt: skip
-        self.scenario = SimpleNamespace(name="fake", feedback=feedback,
-                                        parameters={"controller": {}, "plant": {}})  # fmt: skip
-
-    def column(self, name):
-        return self.data[:, self.columns.index(name)]
 
 
 @pytest.fixture
@@ -147,3 +129,20 @@ def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tm
     assert [x.get_text() for x in legend.get_texts()] == [
         "measured", "true", "estimated", "observer starts", "the run stops"]  # fmt: skip
     assert f.get_axes()[0].get_title().endswith(": stops at 4.00 s")
+
+
+def test_fig11_20_spec_puts_each_law_over_its_rows_not_in_the_title(kept, tmp_path):
+    from glider_cosim.runner.figure_data import figure_spec
+
+    t = np.linspace(0, 10, 501)
+    cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
+            "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
+    runs = [(Run(f"{g} {k}", "x", group=g), FakeRun(cols, feedback="observer"))
+            for g in ("passivity law", "P law") for k in (1, 2)]  # fmt: skip
+    plot_sec53(Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True), runs,
+               tmp_path)  # fmt: skip
+    (f,) = kept
+    spec = figure_spec(f)
+    assert "law" not in spec["title"]
+    rows = {p["row"]: p["heading"] for p in spec["panels"]}
+    assert rows == {0: "passivity law", 1: "passivity law", 2: "P law", 3: "P law"}

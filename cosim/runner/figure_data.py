@@ -81,12 +81,13 @@ def figure_spec(fig: Any, title: str = "") -> dict[str, Any]:
     Each panel is one axes: ``title``, ``xlabel``, ``ylabel``, ``xlim``, ``ylim``
     (data units), ``inverted`` (y), ``log`` (y), ``row``/``col`` (its place, from its
     position in the figure), ``lines`` (series, equilibrium and event lines; x and y in
-    the axes' data units), ``images`` and ``texts``; ``notes`` are the figure's legend
-    entries that are not lines (e.g. an image's colour key). Only visible axes count.
+    the axes' data units), ``images``, ``texts`` and ``heading`` (the title of the
+    subfigure it is in: a row heading, drawn over its rows); ``notes`` are the figure's
+    legend entries that are not lines (e.g. an image's colour key). Only visible axes count.
     """
     from matplotlib.lines import Line2D
 
-    supt = [t.get_text() for t in _suptitles(fig)]
+    supt = fig.get_suptitle()
     axes = [ax for ax in fig.get_axes() if ax.get_visible() and ax.has_data()]
     if not axes:
         raise PageError(f"figure {title or supt!r}: no axes with data; expected plotted axes")
@@ -104,6 +105,7 @@ def figure_spec(fig: Any, title: str = "") -> dict[str, Any]:
             "inverted": bool(ax.yaxis_inverted()), "log": ax.get_yscale() == "log",
             "row": rows.index(row), "col": cols.index(col),
             "lines": lines, "images": [_image(im) for im in ax.get_images()],
+            "heading": _heading(ax),
             "texts": [{"x": float(t.get_position()[0]), "y": float(t.get_position()[1]),
                        "text": t.get_text()} for t in ax.texts
                       if t.get_transform() == ax.transData and t.get_text()],
@@ -115,7 +117,7 @@ def figure_spec(fig: Any, title: str = "") -> dict[str, Any]:
                 face = getattr(handle, "get_facecolor", None)
                 notes.append({"text": text.get_text(), "color": _hex(face())[0] if face else ""})
     first = next((p["title"] for p in panels if p["title"]), "")
-    return {"title": title or "\n".join(t for t in supt if t) or first, "notes": notes,
+    return {"title": title or supt or first, "notes": notes,
             "panels": panels}  # fmt: skip
 
 
@@ -130,8 +132,9 @@ def _place(ax: Any) -> tuple[tuple[int, int], int]:
     return (subs.index(parent) if parent in subs else 0, ss.rowspan.start), ss.colspan.start
 
 
-def _suptitles(fig: Any) -> list[Any]:
-    out = [fig._suptitle] if getattr(fig, "_suptitle", None) is not None else []
-    for sub in getattr(fig, "subfigs", ()):
-        out += _suptitles(sub)
-    return out
+def _heading(ax: Any) -> str:
+    """The title of the subfigure ``ax`` is in (its rows' heading); empty in a figure."""
+    parent = ax.get_figure(root=False)
+    if parent is ax.get_figure(root=True):
+        return ""
+    return parent.get_suptitle()

@@ -27,9 +27,10 @@ FIGURE_CLASS = "glider-figure"
 
 
 def _legend_width(specs: Sequence[dict[str, Any]]) -> int:
-    """The legend's label width, px: one for every panel of the page, so that the x axes
-    of its figures line up."""
-    names = [ln["name"] for s in specs for p in s["panels"] for ln in p["lines"] if ln["legend"]]
+    """The legend's label width, px: one for every panel of the page's one-column figures,
+    so that their x axes line up (a grid's legend is under it)."""
+    names = [ln["name"] for s in specs if all(p["col"] == 0 for p in s["panels"])
+             for p in s["panels"] for ln in p["lines"] if ln["legend"]]  # fmt: skip
     return 6 * max((len(n) for n in names), default=0)
 
 
@@ -64,7 +65,12 @@ table.settings{border-collapse:collapse;font-size:.85em}
 table.settings th{text-align:left;padding:2px 12px 2px 0;vertical-align:top}
 table.settings td{font-family:monospace;word-break:break-all}
 details{font-size:.85em;margin:.1em 0}summary{cursor:pointer}
-p.help{color:#555;font-size:.85em}"""
+p.help{color:#555;font-size:.85em}
+h3.glider-row{font-size:1em;margin:.9em 0 .1em;padding-bottom:.1em;border-bottom:1px solid #ccc}
+div.glider-legend{display:flex;flex-wrap:wrap;gap:.2em 1.2em;font-size:.85em;margin:.4em 0 0}
+button.glider-key{background:none;border:0;padding:0;font:inherit;color:inherit;cursor:pointer;
+display:inline-flex;align-items:center;gap:.3em}
+button.glider-key.off{opacity:.35;text-decoration:line-through}"""
 
 
 def write_page(
