@@ -5,6 +5,7 @@ the swing past the target, and a section on how the report was made."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -121,3 +122,35 @@ def test_a_run_plot_marks_a_diverged_estimate_as_diverged(v, what):
 
     (ev,) = marked_events(sim, "stopped", Stop())
     assert ev == {"kind": "stall", "time_s": 38.8, "label": f"observer {what} (fmi2Discard)"}
+
+
+def test_the_link_checker_finds_a_missing_file_and_a_missing_anchor(tmp_path):
+    from md_links import broken_links
+
+    readme = Path(__file__).resolve().parents[1] / "README.md"
+    md = tmp_path / "x.md"
+    md.write_text(f"# Top\n\n[ok]({readme}#quick-start) [self](#top) ![png](fig.png) "
+                  f"[gone]({readme}#metrics) [none](nothing.md) `[code](skip.md)`\n")  # fmt: skip
+    (tmp_path / "fig.png").write_bytes(b"")
+    bad = broken_links(md)
+    assert len(bad) == 2 and "#metrics" in bad[0] and "nothing.md" in bad[1]
+
+
+@pytest.mark.parametrize("depth", ["report", "a/b/c/report"])
+def test_the_report_links_the_metrics_definitions_from_any_folder(tmp_path, depth):
+    from md_links import broken_links, links
+
+    from glider_cosim.studies.kc_map import kc_map_markdown
+    from glider_cosim.studies.report_text import docs_link
+
+    out = tmp_path / depth
+    out.mkdir(parents=True)
+    ref = docs_link(out, "reference/results.md", "Metrics", "the metrics' definitions")
+    cell = {"text": "settled in 9.00 s", "outcome": "settled"}
+    rows = [{"K_c": k, "observer": cell, "state": cell}
+            for k in (3.0, 3.5)]  # fmt: skip
+    md = out / "report.md"
+    md.write_text("\n".join(kc_map_markdown(rows, None, ref)) + "\n")
+    (target,) = links(md)
+    assert target.endswith("docs/reference/results.md#metrics")
+    assert broken_links(md) == []

@@ -266,10 +266,14 @@ def _report(args: argparse.Namespace) -> int:
     grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: expected a number >= 1")
+    written: list[Path] = []
     path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
                         roa_grid=grid, workers=args.workers, scheduler=args.scheduler,
-                        page=not args.no_plots)  # fmt: skip
+                        page=not args.no_plots, written=written)  # fmt: skip
     print(f"wrote {path}")
+    page = next((f for f in written if f.name == "report.html"), None)
+    if page is not None:
+        print(f"wrote {page} (the figures to zoom and hover: open it in a browser)")
     return 0
 
 

@@ -1,4 +1,5 @@
-"""Performance metrics of a glide-stabilisation run (definitions in README, "Metrics").
+"""Performance metrics of a glide-stabilisation run (definitions: docs/reference/results.md,
+"Metrics").
 
 All are computed on the true glide angle ``plant.theta_g`` against the glide angle the
 loop should reach (:func:`reference_glide_angle`: the equilibrium ``theta_ge``, or for an

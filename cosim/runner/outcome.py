@@ -2,7 +2,7 @@
 diverging or (for an angle) tumbling, detected from the trajectory alone (no model, no
 linearisation).
 
-The rules (README, "Metrics"):
+The rules (docs/reference/results.md, "Metrics"):
 
 - For an angle error (``period`` given, 2 pi for the glide angle): **tumbling** if the
   angle turns by more than a full turn within the examined window (below); otherwise the

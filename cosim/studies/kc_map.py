@@ -68,7 +68,10 @@ def smallest_settling(rows: Sequence[dict[str, Any]], fb: str) -> float | None:
     return best
 
 
-def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -> list[str]:
+def kc_map_markdown(
+    rows: Sequence[dict[str, Any]], an: dict[str, Any] | None, metrics: str = "the docs' 'Metrics'"
+) -> list[str]:
+    """The report's K_c map section; ``metrics``: where the outcome is defined (a link)."""
     if not rows:
         return []
     lo_obs = lo_st = None
@@ -83,7 +86,7 @@ def kc_map_markdown(rows: Sequence[dict[str, Any]], an: dict[str, Any] | None) -
         f"law at K_c = {rows[0]['K_c']:g} to {rows[-1]['K_c']:g} in steps of "
         f"{rows[1]['K_c'] - rows[0]['K_c']:g}, fed by the observer, and with full-state "
         "feedback (no observer instance). Outcome from the trajectory "
-        "(`glider_cosim.runner.outcome`, README 'Metrics').",
+        f"(`glider_cosim.runner.outcome`, {metrics}).",
         "",
         "| K_c | with the observer | full-state feedback |",
         "|---|---|---|",

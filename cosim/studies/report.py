@@ -122,6 +122,7 @@ def build_report(
     workers: int = 2,
     scheduler: str | None = None,
     page: bool = True,
+    written: list[Path] | None = None,
 ) -> Path:
     """Run everything and write ``report.md`` (returns its path).
 
@@ -129,6 +130,8 @@ def build_report(
     sweep on ``workers`` local processes (or the cluster at ``scheduler``); None skips it.
     ``fmu_dir``: our FMUs (default: the per-user cache), built there if missing or stale.
     ``page``: also write ``report.html``, the figures interactive (zoom, hover, legend).
+    ``written``: a list that gets the paths of the documents written: ``report.md``,
+    ``report.html`` (if it was written) and ``report.json``.
     """
     from ..fmus.folders import build_all, fmu_folder
 
@@ -162,6 +165,7 @@ def build_report(
         bar.step("Sec. 5.2: held tail")
     roa_lines: list[str] = []
     maps = []
+    html_page = None
     if roa_grid is not None:
         from ..sweeps.sweep import make_client
         from .roa import plot_roa, roa_markdown, run_roa
@@ -192,7 +196,7 @@ def build_report(
             roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
         if page:
             settings = {"How this report was made": made, **report_settings(results)}
-            write_report_page(out, figures, settings)
+            html_page = write_report_page(out, figures, settings).get("page")
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     text += "\n" + "\n".join(provenance_markdown(made))
@@ -218,4 +222,6 @@ def build_report(
             for mp in maps},
     }  # fmt: skip
     (out / "report.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
+    if written is not None:
+        written += [out / "report.md", *([html_page] if html_page else []), out / "report.json"]
     return out / "report.md"

@@ -235,3 +235,29 @@ def test_the_report_wraps_the_estimation_error_and_tells_divergence_from_stall(r
     (k6,) = [x for x in sec34.splitlines() if x.startswith("K_c = 6: ")]
     over = re.search(r"^\| K_c = 6 \| ok \| [^|]+\| [0-9.]+ \| ([0-9.]+) \|", sec34, re.M).group(1)
     assert f"the glide angle swings up to {over} deg past the equilibrium" in k6
+
+
+def test_the_command_names_its_pages_and_every_link_of_report_md_resolves(fmu_dir, tmp_path):
+    """``glider-cosim report`` prints report.md and report.html (issue 45, item 6); each
+    link of report.md (the figures, the metrics' definitions in the docs) resolves."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1]))
+    from md_links import broken_links, links
+
+    out = tmp_path / "rep"
+    proc = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "report", "--roa-grid",
+                           "none", "--out", str(out), "--fmu-dir", str(fmu_dir),
+                           "--no-progress"], capture_output=True, text=True, timeout=600,
+                          check=False)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert f"wrote {out / 'report.md'}\n" in proc.stdout
+    assert f"wrote {out / 'report.html'} " in proc.stdout
+    md = out / "report.md"
+    assert "README" not in md.read_text()  # its 'Metrics' section moved to the docs
+    targets = links(md)
+    assert any(t.endswith("docs/reference/results.md#metrics") for t in targets)
+    assert sum(t.endswith(".png") for t in targets) >= 6
+    assert broken_links(md) == []
