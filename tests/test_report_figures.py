@@ -146,3 +146,17 @@ def test_fig11_20_spec_puts_each_law_over_its_rows_not_in_the_title(kept, tmp_pa
     assert "law" not in spec["title"]
     rows = {p["row"]: p["heading"] for p in spec["panels"]}
     assert rows == {0: "passivity law", 1: "passivity law", 2: "P law", 3: "P law"}
+
+
+def test_fig11_20_tail_axis_is_linear_with_evenly_spaced_ticks(kept, tmp_path):
+    t = np.linspace(0, 10, 501)
+    cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
+            "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
+    fig = Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True)
+    plot_sec53(fig, [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer"))], tmp_path)
+    (f,) = kept
+    (tail,) = [ax for ax in f.get_axes() if ax.get_ylabel() == "tail cmd [deg]"]
+    assert tail.get_yscale() == "linear"
+    ticks = list(tail.get_yticks())
+    assert ticks == [-90, -45, 0, 45, 90] and len(set(np.diff(ticks))) == 1
+    assert tail.get_ylim() == (-100.0, 100.0)

@@ -112,7 +112,7 @@ def write_page(
         f"{scripts}</head><body><h1>{html.escape(title)}</h1>"
         "<p class='help'>Drag to zoom (toolbar: x-only or box zoom), wheel to zoom, "
         "double-click or reset to restore; hover a curve for its values; click a legend "
-        "entry to hide or show that series.</p>"
+        "entry to hide or show that series (a legend under a grid: in each of its panels).</p>"
         f"{_settings_html(settings)}{''.join(body)}"
         f"<script type='application/json' id='run-settings'>{data}</script></body></html>\n"
     )

@@ -226,11 +226,36 @@ def _short(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def _overrides(overrides: dict[str, Any]) -> list[str]:
-    return [
-        f"{k}={LAW_NAMES.get(v, v) if k.endswith('controller.law') else _short(v)}"
-        for k, v in overrides.items()
-    ]
+def unit_of_target(target: str) -> str | None:
+    """The unit of ``instance.name`` in our FMUs' variable tables (``"1"``: none), for
+    labels; None for a variable that is not ours."""
+    from ..inputs.check import our_table
+
+    inst, _, name = target.partition(".")
+    try:
+        return our_table(inst)[name].unit or "1"
+    except KeyError:
+        return None
+
+
+def with_unit(target: str, value: Any) -> str:
+    """``value`` as :func:`_short` writes it, a plain number followed by the unit of
+    ``target`` (``0.3 m/s``); a value the user wrote with a unit (``-30 deg``) as given."""
+    plain = _plain(value)
+    unit = unit_of_target(target)
+    number = isinstance(plain, int | float) and not isinstance(plain, bool)
+    return f"{_short(value)} {unit}" if unit not in (None, "1") and number else _short(value)
+
+
+def _overrides(overrides: dict[str, Any], units: bool = False) -> list[str]:
+    """``instance.name=value`` of each override; ``units``: each number with its unit."""
+
+    def text(k: str, v: Any) -> str:
+        if k.endswith("controller.law"):
+            return str(LAW_NAMES.get(v, v))
+        return with_unit(k, v) if units else _short(v)
+
+    return [f"{k}={text(k, v)}" for k, v in overrides.items()]
 
 
 def overrides_text(metrics: dict[str, Any]) -> str:
@@ -286,9 +311,10 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
 
 
 def settings_text(metrics: dict[str, Any]) -> str:
-    """``"scenario default; controller.K_c=6, --step 0.01"``: what a plot's subtitle says."""
+    """``"scenario default; controller.K_c=6, plant.V_0=0.3 m/s, --step 0.01"``: what a
+    plot's subtitle says (each override's number with its unit)."""
     run = metrics.get("run") or {}
-    parts = _overrides(run.get("overrides", {}))
+    parts = _overrides(run.get("overrides", {}), units=True)
     parts += [k if v is True else f"{k} {_short(v)}" for k, v in run.get("options", {}).items()]
     text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
     return text + ("; " + ", ".join(parts) if parts else "; no overrides")
@@ -312,10 +338,11 @@ def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, An
             continue
         t = ev.fired_at + ev.delay
         sets = ", ".join(
-            f"{k} = {LAW_NAMES.get(v, v) if k == 'controller.law' else _short(v)}"
+            f"{k} = {LAW_NAMES.get(v, v) if k == 'controller.law' else with_unit(k, v)}"
             for k, v in ev.actions.items()
         )
-        label = f"takeover at {ev.variable} {ev.op} {ev.threshold:g} ({sets})"
+        at = with_unit(ev.variable, float(ev.threshold))
+        label = f"takeover at {ev.variable} {ev.op} {at} ({sets})"
         out.append({"kind": "takeover", "time_s": float(t), "label": label})
     if error is not None and status in ("stopped", "error"):
         t = getattr(error, "time", None)

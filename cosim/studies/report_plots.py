@@ -169,11 +169,13 @@ def _feedback(r: RunResult) -> str:
     return "observer" if r.scenario.feedback == "observer" else "full-state"
 
 
-#: fixed axes of Figs. 11-20 (deg): the angles, the tail command (symmetric log above 5)
+#: fixed axes of Figs. 11-20 (deg): the angles, the tail command (linear, to +-100 deg,
+#: ticks every 45 deg)
 SEC53_ANGLES = (-70.0, 40.0)
 
 
 SEC53_TAIL = 100.0
+SEC53_TAIL_TICKS = (-90.0, -45.0, 0.0, 45.0, 90.0)
 
 
 #: Figs. 11-20 start at 20 s: before the takeover (31.1 s) every run is the same 2 deg hold
@@ -184,14 +186,14 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
     """Figs. 11-20 as small multiples: one row per law family, one column per run; per
     run the glide angle and pitch over the tail command, on the same fixed axes in every
     panel (angles -70..40 deg, clipped with a triangle where a run leaves them; the tail
-    on a symmetric log scale to +-100 deg, its +-90 deg limit dotted). Each heading names
+    on a linear scale to +-100 deg, its +-90 deg limit dotted). Each heading names
     the run, its feedback and how it ends; the takeover (dash-dot) and a stop (cross)
     are marked."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FixedLocator, FuncFormatter
+    from matplotlib.ticker import FixedLocator
 
     groups = list(dict.fromkeys(run.group for run, _ in results))
     handles: dict[str, Any] = {}
@@ -204,7 +206,7 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
     for gi, g in enumerate(groups):
         runs = [(run, r) for run, r in results if run.group == g]
         axes = sub[gi].subplots(2, ncol, sharex=True, squeeze=False,
-                                gridspec_kw={"height_ratios": [2, 1]})  # fmt: skip
+                                gridspec_kw={"height_ratios": [2, 1.3]})  # fmt: skip
         sub[gi].suptitle(g, fontsize=11, fontweight="bold")
         for j in range(ncol):
             top, bottom = axes[0, j], axes[1, j]
@@ -230,11 +232,8 @@ def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path)
             dmax = float(r.scenario.parameters.get("controller", {}).get("delta_max", math.pi / 2))
             for sign in (1, -1):
                 bottom.axhline(sign * dmax * DEG, color="0.4", ls=":", lw=0.8)
-            bottom.set_yscale("symlog", linthresh=5.0)
             bottom.set_ylim(-SEC53_TAIL, SEC53_TAIL)
-            bottom.yaxis.set_major_locator(FixedLocator([-90, -10, 0, 10, 90]))
-            bottom.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-            bottom.yaxis.set_minor_locator(FixedLocator([]))
+            bottom.yaxis.set_major_locator(FixedLocator(SEC53_TAIL_TICKS))
             top.set_ylim(lo, hi)
             for ax in (top, bottom):
                 ax.set_xlim(start, stop)

@@ -6,6 +6,8 @@ import csv
 import math
 from pathlib import Path
 
+from ..runner.provenance import unit_of_target, with_unit
+
 
 def _short(param: str, params: list[str]) -> str:
     """``controller.K_c`` as ``K_c`` unless another swept parameter has that name."""
@@ -13,11 +15,20 @@ def _short(param: str, params: list[str]) -> str:
     return name if sum(p.rpartition(".")[2] == name for p in params) == 1 else param
 
 
-def _value(text: str) -> str:
+def _value(text: str, param: str = "") -> str:
+    """A swept value as ``%g``, followed by the unit of ``param`` (if it has one)."""
     try:
-        return f"{float(text):g}"
+        value = float(text)
     except (TypeError, ValueError):
         return str(text)
+    return with_unit(param, value) if param else f"{value:g}"
+
+
+def _axis(param: str) -> str:
+    """An axis label of a swept parameter: ``plant.V_0 [m/s]``, ``controller.K_c [1]``
+    (a parameter that is not of our FMUs: its name alone)."""
+    unit = unit_of_target(param)
+    return param if unit is None else f"{param} [{unit}]"
 
 
 def _is_number(text: object) -> bool:
@@ -39,11 +50,11 @@ def runs_named(rows: list[dict], params: list[str], most: int = 6) -> str:
 
     rows = sorted(rows, key=key)
     if len(params) == 1:
-        text = ", ".join(_value(r.get(params[0])) for r in rows[:most])
+        text = ", ".join(_value(r.get(params[0]), params[0]) for r in rows[:most])
         text = f"{_short(params[0], params)} = {text}"
     else:
         text = "; ".join(
-            ", ".join(f"{_short(p, params)} = {_value(r.get(p))}" for p in params)
+            ", ".join(f"{_short(p, params)} = {_value(r.get(p), p)}" for p in params)
             for r in rows[:most]
         )
     return text + (", ..." if len(rows) > most else "")
@@ -130,7 +141,7 @@ def write_plots(path: Path, out: Path) -> list[Path]:
         sc = ax.scatter([num(r, "control_effort") for r in ok],
                         [num(r, "settling_time_s") for r in ok],
                         c=[num(r, "controller.K_c") for r in ok], cmap="viridis")  # fmt: skip
-        fig.colorbar(sc, label="K_c")
+        fig.colorbar(sc, label=_axis("controller.K_c"))
         ax.set(xlabel="control effort [rad s]", ylabel="settling time [s]",
                title="Settling time against control effort (Sec. 3.3 trade-off)")  # fmt: skip
         ax.grid(alpha=0.3)
@@ -146,7 +157,7 @@ def write_plots(path: Path, out: Path) -> list[Path]:
             if pts:
                 ax.scatter(*zip(*pts, strict=True), c=colour, s=18,
                            label=f"{label} ({len(pts)} of {len(rows)})")  # fmt: skip
-        ax.set(xlabel=a, ylabel=b, title="Stability boundary")
+        ax.set(xlabel=_axis(a), ylabel=_axis(b), title="Stability boundary")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         files.append(_save(fig, out / "stability_boundary.png", ""))

@@ -137,7 +137,7 @@ def test_disagreement_comments_carry_the_reason_with_numbers(report):
     for label, reason in (("passivity K_c = 3", f"K_c = 3 < {lo:.2f}: the sampled loop with "
                            "the observer is unstable"),
                           ("P K_P = 2", "P law, K_P = 2 (4 x the controller's default"),
-                          ("PI K_P = 2, K_I = 1", "PI law, K_P = 2, K_I = 1")):  # fmt: skip
+                          ("PI K_P = 2, K_I = 1 Hz", "PI law, K_P = 2, K_I = 1")):  # fmt: skip
         end = re.search(rf"^\| {re.escape(label)} \| stopped \| stopped at ([0-9.]+) s \|", sec,
                         re.M).group(1)  # fmt: skip
         (line,) = [x for x in sec.splitlines() if x.startswith(f"{label}: ")]

@@ -92,7 +92,7 @@ def test_plots_mark_the_events(fmu_dir, tmp_path, name, doc, kinds):
     else:
         assert events[0]["time_s"] == 3.0
         assert events[1]["label"].startswith(
-            "takeover at plant.z >= 1 (controller.law = passivity)"
+            "takeover at plant.z >= 1 m (controller.law = passivity)"
         )
         z = r.column("plant.z")
         k = list(r.data[:, 0]).index(events[1]["time_s"])
