@@ -8,9 +8,7 @@ from __future__ import annotations
 import csv
 from types import SimpleNamespace
 
-import matplotlib.pyplot as plt
 import numpy as np
-import pytest
 from figure_units import axis_label_problem, dimensionless, quantity_problems
 from report_fakes import THETA_E, FakeRun
 
@@ -26,15 +24,6 @@ PLAIN = dimensionless()
 COLUMNS = ("plant.theta_g", "observer.theta_g_hat", "plant.theta", "plant.theta_meas",
            "observer.theta_hat", "controller.delta_cmd", "plant.delta", "plant.V",
            "observer.V_hat", "plant.x", "plant.z")  # fmt: skip
-
-
-@pytest.fixture
-def kept(monkeypatch):
-    figs, close = [], plt.close
-    monkeypatch.setattr(plt, "close", figs.append)
-    yield figs
-    for f in figs:
-        close(f)
 
 
 def _events() -> list[dict]:

@@ -4,7 +4,6 @@ pitch not listed when it is the true one, the equilibrium speed on speed.png."""
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from report_fakes import THETA_E, FakeRun
@@ -12,15 +11,6 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.runner import plots as run_plots
 from glider_cosim.studies.figures import FIGURES, Figure, Run
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53
-
-
-@pytest.fixture
-def kept(monkeypatch):
-    figs, close = [], plt.close
-    monkeypatch.setattr(plt, "close", figs.append)
-    yield figs
-    for f in figs:
-        close(f)
 
 
 def _clipped(ax):

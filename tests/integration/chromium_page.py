@@ -36,25 +36,31 @@ def chromium() -> str | None:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def load(page: Path, timeout: float = 120.0) -> dict:
-    """``{"figures": [canvases per figure], "errors": [...], "console": [...],
-    "fetched": [every resource the page loaded]}``."""
-    text = page.read_text(encoding="utf-8")
-    probed = text.replace("<head>", "<head>" + _HEAD, 1).replace("</body>", _TAIL + "</body>", 1)
+def _probed(page: Path, text: str, options: list[str], timeout: float) -> tuple[dict, str]:
+    """Chromium's ``--dump-dom`` of ``text`` (``page`` with a probe script that writes
+    ``<pre id="probe">JSON</pre>``): (that JSON, chromium's stderr)."""
     with tempfile.TemporaryDirectory() as tmp:
         copy = Path(tmp) / page.name
-        copy.write_text(probed, encoding="utf-8")
+        copy.write_text(text, encoding="utf-8")
         proc = subprocess.run(
             [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-             f"--user-data-dir={tmp}/profile", "--enable-logging=stderr", "--v=0",
-             "--virtual-time-budget=20000", "--dump-dom", copy.as_uri()],
+             f"--user-data-dir={tmp}/profile", *options, "--virtual-time-budget=20000",
+             "--dump-dom", copy.as_uri()],
             capture_output=True, text=True, timeout=timeout, check=False,
         )  # fmt: skip
     m = re.search(r'<pre id="probe">(.*?)</pre>', proc.stdout, re.S)
     if not m:
         raise AssertionError(f"the page's probe did not run; chromium said: {proc.stderr[-2000:]}")
-    found = json.loads(m.group(1).replace("&quot;", '"').replace("&amp;", "&"))
-    found["console"] = [ln for ln in proc.stderr.splitlines()
+    return json.loads(m.group(1).replace("&quot;", '"').replace("&amp;", "&")), proc.stderr
+
+
+def load(page: Path, timeout: float = 120.0) -> dict:
+    """``{"figures": [canvases per figure], "errors": [...], "console": [...],
+    "fetched": [every resource the page loaded]}``."""
+    text = page.read_text(encoding="utf-8")
+    probed = text.replace("<head>", "<head>" + _HEAD, 1).replace("</body>", _TAIL + "</body>", 1)
+    found, stderr = _probed(page, probed, ["--enable-logging=stderr", "--v=0"], timeout)
+    found["console"] = [ln for ln in stderr.splitlines()
                         if "CONSOLE" in ln and ("rror" in ln or "Uncaught" in ln)]  # fmt: skip
     return found
 
@@ -106,19 +112,7 @@ def layout(page: Path, width: int, timeout: float = 120.0) -> dict:
     """``{"plots": [...], "blocks": [...]}`` of ``page`` in a window ``width`` px wide
     (:data:`_LAYOUT`)."""
     text = page.read_text(encoding="utf-8").replace("</body>", _LAYOUT + "</body>", 1)
-    with tempfile.TemporaryDirectory() as tmp:
-        copy = Path(tmp) / page.name
-        copy.write_text(text, encoding="utf-8")
-        proc = subprocess.run(
-            [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-             f"--user-data-dir={tmp}/profile", f"--window-size={width},2000",
-             "--hide-scrollbars", "--virtual-time-budget=20000", "--dump-dom", copy.as_uri()],
-            capture_output=True, text=True, timeout=timeout, check=False,
-        )  # fmt: skip
-    m = re.search(r'<pre id="probe">(.*?)</pre>', proc.stdout, re.S)
-    if not m:
-        raise AssertionError(f"the page's probe did not run; chromium said: {proc.stderr[-2000:]}")
-    found = json.loads(m.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    found, _ = _probed(page, text, [f"--window-size={width},2000", "--hide-scrollbars"], timeout)
     if "error" in found:
         raise AssertionError(f"the layout probe failed: {found['error']}")
     return found
