@@ -49,9 +49,9 @@ const range = (lo, hi) => new Bokeh.Range1d({start: lo, end: hi});
 // a panel of a grid (a figure of more than one column) is narrower: fewer ticks; its
 // legend is under the grid (:func:`legend`: one for every panel)
 function wrap(text, width) {  // each line at most width characters, broken at spaces
-  return text.split("\n").map((line) => {
+  return text.split("\n").map((line) => {  // not inside "K_c = 2": no-break spaces there
     const out = [];
-    for (const word of line.split(" ")) {
+    for (const word of line.replace(/ = /g, "\u00a0=\u00a0").split(" ")) {
       const last = out.length - 1;
       if (last >= 0 && out[last].length + 1 + word.length <= width) out[last] += " " + word;
       else out.push(word);
