@@ -80,6 +80,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout.write(overview(parser))
         return 0
     args.argv = list(sys.argv[1:] if argv is None else argv)  # for "resume with: ..."
+    from .. import progress
+
+    progress.set_quiet(getattr(args, "quiet", False) or getattr(args, "no_progress", False))
     _notes_to_stderr()
     _matplotlib_cache()
     with warnings.catch_warnings():
