@@ -297,9 +297,20 @@ class RunProgress:
         self._bar: Any = None
         self._lines = 0
         self._counted = False
+        self._mask = 0 if real_time is not None else 63  # the clock read every 64 rows
 
     def __getattr__(self, name: str) -> Any:  # n_rows, path, ... of the inner recorder
-        return getattr(self.inner, name)
+        value = getattr(self.inner, name)
+        if name != "rows_block":
+            return value
+
+        def rows_block(values: Any, nrows: int, ncol: int) -> None:  # the C loop's blocks
+            value(values, nrows, ncol)
+            self.n += nrows
+            if self.mode != "off" and time.perf_counter() >= self._next:
+                self._show()
+
+        return rows_block
 
     def start(self, columns: Sequence[str]) -> None:
         self.inner.start(columns)
@@ -307,14 +318,16 @@ class RunProgress:
     def row(self, values: Sequence[float]) -> None:
         self.inner.row(values)
         self.n += 1
-        if not self.n & 63 and self.mode != "off" and time.perf_counter() >= self._next:
+        if not self.n & self._mask and self.mode != "off" and time.perf_counter() >= self._next:
             self._show()
 
-    def _text(self, elapsed: float, frac: float) -> str:
+    def _text(self, elapsed: float, frac: float, final: bool = False) -> str:
         t = frac * self.stop_time
         if self.real_time is not None:
             return (f"run --real-time: {elapsed:.0f} s of {self.real_time:.0f} s "
                     f"(t = {t:.1f} / {self.stop_time:g} s)")  # fmt: skip
+        if final:
+            return f"run: t = {t:.1f} / {self.stop_time:g} s simulated in {elapsed:.0f} s"
         left = elapsed * (1 - frac) / frac if frac > 0 else 0.0
         return (f"run: t = {t:.1f} / {self.stop_time:g} s simulated, {elapsed:.0f} s elapsed, "
                 f"about {left:.0f} s left")  # fmt: skip
@@ -354,7 +367,7 @@ class RunProgress:
             self._bar.close()  # leave=False: the line is cleared
         elif self._lines:
             frac = min(self.n / self.rows, 1.0)
-            _write_line(self.stream, self._text(time.perf_counter() - self.t0, frac))
+            _write_line(self.stream, self._text(time.perf_counter() - self.t0, frac, True))
         if self._counted:
             with _lock:
                 _shown -= 1

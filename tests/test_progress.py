@@ -121,18 +121,37 @@ def test_a_long_run_as_plain_lines(monkeypatch):
     lines = out.getvalue().splitlines()
     assert len(lines) == 5 and "\r" not in out.getvalue()  # rows 64, 128, 192, 256, the end
     assert lines[0].startswith("run: t = 1.3 / 5.12 s simulated, 0 s elapsed, about ")
-    assert lines[-1].startswith("run: t = 5.1 / 5.12 s simulated")
+    assert lines[-1] == "run: t = 5.1 / 5.12 s simulated in 0 s"
 
 
 def test_a_real_time_run_shows_its_wall_time_against_the_total(monkeypatch):
     out = io.StringIO()
     monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
-    monkeypatch.setattr(progress, "LINE_EVERY_S", 0.0)
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 1e9)  # the first line and the last
     _run(progress.RunProgress(_Rec(), rows=128, stop_time=60, real_time=30.0, stream=out), 64)
     assert out.getvalue().splitlines() == [
-        "run --real-time: 0 s of 30 s (t = 30.0 / 60 s)",
+        "run --real-time: 0 s of 30 s (t = 0.5 / 60 s)",  # paced rows: the clock each row
         "run --real-time: 0 s of 30 s (t = 30.0 / 60 s)",
     ]
+
+
+def test_the_c_loops_blocks_are_counted(monkeypatch):
+    """A native run hands its rows over in blocks (``rows_block``): they count too, and a
+    recorder without blocks gets none offered."""
+    out, seen = io.StringIO(), []
+
+    class Blocks(_Rec):
+        def rows_block(self, values, nrows, ncol):
+            seen.append(nrows)
+
+    monkeypatch.setattr(progress, "SHOW_AFTER_S", 0.0)
+    monkeypatch.setattr(progress, "LINE_EVERY_S", 1e9)
+    rec = progress.RunProgress(Blocks(), rows=1000, stop_time=20.0, stream=out)
+    rec.start(["time"])
+    rec.rows_block([0.0] * 500, 500, 1)
+    rec.close()
+    assert seen == [500] and out.getvalue().splitlines()[0].startswith("run: t = 10.0 / 20 s")
+    assert getattr(progress.RunProgress(_Rec(), 10, 1.0, stream=out), "rows_block", None) is None
 
 
 def test_a_short_run_shows_nothing():
