@@ -279,3 +279,11 @@ def test_every_command_takes_quiet_with_its_default_in_help():
         assert "default: off" in quiet.help and "plain lines" in quiet.help, name
     args = parser.parse_args(["run", "--quiet"])
     assert args.quiet is True
+
+
+def test_quiet_holds_for_its_command_only(capsys):
+    from glider_cosim.cli.main import main
+
+    assert main(["scenarios", "--quiet"]) == 0
+    assert "default" in capsys.readouterr().out
+    assert not progress.is_quiet()  # the next command (or test) in this process shows again
