@@ -3,6 +3,8 @@ loops, observer, stable K_c ranges."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 
@@ -23,9 +25,27 @@ from glider_plant.params import GliderParams
 P = GliderParams()
 
 
+#: what ``analyze()`` wrote on stderr (a file: plain progress lines), for the test below
+SHOWN: list[str] = []
+
+
 @pytest.fixture(scope="module")
 def result():
-    return analyze()
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        found = analyze()
+    SHOWN.append(err.getvalue())
+    return found
+
+
+def test_analyze_shows_its_steps(result):
+    """``glider-cosim analyze`` takes about 3 s: its steps show as they start (issue 45)."""
+    assert SHOWN[0].splitlines() == [
+        "analyze: the closed loop at 9 gains K_c (1 of 5)",
+        "analyze: the stable K_c ranges at K_Fdelta = 15 (2 of 5)",
+        "analyze: the stable K_c ranges at K_Fdelta = 29.5 (3 of 5)",
+        "analyze: the stable K_c ranges at K_Fdelta = 45 (4 of 5)",
+        "analyze: the stable K_c ranges at K_Fdelta = 29.5 (the model's) (5 of 5)",
+    ]
 
 
 def test_json_object_with_the_contract_keys(result):

@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: third-party packages that must stay out of the help path
-HEAVY = ("numpy", "fmpy", "matplotlib", "bokeh", "dask", "distributed", "pyarrow", "PIL")
+HEAVY = ("numpy", "fmpy", "matplotlib", "bokeh", "dask", "distributed", "pyarrow", "PIL", "tqdm")
 
 
 def _imported(code: str) -> set[str]:
@@ -67,9 +67,10 @@ def test_the_lazy_packages_still_export_their_names():
 
 def test_the_run_path_imports_no_plotting_package():
     # a run without plots (``--no-plots``, ``simulate(out=None)``) needs neither matplotlib
-    # nor PIL: 0.4-0.5 s; the drawing process imports them, not the run
+    # nor PIL: 0.4-0.5 s; the drawing process imports them, not the run; nor tqdm (50 ms),
+    # imported only when a progress bar is drawn
     code = "import glider_cosim.runner.run, glider_cosim.runner.drawing, glider_cosim.cli.main"
-    assert _imported(code) & {"matplotlib", "PIL"} == set()
+    assert _imported(code) & {"matplotlib", "PIL", "tqdm"} == set()
 
 
 def _cli(*argv: str) -> subprocess.CompletedProcess:

@@ -266,8 +266,11 @@ def test_an_osp_description_left_without_a_record_is_ours(tmp_path):
     whose FMUs were deleted to rebuild them: the OSP-IS files there are ours."""
     d = tmp_path / "fmus"
     d.mkdir()
-    osp = Path(__file__).resolve().parents[1] / "fmus" / "GliderPlant_OspModelDescription.xml"
-    (d / osp.name).write_bytes(osp.read_bytes())
+    from glider_cosim.fmus.osp import NS
+
+    osp = d / "GliderPlant_OspModelDescription.xml"  # the root element OSP-IS's builds write
+    osp.write_text(f'<?xml version="1.0" encoding="UTF-8"?>\n<OspModelDescription xmlns="{NS}" '
+                   'version="1.0"><UnitDefinitions/></OspModelDescription>\n')  # fmt: skip
     (d / "GliderController_OspModelDescription.xml").write_text("<OspModelDescription/>")
     held = record.survey(d, [f"{n}.fmu" for n in NAMES], None)
     assert held[osp.name].state == "ours"

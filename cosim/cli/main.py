@@ -80,11 +80,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout.write(overview(parser))
         return 0
     args.argv = list(sys.argv[1:] if argv is None else argv)  # for "resume with: ..."
+    from .. import progress
+
+    was_quiet = progress.is_quiet()  # --quiet for this command only (main runs in tests too)
+    progress.set_quiet(getattr(args, "quiet", False) or getattr(args, "no_progress", False))
     _notes_to_stderr()
     _matplotlib_cache()
-    with warnings.catch_warnings():
-        warnings.showwarning = _one_line_warning
-        return _main(args)
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return _main(args)
+    finally:
+        progress.set_quiet(was_quiet)
 
 
 def error_prefix(command: str | None) -> str:

@@ -311,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
     rep.add_argument("--out", default="out/report", help="report folder")
     add_fmu_options(rep)
-    rep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rep.add_argument("--no-progress", action="store_true", help="the same as --quiet")
     rep.add_argument("--no-plots", action="store_true",
                      help="skip report.html (the PNGs stay: report.md shows them)")  # fmt: skip
     rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
@@ -355,4 +355,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="remove the folders of other glider-cosim versions (this version's sets of "
         "other sources are kept)",
     )
+    for command in sub.choices.values():  # every command: builds, runs and sweeps wait
+        command.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     return p
+
+
+#: ``--quiet``'s help, on every command
+QUIET_HELP = (
+    "no progress on stderr (default: off, so every wait over 2 s shows what is being done "
+    "and how far: a bar on a terminal, plain lines in a pipe, a file or CI); results, "
+    "notes and errors still print"
+)

@@ -10,8 +10,9 @@ import os
 import sys
 import uuid
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 #: the resource naming an FMU's flavor (``python`` or ``native``)
 FLAVOR_FILE = "resources/glider_cosim_flavor.txt"
@@ -69,8 +70,13 @@ def cache_root() -> Path:
     platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
     ``%LOCALAPPDATA%`` on Windows."""
     own = os.environ.get(CACHE_ENV)
-    if own:
-        return Path(own)
+    return Path(own) if own else user_cache() / "glider-cosim"
+
+
+def user_cache() -> Path:
+    """The platform's per-user cache folder: ``$XDG_CACHE_HOME`` (absolute), else
+    ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows
+    (where zig keeps its cache too)."""
     xdg = os.environ.get("XDG_CACHE_HOME")
     if xdg and os.path.isabs(xdg):
         base = Path(xdg)
@@ -80,4 +86,20 @@ def cache_root() -> Path:
         base = Path.home() / "Library" / "Caches"
     else:
         base = Path.home() / ".cache"
-    return base / "glider-cosim"
+    return base
+
+
+def build_progress(
+    todo: Iterable[Any], flavor: str, fmi: int, out: Path, platforms: Iterable[str]
+) -> Any:
+    """The :class:`~glider_cosim.progress.Progress` of a build of the FMUs ``todo`` (each
+    with a ``name``), its first line naming them, the flavor, the FMI version, the
+    platforms and the folder: ``building GliderPlant, GliderObserver, GliderController
+    (native, FMI 2.0, for x86_64-linux) into ~/.cache/glider-cosim/...``. Its steps are
+    set by the build."""
+    from ..progress import Progress, home
+
+    names = ", ".join(c.name for c in todo)
+    header = (f"building {names} ({flavor}, FMI {fmi}.0, for {', '.join(platforms)}) into "
+              f"{home(Path(out).absolute())}")  # fmt: skip
+    return Progress(1, "build", header)

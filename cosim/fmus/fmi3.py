@@ -24,9 +24,9 @@ from pathlib import Path
 from glider_fmi import compile as runtime
 
 from . import native, osp
-from .files import replacing
+from .files import build_progress, replacing
 from .fmi3_description import fmi3_model_description
-from .python import COMPONENTS, build_component, source_hash
+from .python import COMPONENTS, build_component, shown_runtimes, source_hash
 
 log = logging.getLogger(__name__)
 
@@ -101,10 +101,14 @@ def build_fmi3(
     todo = [c for c in chosen if c.name in force or c in stale]
     if not todo:
         return result
-    with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp:
+    platforms = runtime.PYTHON_PLATFORMS
+    with tempfile.TemporaryDirectory(prefix="glider_fmi3_") as tmp, \
+            build_progress(todo, "python", 3, out, platforms) as progress:  # fmt: skip
         stage = Path(tmp)
-        so3 = runtime.compile_runtimes(stage, fmi3=True)
-        so2 = runtime.compile_runtimes(stage)
+        progress.set_total(2 + len(todo))
+        so3 = shown_runtimes(stage, progress, fmi3=True)
+        so2 = shown_runtimes(stage, progress)
         for c in todo:
+            progress.step(f"building {c.name}.fmu python")
             result[c.name] = _repackage(build_component(c, stage / "fmi2", so2), out, so3)
     return result

@@ -9,12 +9,19 @@ import zipfile
 from collections.abc import Collection
 from pathlib import Path
 
-from glider_fmi import compile as runtime
+from glider_fmi.compile import PYTHON_PLATFORMS
 from glider_fmi.toolchain import host_platform
 
 from ..inputs.text import quote
 from . import osp, record
-from .files import CACHE_ENV, cache_root, file_sha256, fmu_flavor, package_version  # noqa: F401
+from .files import (  # noqa: F401 (re-exported)
+    CACHE_ENV,
+    build_progress,
+    cache_root,
+    file_sha256,
+    fmu_flavor,
+    package_version,
+)
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
 from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
@@ -23,6 +30,7 @@ from .python import (
     DEFAULT_DIRS_FMI3,
     build_component,
     is_current,
+    shown_runtimes,
     source_hash,
 )
 from .record import FmuFolderError  # noqa: F401 (re-exported)
@@ -235,9 +243,12 @@ def _build(
     todo = [c for c in wanted if c.name in force or c in stale]
     result = {c.name: out / f"{c.name}.fmu" for c in wanted}
     if todo:
-        with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp:
-            binary = runtime.compile_runtimes(tmp)
+        with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp, \
+                build_progress(todo, "python", 2, out, PYTHON_PLATFORMS) as progress:  # fmt: skip
+            progress.set_total(1 + len(todo))
+            binary = shown_runtimes(tmp, progress)
             for c in todo:
+                progress.step(f"building {c.name}.fmu python")
                 result[c.name] = build_component(c, out, binary)
     return _with_osp(result)
 

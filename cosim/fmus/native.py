@@ -33,7 +33,7 @@ import glider_plant
 from glider_fmi import toolchain
 
 from . import objects, osp, platforms
-from .files import FLAVOR_FILE, package_version, replacing
+from .files import FLAVOR_FILE, build_progress, package_version, replacing
 from .native_description import build_description, model_description
 from .platforms import binary_entries, zip_member
 
@@ -319,12 +319,13 @@ def build_native_components(
     if not keys:
         raise NativeBuildError(f"--compiler {chain.spec} builds no platform")
     targets = [objects.Target(k, toolchain.PLATFORMS[k], chain.for_platform(k)) for k in keys]
-    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
+    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp, \
+            build_progress(todo, "native", fmi, out, keys) as progress:  # fmt: skip
         stage = Path(tmp)
         src = staged_sources(fmi, chain, stage)
         sources = {c.name: [src / f.name for f in source_files(c, fmi)] for c in todo}
         try:
-            built = objects.build_binaries(sources, targets, CFLAGS, stage)
+            built = objects.build_binaries(sources, targets, CFLAGS, stage, progress=progress)
         except toolchain.ToolchainError as err:
             raise NativeBuildError(str(err)) from None
         return {c.name: _package(c, out, chain, fmi, src, built[c.name]) for c in todo}

@@ -27,11 +27,15 @@ import uuid
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from glider_fmi import compile as runtime
 from glider_fmi import toolchain
 
-from .files import cache_root, package_version
+from .files import cache_root, package_version, user_cache
+
+if TYPE_CHECKING:
+    from ..progress import Progress
 
 log = logging.getLogger(__name__)
 
@@ -175,11 +179,71 @@ def _link(target: Target, cflags: tuple[str, ...], objects: list[Path], output: 
         raise toolchain.ToolchainError(f"linking {output.name} ({target.key}) wrote no file")
 
 
+#: zig's first build of a target's C runtime into its cache: the time it takes here, by OS
+ZIG_FIRST_BUILD = {"windows": ("its C runtime (mingw-w64)", "about 2 min"),
+                   "linux": ("its glibc stubs", "about 5 s")}  # fmt: skip
+#: ELF machine numbers of zig's glibc stubs (``libc.so.6`` in its cache), by arch
+_ELF_MACHINE = {"x86_64": 62, "aarch64": 183}
+
+
+def zig_cache() -> Path:
+    """zig's global cache: ``$ZIG_GLOBAL_CACHE_DIR``, else ``zig`` in the platform's cache
+    folder (:func:`~glider_cosim.fmus.files.user_cache`)."""
+    own = os.environ.get("ZIG_GLOBAL_CACHE_DIR")
+    return Path(own) if own else user_cache() / "zig"
+
+
+def _zig_has(platform: toolchain.Platform) -> bool:
+    """True if zig's cache holds the C runtime pieces it links ``platform`` with (mingw-w64's
+    ``libmingw32.lib``; a ``libc.so.6`` stub of the platform's architecture)."""
+    objects = zig_cache() / "o"
+    try:
+        if platform.os == "windows":
+            return any(objects.glob("*/libmingw32.lib"))
+        for stub in objects.glob("*/libc.so.6"):
+            with stub.open("rb") as f:
+                head = f.read(20)
+            if len(head) == 20 and int.from_bytes(head[18:20], "little") == _ELF_MACHINE.get(
+                platform.arch
+            ):
+                return True
+    except OSError:
+        return False
+    return False
+
+
+def zig_first_note(target: Target) -> str | None:
+    """A line naming zig's one-time build of ``target``'s C runtime into its cache, when
+    zig builds it and its cache does not hold it yet (None otherwise): the wait of a
+    machine's first build, e.g. "zig builds its C runtime (mingw-w64) for x86_64-windows
+    once into ~/.cache/zig (about 2 min)"."""
+    first = ZIG_FIRST_BUILD.get(target.platform.os)
+    if first is None or not target.compiler.is_zig or _zig_has(target.platform):
+        return None
+    from ..progress import home
+
+    return f"zig builds {first[0]} for {target.key} once into {home(zig_cache())} ({first[1]})"
+
+
 def _run_all(jobs: list[Callable[[], None]], workers: int) -> None:
     """Run ``jobs`` in one pool; the first error, after every job has ended."""
     with concurrent.futures.ThreadPoolExecutor(max(1, workers)) as pool:
         for future in [pool.submit(job) for job in jobs]:
             future.result()
+
+
+def _shown(
+    job: Callable[[], None], label: str, progress: Progress, note: str | None = None
+) -> Callable[[], None]:
+    """``job``, announced on ``progress`` as it starts (``note`` first, on a line of its own)."""
+
+    def run() -> None:
+        if note:
+            progress.note(note)
+        progress.step(label)
+        job()
+
+    return run
 
 
 @dataclass
@@ -201,6 +265,7 @@ def build_binaries(
     cflags: tuple[str, ...],
     stage: Path,
     workers: int | None = None,
+    progress: Progress | None = None,
 ) -> dict[str, dict[str, Path]]:
     """Every FMU's library for every target: FMU name -> platform key -> library.
 
@@ -218,6 +283,10 @@ def build_binaries(
         and the objects too when the cache cannot be written.
     workers : int, optional
         Threads of the pool (default: the machine's cores).
+    progress : Progress, optional
+        Shows each compile and link as it starts (``compiling plant_model.c for
+        x86_64-linux (3 of 12)``, ``building GliderPlant.fmu native x86_64-linux (10 of
+        12)``), and zig's one-time build of a platform's C runtime (:func:`zig_first_note`).
 
     Raises
     ------
@@ -229,22 +298,33 @@ def build_binaries(
     sources = sorted({p for files in fmus.values() for p in files if p.suffix == ".c"})
     objects: dict[tuple[str, Path], Path] = {}
     compiles: list[Callable[[], None]] = []
+    labels: list[str] = []
     for t in targets:
         for src in sources:
             obj = folder / t.key / f"{object_key(t, cflags, src, digest)[:32]}.o"
             objects[t.key, src] = obj
             if not obj.is_file():
                 compiles.append(lambda t=t, src=src, obj=obj: _compile(t, cflags, src, obj))
+                labels.append(f"compiling {src.name} for {t.key}")
     workers = workers or os.cpu_count() or 1
+    if progress is not None:
+        progress.set_total(len(compiles) + len(fmus) * len(targets))
+        compiles = [_shown(job, label, progress) for job, label in zip(compiles, labels)]
     _run_all(compiles, workers)
     built: dict[str, dict[str, Path]] = {name: {} for name in fmus}
     links: list[Callable[[], None]] = []
+    noted: set[str] = set()
     for name, files in fmus.items():
         for t in targets:
             objs = [objects[t.key, p] for p in files if p.suffix == ".c"]
             out = stage / t.key / f"{name}{t.platform.suffix}"
             built[name][t.key] = out
-            links.append(lambda t=t, objs=objs, out=out: _link(t, cflags, objs, out))
+            link = lambda t=t, objs=objs, out=out: _link(t, cflags, objs, out)  # noqa: E731
+            if progress is not None:
+                note = zig_first_note(t) if t.key not in noted else None
+                noted.add(t.key)
+                link = _shown(link, f"building {name}.fmu native {t.key}", progress, note)
+            links.append(link)
     _run_all(links, workers)
     LAST.compiled, LAST.reused, LAST.linked = (
         len(compiles), len(objects) - len(compiles), len(links),

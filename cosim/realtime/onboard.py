@@ -62,6 +62,7 @@ def build_onboard(out: Path, target: str | None = None, component: str = "contro
             shutil.copy(f, stage / f.name)
         (stage / f"{c.name}_vars.h").write_text(vars_header(c))
         sources = sorted(str(p) for p in stage.glob("*.c"))
+        _say_zig_first(target)
         libs = ["-lws2_32"] if "windows" in target else ["-lm"]
         cmd = [*toolchain.zig_command(), "-target",
                toolchain.PLATFORMS[target].zig_target, *CFLAGS,
@@ -73,3 +74,15 @@ def build_onboard(out: Path, target: str | None = None, component: str = "contro
             raise OnboardBuildError(f"build-onboard ({target}): the compiler says: {first}")
         shutil.copy(stage / name, out / name)
     return out / name
+
+
+def _say_zig_first(target: str) -> None:
+    """zig's one-time build of ``target``'s C runtime into its cache, named if it is to come
+    (:func:`glider_cosim.fmus.objects.zig_first_note`): the only long wait of this build."""
+    from ..fmus.objects import Target, zig_first_note
+    from ..progress import say
+
+    zig = toolchain.select("zig").for_platform(target)
+    note = zig_first_note(Target(target, toolchain.PLATFORMS[target], zig)) if zig else None
+    if note:
+        say(f"build-onboard: {note}")

@@ -298,10 +298,11 @@ def simulate(
                 recorder = CsvRecorder(files["results"])
         else:
             recorder = ArrayRecorder()
-        from .progress import RunProgress, wanted
+        from ..progress import RunProgress, mode
 
-        if wanted():  # a terminal: the simulated time reached, for runs of more than 2 s
-            recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop)
+        if mode() != "off":  # the simulated time reached, for runs of more than 2 s
+            wall = None if real_time is None else (stop - sim.t0) / real_time.rtf
+            recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop, wall)
         status, message = "ok", ""
         interrupt: Interrupted | None = None
         failure: Exception | None = None

@@ -226,10 +226,20 @@ def analyze(
     h: float = 0.02,
     tau_servo: float = 0.01,
 ) -> dict[str, Any]:
-    """Everything ``glider-cosim analyze`` reports, as a JSON-serialisable dict."""
-    p = p or GliderParams()
+    """Everything ``glider-cosim analyze`` reports, as a JSON-serialisable dict (about 3 s:
+    its five steps shown on stderr, :mod:`glider_cosim.progress`)."""
+    from ..progress import Progress
+
+    with Progress(5, "analyze") as bar:
+        return _analyze(p or GliderParams(), K_c_list, h, tau_servo, bar)
+
+
+def _analyze(
+    p: GliderParams, K_c_list: Sequence[float], h: float, tau_servo: float, bar: Any
+) -> dict[str, Any]:
     e = equilibrium(p)
     per_kc = []
+    bar.step(f"analyze: the closed loop at {len(K_c_list)} gains K_c")
     for k in K_c_list:
         ev = np.linalg.eigvals(closed_loop_matrix(p, k))
         zs = sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo)
@@ -245,10 +255,12 @@ def analyze(
         })  # fmt: skip
     sens = {}
     for kf in (15.0, 29.5, 45.0):
+        bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {kf:g}")
         pk = GliderParams(**{**p.as_dict(), "K_Fdelta": kf})
         r = stable_kc_ranges(pk, h, tau_servo)
         sens[f"{kf:g}"] = {"continuous": r["continuous"], "sampled": r["sampled"]}
     ol = np.linalg.eigvals(closed_loop_matrix(p, None))
+    bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {p.K_Fdelta:g} (the model's)")
     return {
         "equilibrium": {"V": e.V, "theta_g": e.theta_g, "alpha": e.alpha, "omega2": e.omega2},
         "time_scales": time_scales(p),

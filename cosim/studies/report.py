@@ -16,10 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..progress import Progress, dask_start, home
 from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
 from ..runner.pages import keep_figures, run_settings, write_report_page
-from ..runner.progress import Progress
-from ..runner.progress import wanted as progress_wanted
 from ..runner.run import RunResult, simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
@@ -132,6 +131,8 @@ def build_report(
     ``page``: also write ``report.html``, the figures interactive (zoom, hover, legend).
     ``written``: a list that gets the paths of the documents written: ``report.md``,
     ``report.html`` (if it was written) and ``report.json``.
+    ``progress``: each step on stderr as it starts (:mod:`glider_cosim.progress`: a bar
+    on a terminal, plain lines otherwise; nothing after ``--quiet``).
     """
     from ..fmus.folders import build_all, fmu_folder
 
@@ -139,46 +140,65 @@ def build_report(
     out.mkdir(parents=True, exist_ok=True)
     fmu_dir = fmu_folder(fmu_dir)
     build_all(fmu_dir, only_stale=True)
-    total = sum(len(f.runs) for f in FIGURES) + 5
-    bar = Progress(total) if progress and progress_wanted() else None
+    from .roa import CASES as ROA_CASES
+
+    # every step announced as it starts: the figures' runs, four studies, the map (the
+    # Dask workers' start, each case; or its skip), each drawing and the page
+    roa = 1 if roa_grid is None else 1 + len(ROA_CASES)
+    drawings = len(FIGURES) + 2 + (roa_grid is not None) + page
+    total = sum(len(f.runs) for f in FIGURES) + 4 + roa + drawings
+    header = f"report: {total} steps into {home(out.absolute())}"
+    with Progress(total, "report", header, quiet=not progress) as bar:
+        return _build(out, fmu_dir, analysis, roa_grid, workers, scheduler, page, bar, written)
+
+
+def _build(
+    out: Path,
+    fmu_dir: Path,
+    analysis: Callable[[], dict[str, Any]] | None,
+    roa_grid: tuple[int, int] | None,
+    workers: int,
+    scheduler: str | None,
+    page: bool,
+    bar: Progress,
+    written: list[Path] | None,
+) -> Path:
+    """:func:`build_report`'s work, each step announced on ``bar``."""
     results: dict[str, list[tuple[Run, RunResult]]] = {}
     for fig in FIGURES:
         results[fig.key] = []
         for run in fig.runs:
+            bar.step(f"report: running {fig.key}: {run.label}")
             sc = apply_overrides(load_scenario(run.scenario), run.overrides)
             r = simulate(sc, None, fmu_dir=fmu_dir, build=False)
             results[fig.key].append((run, r))
-            if bar:
-                bar.step(f"{fig.key}: {run.label}")
+    bar.step("report: the analysis (equilibrium, eigenvalues, stable K_c ranges)")
     an = analysis() if analysis is not None else None
-    if bar:
-        bar.step("analysis")
+    bar.step("report: the K_c map")
     kc_rows = kc_map(fmu_dir)
-    if bar:
-        bar.step("K_c map")
+    bar.step("report: the communication step study")
     study = _step_study(fmu_dir)
-    if bar:
-        bar.step("communication step study")
+    bar.step("report: Sec. 5.2, the held tail")
     held = held_tail_study()
     sec52 = run_sec52(fmu_dir, held["k_star"])
-    if bar:
-        bar.step("Sec. 5.2: held tail")
     roa_lines: list[str] = []
     maps = []
     html_page = None
-    if roa_grid is not None:
+    if roa_grid is None:
+        bar.step("report: the region-of-attraction map (skipped: --roa-grid none)")
+    else:
         from ..sweeps.sweep import make_client
         from .roa import plot_roa, roa_markdown, run_roa
 
+        bar.step(f"report: {dask_start(workers, scheduler)} for the region-of-attraction map")
         client = make_client(workers, scheduler)
         try:
-            maps = run_roa(out / "roa", fmu_dir.resolve(), roa_grid, client)
+            maps = run_roa(out / "roa", fmu_dir.resolve(), roa_grid, client,
+                           progress=lambda what: bar.step(f"report: {what}"))  # fmt: skip
         finally:
             client.close()
             if not scheduler and client.cluster is not None:
                 client.cluster.close()
-    if bar:
-        bar.step("region of attraction" if maps else "region of attraction (skipped)")
     options = {"--out": out, "--fmu-dir": fmu_dir,
                "--roa-grid": "none" if roa_grid is None else f"{roa_grid[0]}x{roa_grid[1]}",
                **({} if roa_grid is None else  # the map's cluster
@@ -188,13 +208,21 @@ def build_report(
     every_run += [study["literal"], *(x.result for x in sec52)]
     made = report_provenance(every_run, options, roa_grid, maps)
     with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
-        pngs = {fig.key: (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
-            fig, results[fig.key], out) for fig in FIGURES}  # fmt: skip
+        pngs = {}
+        for fig in FIGURES:
+            bar.step(f"report: drawing {fig.key}")
+            pngs[fig.key] = (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
+                fig, results[fig.key], out)  # fmt: skip
+        bar.step("report: drawing the step study")
         pngs["steps"] = plot_steps(study, out)
+        bar.step("report: drawing fig8")
         pngs["fig8"] = plot_sec52(sec52, out)
+        if roa_grid is not None:
+            bar.step("report: drawing the region-of-attraction map")
         if maps:
             roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
         if page:
+            bar.step("report: writing report.html")
             settings = {"How this report was made": made, **report_settings(results)}
             html_page = write_report_page(out, figures, settings).get("page")
     text = report_markdown(results, an, study, pngs,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -99,10 +100,16 @@ def _scenario(case: RoaCase) -> Scenario:
 
 
 def run_roa(
-    out: Path, fmu_dir: Path, grid: tuple[int, int], client: Any, cases=CASES
+    out: Path,
+    fmu_dir: Path,
+    grid: tuple[int, int],
+    client: Any,
+    cases=CASES,
+    progress: Callable[[str], None] | None = None,
 ) -> list[RoaMap]:
     """Sweep every case over the grid on the Dask ``client`` (results in
-    ``out/<case>/sweep.csv``, recomputed each time)."""
+    ``out/<case>/sweep.csv``, recomputed each time); ``progress`` is told each case as it
+    starts."""
     from ..sweeps.sweep import ParamSpec, expand, run_sweep
 
     n, m = grid
@@ -110,6 +117,8 @@ def run_roa(
     vs = np.linspace(*V_RANGE, m)
     maps = []
     for case in cases:
+        if progress is not None:
+            progress(f"the region-of-attraction map: {case.key}, {n * m} runs")
         sc = _scenario(case)
         specs = [ParamSpec("plant.theta_g_0", tuple(float(x) for x in th)),
                  ParamSpec("plant.V_0", tuple(float(v) for v in vs))]  # fmt: skip

@@ -239,19 +239,20 @@ def main(args: argparse.Namespace) -> int:
     spec = spec_text(args, specs)
     check_folder(out, [r["run_id"] for r in runs], spec, args.restart)  # before Dask starts
 
-    from ..runner.progress import sweep_line
+    from ..progress import dask_start, say, sweep_progress
 
-    progress = sweep_line()  # None in a pipe or CI: nothing printed
-
+    say(f"sweep: {dask_start(args.workers, args.scheduler)}")
     try:
         client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
         try:
             check_workers(client)
             if args.dashboard:
                 print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
-            res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
-                            trajectories=args.trajectories, restart=args.restart,
-                            progress=progress, spec=spec)  # fmt: skip
+            progress, bar = sweep_progress()  # runs done, failed, runs/s
+            with bar:
+                res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
+                                trajectories=args.trajectories, restart=args.restart,
+                                progress=progress, spec=spec)  # fmt: skip
         finally:
             client.close()
             if not args.scheduler and client.cluster is not None:
@@ -264,6 +265,7 @@ def main(args: argparse.Namespace) -> int:
 
         pq.write_table(pacsv.read_csv(res.path), out / "sweep.parquet")
     if not args.no_plots:
+        say(f"sweep: drawing the plots into {out}")
         write_plots(res.path, out)
     print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
           f"{res.failed} failed, {res.runs_per_s:.2f} runs/s; {res.failed_total} of "
