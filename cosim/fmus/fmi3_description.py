@@ -75,11 +75,11 @@ def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> by
         group = s2.find(tag)
         for u in group if group is not None else ():
             attrs = {"valueReference": vr_of_index[int(u.get("index"))]}
-            deps = (u.get("dependencies") or "").split()
-            if deps or u.get("dependencies") == "":
+            if u.get("dependencies") is not None:  # as value references (FMI 3)
+                deps = u.get("dependencies").split()
                 attrs["dependencies"] = " ".join(vr_of_index[int(d)] for d in deps)
-            if u.get("dependenciesKind") and deps:
-                attrs["dependenciesKind"] = u.get("dependenciesKind")
+                if u.get("dependenciesKind") is not None:
+                    attrs["dependenciesKind"] = u.get("dependenciesKind")
             ET.SubElement(structure, out_tag, attrs)
     ET.indent(root, "\t")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")

@@ -80,6 +80,14 @@ class GliderController(GliderSlave):
         *model_constant_vars(),
     )
     FEEDTHROUGH = {"delta_cmd": ("V_hat", "theta_g_hat")}
+    # in Initialization Mode the laws run as after Exit (the PI integrator is 0: K_I
+    # does not count); the passivity law uses the equilibrium (K_M0 .. g) and K_Fdelta,
+    # K_udelta
+    INITIAL_DEPENDENCIES = {
+        "delta_cmd": ("V_hat", "theta_g_hat", "law", "K_c", "K_P", "delta_open", "t_enable",
+                      "delta_max", "K_M0", "K_M", "K_L0", "K_L", "K_D0", "K_D", "m0", "g",
+                      "K_Fdelta", "K_udelta"),
+    }  # fmt: skip
     COMPUTED = ("delta_cmd",)  # read through its getter, not the attribute
     INTERNAL_STATE = ("_p", "_eq", "_pi")
 
@@ -103,7 +111,9 @@ class GliderController(GliderSlave):
     def command(self) -> float:
         """Tail command (rad) for the current inputs and time."""
         law = self.law
-        if law == 0 or not self._initialized or self._time < self.t_enable - 1e-9:
+        # in Initialization Mode the laws run as after Exit (initialize() ran before)
+        initialized = self._initialized or self._in_init
+        if law == 0 or not initialized or self._time < self.t_enable - 1e-9:
             return saturate(self.delta_open, self.delta_max)
         if law == 1:
             return passivity_law(

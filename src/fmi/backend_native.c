@@ -119,7 +119,11 @@ static Status refuse_value(Ctx *x, const NativeVar *v, double value) {
     return FAIL(x, "%s = %s is invalid: expected %s", v->name, text, v->expected);
 }
 
-static Status exit_initialization(Ctx *x) {
+/* The initial state and outputs from the parameters, start values and inputs set so far
+ * (range checks first): at fmi2ExitInitializationMode, and in Initialization Mode before
+ * an output is read (FMI's <InitialUnknowns>: the same values as after Exit, bit for bit;
+ * the models' initialize() depends on nothing else). */
+static Status initial_values(Ctx *x) {
     NativeInstance *ni = NI(x->inst);
     char msg[1024] = "";
     size_t i;
@@ -129,8 +133,13 @@ static Status exit_initialization(Ctx *x) {
         if (!in_range(v, number(ni, v))) return refuse_value(x, v, number(ni, v));
     }
     if (M.initialize(ni->model, msg, sizeof msg) != NATIVE_OK) return FAIL(x, "%s", msg);
-    ni->initialized = 1;
     return ST_OK;
+}
+
+static Status exit_initialization(Ctx *x) {
+    Status st = initial_values(x);
+    if (st == ST_OK) NI(x->inst)->initialized = 1;
+    return st;
 }
 
 static Status nat_transition(Ctx *x, int call) {
@@ -139,12 +148,13 @@ static Status nat_transition(Ctx *x, int call) {
 
 /* ------------------------------------------------------------------ value access */
 /* The values of Real variables vr (checked), the computed outputs brought up to date
- * first when one of them is read. */
-static void get_reals(NativeInstance *ni, const ValueRef vr[], size_t nvr, double *out) {
+ * first when one of them is read (as after initialisation when initialized). */
+static void get_reals(NativeInstance *ni, const ValueRef vr[], size_t nvr, double *out,
+                      int initialized) {
     size_t i;
     for (i = 0; M.update && i < nvr; ++i) {
         if (M.vars[vr[i]].computed) {
-            M.update(ni->model, ni->time, ni->initialized);
+            M.update(ni->model, ni->time, initialized);
             break;
         }
     }
@@ -156,7 +166,15 @@ static Status nat_get(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *
     size_t i;
     if (type == T_STRING) return FAIL(x, "the model has no String variables");
     if (type == T_REAL) {
-        get_reals(ni, vr, nvr, out);
+        int init_mode = x->inst->state == S_INIT;
+        for (i = 0; init_mode && i < nvr; ++i) {
+            if (M.vars[vr[i]].causality == NV_OUTPUT) { /* an initial unknown */
+                Status st = initial_values(x);
+                if (st != ST_OK) return st;
+                break;
+            }
+        }
+        get_reals(ni, vr, nvr, out, ni->initialized || init_mode);
         return ST_OK;
     }
     for (i = 0; i < nvr; ++i) { /* Integer and Boolean variables are ints */
@@ -190,17 +208,19 @@ static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const 
 }
 
 /* The exchange's calls without the layer's framing (Backend.quick_real): a get of Real
- * variables, or a set of Real inputs (what nat_set stores without a check); anything
- * else (another reference, an output or parameter set) is left to nat_get/nat_set. */
+ * variables once initialised, or a set of Real inputs (what nat_set stores without a
+ * check); anything else (another reference, an output or parameter set, a get before
+ * Exit) is left to nat_get/nat_set. */
 static int nat_quick_real(Instance *inst, const ValueRef vr[], size_t nvr, const double *in,
                           double *out) {
     NativeInstance *ni = NI(inst);
     size_t i;
+    if (out && !ni->initialized) return 0; /* Initialization Mode computes (nat_get) */
     for (i = 0; i < nvr; ++i) {
         if (vr[i] >= M.nvars || M.var_types[vr[i]] != T_REAL) return 0;
         if (!out && M.vars[vr[i]].causality != NV_INPUT) return 0;
     }
-    if (out) get_reals(ni, vr, nvr, out);
+    if (out) get_reals(ni, vr, nvr, out, 1);
     else
         for (i = 0; i < nvr; ++i) *(double *)value_at(ni, &M.vars[vr[i]]) = in[i];
     return 1;

@@ -85,6 +85,16 @@ def _expected(v: Var) -> str:
     return v.valid.describe(v.type == "Integer")
 
 
+def _dependencies(knowns: Sequence[str], index: dict[str, int]) -> dict[str, str]:
+    """FMI 2's ``dependencies`` (the knowns' indices, ascending) and ``dependenciesKind``
+    (each ``dependent``) of an unknown; both empty when it depends on none."""
+    deps = sorted(index[k] for k in knowns)
+    return {
+        "dependencies": " ".join(map(str, deps)),
+        "dependenciesKind": " ".join("dependent" for _ in deps),
+    }
+
+
 def _tuple_attrgetter(names: Sequence[str]) -> Any:
     """``obj -> tuple(getattr(obj, n) for n in names)``, as one C-level call."""
     if not names:
@@ -100,6 +110,9 @@ class GliderSlave(Fmi2Slave):
 
     VARIABLES: tuple[Var, ...] = ()
     FEEDTHROUGH: dict[str, tuple[str, ...]] = {}
+    #: output -> the inputs and parameters its value in Initialization Mode depends on
+    #: (FMI's <InitialUnknowns> dependencies); None: not declared (then every known)
+    INITIAL_DEPENDENCIES: dict[str, tuple[str, ...]] | None = None
     #: outputs read through a getter that computes them (direct feedthrough)
     COMPUTED: tuple[str, ...] = ()
     #: attributes (besides the variables) saved with the FMU state
@@ -118,6 +131,7 @@ class GliderSlave(Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._initialized = False
+        self._in_init = False  # in Initialization Mode (FMI's <InitialUnknowns> computed)
         self._time = 0.0
         self._discarded = False
         for v in self.VARIABLES:
@@ -152,6 +166,9 @@ class GliderSlave(Fmi2Slave):
             vr: n for vr, n in self._real_names.items() if self._spec_by_vr[vr].causality == "input"
         }
         self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
+        self._outputs_vr = frozenset(
+            vr for vr, v in self._spec_by_vr.items() if v.causality == "output"
+        )
         self._get_cache: dict[tuple[int, ...], Any] = {}
         self._last_get: tuple[Any, Any] = (None, None)  # (references tuple, its getter)
         self._last_set: tuple[Any, tuple[str, ...]] = (None, ())  # (references, input names)
@@ -192,7 +209,8 @@ class GliderSlave(Fmi2Slave):
                 SubElement(ue, "DisplayUnit", name=dname, factor=repr(factor))
         pos = list(root).index(root.find("CoSimulation")) + 1
         root.insert(pos, units)
-        # ModelStructure: outputs with their direct dependencies, InitialUnknowns
+        # ModelStructure: outputs with their direct dependencies (inputs), InitialUnknowns
+        # with theirs in Initialization Mode (inputs and parameters)
         structure = root.find("ModelStructure")
         for child in list(structure):
             structure.remove(child)
@@ -200,14 +218,14 @@ class GliderSlave(Fmi2Slave):
         if outputs:
             out_el = SubElement(structure, "Outputs")
             init_el = SubElement(structure, "InitialUnknowns")
+            initial = self.INITIAL_DEPENDENCIES
             for name in outputs:
-                deps = " ".join(str(index[d]) for d in self.FEEDTHROUGH.get(name, ()))
-                kinds = " ".join("dependent" for _ in self.FEEDTHROUGH.get(name, ()))
-                attrs = {"index": str(index[name]), "dependencies": deps}
-                if deps:
-                    attrs["dependenciesKind"] = kinds
-                SubElement(out_el, "Unknown", attrs)
-                SubElement(init_el, "Unknown", {"index": str(index[name])})
+                attrs = {"index": str(index[name])}
+                feedthrough = _dependencies(self.FEEDTHROUGH.get(name, ()), index)
+                SubElement(out_el, "Unknown", attrs | feedthrough)
+                if initial is not None:
+                    attrs |= _dependencies(initial[name], index)
+                SubElement(init_el, "Unknown", attrs)
         return root
 
     # ----------------------------------------------------------- validation
@@ -243,6 +261,8 @@ class GliderSlave(Fmi2Slave):
         if vrs is last_key:  # the runtime passes the same tuple while the references repeat
             return last(self)
         key = tuple(vrs)
+        if self._in_init and not self._outputs_vr.isdisjoint(key):
+            self._initial_values()  # outputs in Initialization Mode: as after Exit
         fast = self._get_cache.get(key)
         if fast is None:
             getters = self._real_getters
@@ -258,8 +278,8 @@ class GliderSlave(Fmi2Slave):
                 gs = tuple(getters[vr] for vr in key)
                 fast = lambda obj: [g() for g in gs]  # noqa: E731
             self._get_cache[key] = fast
-        if type(vrs) is tuple:  # immutable: its identity can stand for its contents
-            self._last_get = (vrs, fast)
+        if type(vrs) is tuple and not self._in_init:  # immutable: its identity stands
+            self._last_get = (vrs, fast)  # for its contents (not in Initialization Mode)
         return fast(self)  # a sequence (the runtime takes any)
 
     def set_real(self, vrs: Sequence[int], values: Sequence[float]) -> None:
@@ -307,13 +327,24 @@ class GliderSlave(Fmi2Slave):
     def setup_experiment(self, start_time: float, stop_time: float | None, tolerance: float | None):
         self._time = float(start_time)
 
+    def enter_initialization_mode(self) -> None:
+        self._in_init = True
+        self._last_get = (None, None)  # every get in the mode takes _initial_values
+
     def exit_initialization_mode(self) -> None:
+        self._in_init = False
+        self._initial_values()
+        self._initialized = True
+
+    def _initial_values(self) -> None:
+        """The initial state and outputs from the parameters, start values and inputs
+        set so far: at Exit, and in Initialization Mode before an output is read (FMI's
+        <InitialUnknowns>: the same values as after Exit, bit for bit)."""
         self.validate_parameters()
         try:
             self.initialize()
         except ValueError as err:  # the models' consistency checks (ParameterError)
             raise RefusedValueError(str(err)) from err
-        self._initialized = True
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # the runtime refuses steps before initialisation, after a discard and of size <= 0
@@ -344,13 +375,14 @@ class GliderSlave(Fmi2Slave):
     # ---------------------------------------------------------------- state
     def _get_fmu_state(self) -> dict[str, Any]:
         state = {v.name: getattr(self, v.name) for v in self.VARIABLES}
-        for name in ("_initialized", "_time", "_discarded", *self.INTERNAL_STATE):
+        for name in ("_initialized", "_in_init", "_time", "_discarded", *self.INTERNAL_STATE):
             state[name] = copy.deepcopy(getattr(self, name))
         return state
 
     def _set_fmu_state(self, state: dict[str, Any]) -> None:
         for name, value in state.items():
             setattr(self, name, copy.deepcopy(value))
+        self._last_get = (None, None)  # the next get checks the mode (_in_init) again
 
     def _fmu_state_to_bytes(self, state: dict[str, Any]) -> bytes:
         return state_codec.dumps(state, self.STATE_MODULES)
@@ -358,7 +390,7 @@ class GliderSlave(Fmi2Slave):
     def _fmu_state_from_bytes(self, data: bytes) -> dict[str, Any]:
         state = state_codec.loads(data, self.STATE_MODULES)
         expected = {v.name for v in self.VARIABLES}
-        expected.update(("_initialized", "_time", "_discarded", *self.INTERNAL_STATE))
+        expected.update(("_initialized", "_in_init", "_time", "_discarded", *self.INTERNAL_STATE))
         if set(state) != expected:
             missing = sorted(expected - set(state))[:5]
             extra = sorted(set(state) - expected)[:5]

@@ -15,6 +15,10 @@ from glider_plant.model import StallError, equilibrium
 from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 
 _EQ = equilibrium(GliderParams())
+# the model constants the equilibrium's alpha, theta_g and V are computed from
+_EQ_ALPHA = ("K_M0", "K_M")
+_EQ_THETA_G = (*_EQ_ALPHA, "K_L0", "K_L", "K_D0", "K_D")
+_EQ_V = (*_EQ_THETA_G, "m0", "g")
 
 
 class GliderObserver(GliderSlave):
@@ -126,6 +130,21 @@ class GliderObserver(GliderSlave):
             valid=NON_NEGATIVE,
         ),
     )
+    # in Initialization Mode: the pre-filter passes the measured pitch on; the estimate
+    # starts at the model's equilibrium (the constants it is computed from) or at *_hat_0
+    INITIAL_DEPENDENCIES = {
+        "theta_filt": ("theta_meas",),
+        "V_hat": ("start_at_equilibrium", "V_hat_0", *_EQ_V),
+        "theta_g_hat": ("start_at_equilibrium", "theta_g_hat_0", *_EQ_THETA_G),
+        "alpha_hat": ("start_at_equilibrium", "alpha_hat_0", *_EQ_ALPHA),
+        "omega2_hat": ("start_at_equilibrium", "omega2_hat_0"),
+        "theta_hat": (
+            "start_at_equilibrium",
+            "theta_g_hat_0",
+            "alpha_hat_0",
+            *_EQ_THETA_G,
+        ),
+    }
     INTERNAL_STATE = ("_p", "_H", "_filter", "_xh", "_step_warned")
     _step_warned = False  # a step that does not match f_sample was reported
 

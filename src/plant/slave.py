@@ -76,6 +76,18 @@ class GliderPlant(GliderSlave):
         Var("x_0", "parameter", "m", "initial horizontal position", 0.0, valid=Range()),
         Var("z_0", "parameter", "m", "initial depth", 0.0, valid=Range()),
     )
+    # in Initialization Mode: the initial state, nothing of the inputs (no feedthrough)
+    INITIAL_DEPENDENCIES = {
+        "theta_meas": ("theta_g_0", "alpha_0", "noise_std", "noise_seed"),
+        "theta": ("theta_g_0", "alpha_0"),
+        "V": ("V_0",),
+        "theta_g": ("theta_g_0",),
+        "alpha": ("alpha_0",),
+        "omega2": ("omega2_0",),
+        "delta": ("delta_0",),
+        "x": ("x_0",),
+        "z": ("z_0",),
+    }
     INTERNAL_STATE = ("_p", "_sensor", "_state")
 
     def initialize(self) -> None:
