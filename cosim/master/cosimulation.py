@@ -44,6 +44,8 @@ from .fmi3 import fmi3_call_name
 from .instance import Instance
 from .plan import (
     check_wiring,
+    driven_refs,
+    initialization_order,
     plan_calls,
     plan_exchange,
     resolve,
@@ -143,6 +145,9 @@ class CoSimulation(DrivenInputs):
         self.columns, self._record, self._row_getter = plan.columns, plan.record, plan.row_getter
         self._driven, self.values = plan.driven, plan.values
         self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
+        self._init_order, self.initialization_cut = initialization_order(
+            self.instances, self._sources, driven_refs(self.system)
+        )
 
     # ------------------------------------------------------------- FMI calls
     def _call(self, inst: Instance, call: str, fn: Callable[..., Any], *args: Any) -> Any:
@@ -165,6 +170,15 @@ class CoSimulation(DrivenInputs):
             self._call(inst, f"fmi2SetBoolean({name})", s.setBoolean, vr, [bool(value)])
         else:
             raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be set")
+
+    def _get_initial(self, inst: Instance, name: str) -> Any:
+        v = inst.vars[name]
+        s = inst.slave
+        get = {"Real": s.getReal, "Integer": s.getInteger, "Boolean": s.getBoolean}.get(v.type)
+        if get is None:
+            raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be read")
+        call = f"fmi2Get{v.type}({name}) in Initialization Mode"
+        return self._call(inst, call, get, [v.valueReference])[0]
 
     def initialize(self) -> None:
         """Instantiate, set parameters, initialise every instance.
@@ -190,7 +204,9 @@ class CoSimulation(DrivenInputs):
         self._initialized = True
 
     def _setup_instances(self) -> None:
-        """Set up, parameterise and initialise the (fresh or reset) instances."""
+        """Set up, parameterise and initialise the (fresh or reset) instances: every one
+        enters Initialization Mode, its inputs are set there (:meth:`_initial_inputs`),
+        then every one exits."""
         self.k = 0
         for inst in self.instances.values():
             s = inst.slave
@@ -198,8 +214,23 @@ class CoSimulation(DrivenInputs):
             for name, value in self.system.parameters.get(inst.name, {}).items():
                 self._set_value(inst, name, value)
             self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
-            self._call(inst, "fmi2ExitInitializationMode", s.exitInitializationMode)
         self._reset_inputs()
+        self._initial_inputs()
+        for inst in self.instances.values():
+            self._call(inst, "fmi2ExitInitializationMode", inst.slave.exitInitializationMode)
+
+    def _initial_inputs(self) -> None:
+        """The inputs in Initialization Mode, as the standard's importers set them
+        (fmpy's ``simulate_fmu``, fmusim, fmu-manipulation-toolbox's container): the
+        driven ones at ``t0``, then each connected one from its source, in the order of
+        the sources' ``<InitialUnknowns>`` dependencies
+        (:func:`~glider_cosim.master.plan.initialization_order`). The values got there
+        are those the FMUs have after Exit, so the first row is the one they give."""
+        self._drive(self.t0)
+        for dst, src in self._init_order:
+            si, sv = self._resolve(src)
+            di, dv = self._resolve(dst)
+            self._set_value(di, dv.name, self._get_initial(si, sv.name))
 
     def reset(
         self, parameters: dict[str, dict[str, Any]] | None = None, replace: bool = False

@@ -93,6 +93,19 @@ class Instance:
             for u in self.md.outputs
             if u.dependencies is None or any(d.causality == "input" for d in u.dependencies)
         }
+        # outputs -> the inputs their value in Initialization Mode depends on (the
+        # InitialUnknowns' dependencies; None = all inputs, conservatively; an output
+        # that is no initial unknown has its start value: none)
+        self.initial_inputs: dict[str, set[str] | None] = {
+            u.variable.name: None
+            if u.dependencies is None
+            else {d.name for d in u.dependencies if d.causality == "input"}
+            for u in self.md.initialUnknowns
+            if u.variable.causality == "output"
+        }
+        #: its outputs can be got and its inputs set in Initialization Mode (an FMU);
+        #: an external endpoint (glider_cosim.realtime.external) cannot
+        self.in_initialization = True
         try:
             self.unzipdir = _extracted(self.fmu)
         except InputFileError as err:

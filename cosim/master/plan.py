@@ -159,6 +159,43 @@ def exchange_order(
     return order, [n for n in instances if n not in ft]
 
 
+def initialization_order(
+    instances: dict[str, Instance], sources: dict[str, str], preset: Iterable[str]
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """The connected inputs in the order they are set in Initialization Mode, as
+    ``(input, its source)``, and the inputs set without the values of a loop.
+
+    An input is set from its source once every input the source's value depends on
+    there (its instance's ``<InitialUnknowns>`` dependencies) is set: the ``preset`` ones
+    (driven) first, then in that order, the declared order deciding between those that
+    are ready. A loop of such dependencies is cut at its first input in the declared
+    order (its source is read with the loop's inputs not set yet); so is a connection
+    from or to an instance that takes no calls in the mode (an external endpoint: its
+    input is set at the first communication point, as every input is again then).
+    """
+    done = set(preset)
+    pending = list(sources.items())
+    order: list[tuple[str, str]] = []
+    cut: list[str] = []
+
+    def ready(src: str) -> bool:
+        s = VarRef.parse(src)
+        inst = instances[s.instance]
+        needs = inst.initial_inputs.get(s.variable, set())
+        return all(f"{s.instance}.{n}" in done for n in (inst.inputs if needs is None else needs))
+
+    while pending:
+        i = next((i for i, (_, src) in enumerate(pending) if ready(src)), None)
+        dst, src = pending.pop(0 if i is None else i)
+        done.add(dst)
+        reachable = all(instances[VarRef.parse(r).instance].in_initialization for r in (src, dst))
+        if i is None or not reachable:
+            cut.append(dst)
+        if reachable:
+            order.append((dst, src))
+    return order, cut
+
+
 def value_groups(inst: Instance, names: Sequence[str]) -> list[tuple[Group, list[str]]]:
     """One :class:`Group` per type of the variables ``names`` of ``inst``, with their names."""
     by_type: dict[str, list[str]] = {}

@@ -267,6 +267,7 @@ def attach(sim: Any, external: dict[str, Any], pacer: Any = None) -> dict[str, E
         slave.h = sim.step_size
         inst.slave = slave
         inst._call_dll = slave
+        inst.in_initialization = False  # the endpoint starts at Exit (START)
         slaves[name] = slave
     sim.external = slaves
     return slaves

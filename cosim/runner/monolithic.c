@@ -73,7 +73,7 @@ int glider_mono_init(MonoState *m, const MonoSetup *s, char *msg, size_t size) {
         m->xh[2] = s->alpha_hat_0;
         m->xh[3] = s->omega2_hat_0;
     }
-    m->theta_filt = s->theta_meas_start;
+    m->theta_filt = s->theta_meas_start; /* until the first point's measurement */
     glider_equilibrium(&s->controller, &m->eq);
     pi_init(&m->pi, s->K_P, (int)s->law == LAW_PI ? s->K_I : 0.0, s->controller_delta_max);
     return 0;
@@ -92,6 +92,7 @@ long glider_mono_run(MonoState *m, double h, long k0, long n, int last, double *
         double t = (double)k * h;
         double *x = m->x, *xh = m->xh;
         double theta_meas = pitch_sensor_measure(&m->sensor, x[1] + x[2]);
+        if (k == 0) m->theta_filt = theta_meas; /* set in Initialization Mode, passed on */
         double fb_V = s->feedback_state != 0.0 ? x[0] : xh[0];
         double fb_th = s->feedback_state != 0.0 ? x[1] : xh[1];
         int enabled = t >= s->t_enable - 1e-9;

@@ -129,10 +129,11 @@ def simulate_monolithic(
     feedback_state = scenario.feedback == "state"
     n = round(stop / h)
     rows = []
-    theta_f = op["theta_meas"]  # the observer's pre-filter output before its first step
     for k in range(n + 1):
         t = k * h
         theta_meas = sensor.measure(x[1] + x[2])
+        if k == 0:  # the observer's pre-filter output before its first step: its input,
+            theta_f = theta_meas  # set in Initialization Mode, passed on
         fb_V, fb_th = (x[0], x[1]) if feedback_state else (xh[0], xh[1])
         enabled = t >= cp["t_enable"] - 1e-9
         if not enabled or cp["law"] == Law.OPEN_LOOP:

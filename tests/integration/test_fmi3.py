@@ -127,7 +127,8 @@ def test_invalid_start_value_through_our_master_is_fmi3error(fmu_dir, fmi3_dirs,
     r = simulate(sc, None, fmu_dir=fmu_dir, build=False)
     assert r.status == "error"
     assert (
-        "controller: fmi3ExitInitializationMode at t = 0 s returned fmi3Error: "
+        "controller: fmi3GetFloat64(delta_cmd) in Initialization Mode at t = 0 s returned "
+        "fmi3Error: "
         "[fmi3Error] K_c = -1.0 is invalid: expected a finite value in (0, inf)"
     ) in r.message
 

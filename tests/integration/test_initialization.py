@@ -21,6 +21,7 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from fmpy import read_model_description
 from fmpy.fmi2 import FMU2Slave
@@ -320,3 +321,62 @@ def toolbox_check(fmu: Path) -> list[tuple[str, str]]:
         log.removeHandler(handler)
         log.setLevel(level)
     return seen
+
+
+# ---------------------------------------------------------------- one t = 0
+COUPLINGS = ("gauss-seidel", "jacobi")
+
+
+def _rows(result) -> tuple[list[str], np.ndarray]:
+    cols = [c for c in result.columns if c != "time"]
+    return cols, np.array([result.column(c) for c in cols]).T
+
+
+@pytest.mark.parametrize("flavor,fmi", SETS)
+def test_the_master_sets_the_inputs_in_initialization_mode(fmu_sets, monkeypatch, flavor, fmi):
+    # issue 46: observer theta_filt(0) is the measured pitch that the master set there
+    # (not the observer's start value); the first row is the same in both couplings; every
+    # row from the first step on is the one today's master gave (it set nothing in the
+    # mode: _initial_inputs a no-op), bit for bit
+    from glider_cosim.master.cosimulation import CoSimulation
+    from glider_cosim.runner import simulate
+
+    folder = fmu_sets[flavor, fmi]
+    runs = {c: simulate(None, None, fmu_dir=folder, build=False, coupling=c, stop_time=5.0)
+            for c in COUPLINGS}  # fmt: skip
+    for c, r in runs.items():
+        assert r.column("observer.theta_filt")[0] == r.column("plant.theta_meas")[0], c
+        assert r.column("observer.theta_filt")[0] != -0.36751268161909123  # the start value
+    cols, gs = _rows(runs["gauss-seidel"])
+    assert np.array_equal(gs[0], _rows(runs["jacobi"])[1][0])
+    monkeypatch.setattr(CoSimulation, "_initial_inputs", lambda self: None)
+    for c, r in runs.items():
+        before = simulate(None, None, fmu_dir=folder, build=False, coupling=c, stop_time=5.0)
+        _, old = _rows(before)
+        _, new = _rows(r)
+        assert np.array_equal(old[1:], new[1:]), c
+        changed = [cols[i] for i in np.nonzero(old[0] != new[0])[0]]
+        assert changed == ["observer.theta_filt"], (c, changed)
+
+
+def test_the_initialization_order_follows_the_dependencies(fmu_dir):
+    # the plant's outputs first (they depend on none of its inputs), then the observer's
+    # pitch, then the estimate to the controller, then its command to the plant and the
+    # observer; a loop is cut at its first input in the declared order
+    from glider_cosim.master.cosimulation import CoSimulation
+    from glider_cosim.master.plan import initialization_order
+    from glider_cosim.scenarios.scenario import load_scenario
+    from glider_cosim.scenarios.system import system_for
+
+    sim = CoSimulation(system_for(load_scenario(None), fmu_dir))
+    sim.load()
+    order = [dst for dst, _ in sim._init_order]
+    assert order.index("observer.theta_meas") < order.index("controller.V_hat")
+    assert order.index("controller.theta_g_hat") < order.index("plant.delta_cmd")
+    assert order.index("controller.theta_g_hat") < order.index("observer.delta_cmd")
+    assert sim.initialization_cut == []
+    # without declared dependencies (every input counts), the loop is cut
+    for inst in sim.instances.values():
+        inst.initial_inputs = dict.fromkeys(inst.initial_inputs)
+    order, cut = initialization_order(sim.instances, sim._sources, [])
+    assert cut and len(order) == len(sim._sources)

@@ -5,6 +5,7 @@ Jacobi run (the container delays each link by one step)."""
 from __future__ import annotations
 
 import json
+import logging
 import math
 import subprocess
 import sys
@@ -34,8 +35,27 @@ def with_sets(sets: list[str]):
 
 
 @pytest.fixture(scope="module")
-def loop_fmu(fmu_dir, tmp_path_factory) -> Path:
-    return export_one_fmu(tmp_path_factory.mktemp("onefmu") / "GliderLoop.fmu", None, fmu_dir)
+def loop_build(fmu_dir, tmp_path_factory) -> tuple[Path, list[str]]:
+    """The default scenario's container, and what the toolbox logged while building it."""
+    seen: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            seen.append(record.getMessage())
+
+    log = logging.getLogger("fmu_manipulation_toolbox")
+    handler = Keep(logging.WARNING)
+    log.addHandler(handler)
+    try:
+        fmu = export_one_fmu(tmp_path_factory.mktemp("onefmu") / "GliderLoop.fmu", None, fmu_dir)
+    finally:
+        log.removeHandler(handler)
+    return fmu, seen
+
+
+@pytest.fixture(scope="module")
+def loop_fmu(loop_build) -> Path:
+    return loop_build[0]
 
 
 @pytest.fixture(scope="module")
@@ -61,6 +81,27 @@ def test_closed_loop_as_one_fmu(loop_fmu, fmu_dir, jacobi):
     assert f"up to {diff:.2f} deg in glide angle" in " ".join(
         (Path(__file__).parents[2] / "docs" / "how-to" / "export.md").read_text().split()
     )
+
+
+def test_container_initializes_as_our_master_every_value_of_every_row(loop_build, jacobi):
+    # issue 46: the toolbox propagates the links in Initialization Mode in an order it
+    # took for a loop (plant -> observer -> controller -> plant) until the export gave it
+    # the FMUs' InitialUnknowns dependencies; our master sets the inputs there as it does,
+    # so the first row is one too: observer theta_filt(0) is the measured pitch
+    loop_fmu, warnings = loop_build
+    assert not [w for w in warnings if "Loop" in w], warnings
+    with zipfile.ZipFile(loop_fmu) as z:
+        txt = z.read("resources/container.txt").decode().splitlines()
+    order = txt[txt.index("# Initialization order of the embedded FMU's") + 1]
+    assert order == "0 1 2"  # plant, observer, controller
+    md = read_model_description(str(loop_fmu))
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    r = simulate_fmu(str(loop_fmu), stop_time=60.0, output_interval=0.02, output=outputs)
+    assert len(outputs) == 16
+    for name in outputs:
+        assert np.array_equal(r[name], jacobi.column(name)), name  # bit for bit, t = 0 too
+    assert r["observer.theta_filt"][0] == r["plant.theta_meas"][0]
+    assert r["plant.theta_meas"][0] == pytest.approx(math.radians(-34.0), abs=1e-15)
 
 
 def test_container_carries_units_and_exposes_parameters(loop_fmu, fmu_dir):

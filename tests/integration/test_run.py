@@ -167,7 +167,8 @@ def test_stall_stops_cleanly_and_keeps_the_rows(fmu_dir, tmp_path):
 
 def test_fmu_error_is_reported_with_instance_call_and_time(fmu_dir, tmp_path):
     # given under [fmus], the controller is not checked against our parameter table
-    # before the run (that would exit 2): the FMU itself refuses K_c at initialisation
+    # before the run (that would exit 2): the FMU itself refuses K_c at initialisation,
+    # when the master gets its command in Initialization Mode
     sc = tmp_path / "bad.toml"
     controller = fmu_dir / "GliderController.fmu"
     sc.write_text(f"[fmus]\ncontroller = '{controller}'\n[controller]\nK_c = -1.0\n")
@@ -175,7 +176,8 @@ def test_fmu_error_is_reported_with_instance_call_and_time(fmu_dir, tmp_path):
     assert p.returncode == 1
     assert p.stderr.count("\n") == 1
     assert (
-        "controller: fmi2ExitInitializationMode at t = 0 s returned fmi2Error: "
+        "controller: fmi2GetReal(delta_cmd) in Initialization Mode at t = 0 s returned "
+        "fmi2Error: "
         "[fmi2Error] K_c = -1.0 is invalid: expected a finite value in (0, inf)"
     ) in p.stderr
 

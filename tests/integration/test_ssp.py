@@ -203,15 +203,11 @@ def test_cli_refuses_a_malformed_ssp_with_one_line_and_exit_2(ssp, tmp_path):
     assert "baseStepSize = '0' is invalid" in p.stderr
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="libcosim propagates connected values in initialization mode, our jacobi does "
-    "not: an input's own start value reaches a feedthrough output at t0 (patch to "
-    "master._setup_instances in docs/how-to/toolchains.md)",
-)
 def test_libcosim_initial_propagation(ssp, tmp_path):
     # the controller's connected input theta_g_hat starts at -0.5 rad, not at the
-    # observer's initial estimate (the equilibrium, -0.394 rad)
+    # observer's initial estimate (the equilibrium, -0.394 rad): libcosim and our master
+    # (issue 46) both set it from the observer in Initialization Mode (an expected failure
+    # before, when ours read the command from the input's start value at t0)
     bound = edit_ssd(
         ssp,
         tmp_path,
@@ -221,6 +217,5 @@ def test_libcosim_initial_propagation(ssp, tmp_path):
     )
     lc = simulate_libcosim_isolated(bound, ["controller.delta_cmd"], stop_time=0.1, timeout=300)
     ours = run_ssp(bound, None, coupling="jacobi", stop_time=0.1)
-    # libcosim: the controller sees the observer's estimate before t0 (command 0); ours
-    # reads the command from the input's start value at t0
+    # the controller sees the observer's estimate before t0 (command 0) in both
     assert lc.column("controller.delta_cmd")[0] == ours.column("controller.delta_cmd")[0]
