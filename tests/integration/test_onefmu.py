@@ -104,6 +104,21 @@ def test_container_initializes_as_our_master_every_value_of_every_row(loop_build
     assert r["plant.theta_meas"][0] == pytest.approx(math.radians(-34.0), abs=1e-15)
 
 
+def test_container_equals_our_jacobi_run_with_full_state_feedback(fmu_dir, tmp_path):
+    # issue 46: with full-state feedback the controller's command at t = 0 acts on the
+    # plant's initial state (set in Initialization Mode) in the container and in our
+    # master alike: every row equal (before, our master's acted on the controller's start
+    # inputs, the equilibrium, and every plant column differed from the first step on)
+    fmu = export_one_fmu(tmp_path / "Loop.fmu", "fig2-closed-loop", fmu_dir)
+    outputs = ["plant.theta_g", "plant.V", "plant.delta", "controller.delta_cmd"]
+    r = simulate_fmu(str(fmu), stop_time=10.0, output_interval=0.02, output=outputs)
+    ours = simulate("fig2-closed-loop", None, fmu_dir=fmu_dir, build=False,
+                    coupling="jacobi", stop_time=10.0)  # fmt: skip
+    for name in outputs:
+        assert np.array_equal(r[name], ours.column(name)), name
+    assert r["controller.delta_cmd"][0] != 0.0  # the law on -35 deg, not the equilibrium
+
+
 def test_container_carries_units_and_exposes_parameters(loop_fmu, fmu_dir):
     md = read_model_description(str(loop_fmu))
     inner = {
