@@ -145,6 +145,8 @@ class CoSimulation(DrivenInputs):
         self.columns, self._record, self._row_getter = plan.columns, plan.record, plan.row_getter
         self._driven, self.values = plan.driven, plan.values
         self._driven_base = {r: float(self.system.driven.get(r, 0.0)) for r in self._driven_refs()}
+        #: the connected inputs set in Initialization Mode, in order, and those of them
+        #: set before the inputs of a loop through them (dependencies declared by none)
         self._init_order, self.initialization_cut = initialization_order(
             self.instances, self._sources, driven_refs(self.system)
         )
@@ -215,21 +217,34 @@ class CoSimulation(DrivenInputs):
                 self._set_value(inst, name, value)
             self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
         self._reset_inputs()
-        self._initial_inputs()
+        exited: set[str] = set()
+        self._initial_inputs(exited)
         for inst in self.instances.values():
-            self._call(inst, "fmi2ExitInitializationMode", inst.slave.exitInitializationMode)
+            if inst.name not in exited:
+                self._exit(inst)
 
-    def _initial_inputs(self) -> None:
+    def _exit(self, inst: Instance) -> None:
+        self._call(inst, "fmi2ExitInitializationMode", inst.slave.exitInitializationMode)
+
+    def _initial_inputs(self, exited: set[str]) -> None:
         """The inputs in Initialization Mode, as the standard's importers set them
         (fmpy's ``simulate_fmu``, fmusim, fmu-manipulation-toolbox's container): the
         driven ones at ``t0``, then each connected one from its source, in the order of
         the sources' ``<InitialUnknowns>`` dependencies
         (:func:`~glider_cosim.master.plan.initialization_order`). The values got there
-        are those the FMUs have after Exit, so the first row is the one they give."""
+        are those the FMUs have after Exit, so the first row is the one they give.
+
+        An external endpoint answers only after Exit (its START carries the parameters
+        and the inputs set so far): it exits when one of its outputs is first needed
+        (its name is added to ``exited``); an input set after that reaches it at the
+        start time's exchange."""
         self._drive(self.t0)
         for dst, src in self._init_order:
             si, sv = self._resolve(src)
             di, dv = self._resolve(dst)
+            if not si.outputs_before_exit and si.name not in exited:
+                self._exit(si)
+                exited.add(si.name)
             self._set_value(di, dv.name, self._get_initial(si, sv.name))
 
     def reset(

@@ -103,9 +103,10 @@ class Instance:
             for u in self.md.initialUnknowns
             if u.variable.causality == "output"
         }
-        #: its outputs can be got and its inputs set in Initialization Mode (an FMU);
-        #: an external endpoint (glider_cosim.realtime.external) cannot
-        self.in_initialization = True
+        #: its outputs can be got in Initialization Mode (an FMU); an external endpoint
+        #: (glider_cosim.realtime.external) answers only after Exit, which sends it the
+        #: parameters and the inputs set so far (START)
+        self.outputs_before_exit = True
         try:
             self.unzipdir = _extracted(self.fmu)
         except InputFileError as err:

@@ -169,9 +169,7 @@ def initialization_order(
     there (its instance's ``<InitialUnknowns>`` dependencies) is set: the ``preset`` ones
     (driven) first, then in that order, the declared order deciding between those that
     are ready. A loop of such dependencies is cut at its first input in the declared
-    order (its source is read with the loop's inputs not set yet); so is a connection
-    from or to an instance that takes no calls in the mode (an external endpoint: its
-    input is set at the first communication point, as every input is again then).
+    order (its source is read with the loop's inputs not set yet).
     """
     done = set(preset)
     pending = list(sources.items())
@@ -188,11 +186,9 @@ def initialization_order(
         i = next((i for i, (_, src) in enumerate(pending) if ready(src)), None)
         dst, src = pending.pop(0 if i is None else i)
         done.add(dst)
-        reachable = all(instances[VarRef.parse(r).instance].in_initialization for r in (src, dst))
-        if i is None or not reachable:
+        order.append((dst, src))
+        if i is None:
             cut.append(dst)
-        if reachable:
-            order.append((dst, src))
     return order, cut
 
 

@@ -170,8 +170,17 @@ class ExternalSlave:
         self.stale_out = True
         return 0
 
-    def _exchange(self) -> None:
-        reply = self._request(p.INPUTS, self._t(), self.u, p.OUTPUTS, self.pacer is None)
+    def getReal(self, vrs: list[int]) -> list[float]:  # noqa: N802
+        """Outputs for the master's Initialization Mode (after START): an exchange at
+        the start time with the inputs set so far, in lockstep whatever the pacing."""
+        self._exchange(lockstep=True)
+        return [self.y[self.out_index[vr]] for vr in vrs]
+
+    getInteger = getBoolean = getReal  # noqa: N815
+
+    def _exchange(self, lockstep: bool = False) -> None:
+        lockstep = lockstep or self.pacer is None
+        reply = self._request(p.INPUTS, self._t(), self.u, p.OUTPUTS, lockstep)
         if reply is not None:
             if len(reply.values) != len(self.y):
                 raise EndpointError(
@@ -267,7 +276,7 @@ def attach(sim: Any, external: dict[str, Any], pacer: Any = None) -> dict[str, E
         slave.h = sim.step_size
         inst.slave = slave
         inst._call_dll = slave
-        inst.in_initialization = False  # the endpoint starts at Exit (START)
+        inst.outputs_before_exit = False  # the endpoint starts at Exit (START)
         slaves[name] = slave
     sim.external = slaves
     return slaves
