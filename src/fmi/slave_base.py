@@ -111,7 +111,8 @@ class GliderSlave(Fmi2Slave):
     VARIABLES: tuple[Var, ...] = ()
     FEEDTHROUGH: dict[str, tuple[str, ...]] = {}
     #: output -> the inputs and parameters its value in Initialization Mode depends on
-    #: (FMI's <InitialUnknowns> dependencies); None: not declared (then every known)
+    #: (FMI's <InitialUnknowns> dependencies; those the slave does not declare are left
+    #: out); None, or an output not named: not declared (then every known)
     INITIAL_DEPENDENCIES: dict[str, tuple[str, ...]] | None = None
     #: outputs read through a getter that computes them (direct feedthrough)
     COMPUTED: tuple[str, ...] = ()
@@ -223,8 +224,8 @@ class GliderSlave(Fmi2Slave):
                 attrs = {"index": str(index[name])}
                 feedthrough = _dependencies(self.FEEDTHROUGH.get(name, ()), index)
                 SubElement(out_el, "Unknown", attrs | feedthrough)
-                if initial is not None:
-                    attrs |= _dependencies(initial[name], index)
+                if initial is not None and name in initial:  # a subclass may drop knowns
+                    attrs |= _dependencies([k for k in initial[name] if k in index], index)
                 SubElement(init_el, "Unknown", attrs)
         return root
 
