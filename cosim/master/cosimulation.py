@@ -41,6 +41,7 @@ from .errors import (
 )
 from .fastloop import FastLoop
 from .fmi3 import fmi3_call_name
+from .initial import InitialInputs
 from .instance import Instance
 from .plan import (
     check_wiring,
@@ -73,7 +74,7 @@ def _close_live() -> None:
             sim.close()
 
 
-class CoSimulation(DrivenInputs):
+class CoSimulation(DrivenInputs, InitialInputs):
     """Load, connect, initialise and step a :class:`System`.
 
     Parameters
@@ -173,15 +174,6 @@ class CoSimulation(DrivenInputs):
         else:
             raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be set")
 
-    def _get_initial(self, inst: Instance, name: str) -> Any:
-        v = inst.vars[name]
-        s = inst.slave
-        get = {"Real": s.getReal, "Integer": s.getInteger, "Boolean": s.getBoolean}.get(v.type)
-        if get is None:
-            raise SystemSpecError(f"{inst.name}.{name}: type {v.type} cannot be read")
-        call = f"fmi2Get{v.type}({name}) in Initialization Mode"
-        return self._call(inst, call, get, [v.valueReference])[0]
-
     def initialize(self) -> None:
         """Instantiate, set parameters, initialise every instance.
 
@@ -207,8 +199,8 @@ class CoSimulation(DrivenInputs):
 
     def _setup_instances(self) -> None:
         """Set up, parameterise and initialise the (fresh or reset) instances: every one
-        enters Initialization Mode, its inputs are set there (:meth:`_initial_inputs`),
-        then every one exits."""
+        enters Initialization Mode, its inputs are set there and every one exits
+        (:class:`~glider_cosim.master.initial.InitialInputs`)."""
         self.k = 0
         for inst in self.instances.values():
             s = inst.slave
@@ -217,35 +209,7 @@ class CoSimulation(DrivenInputs):
                 self._set_value(inst, name, value)
             self._call(inst, "fmi2EnterInitializationMode", s.enterInitializationMode)
         self._reset_inputs()
-        exited: set[str] = set()
-        self._initial_inputs(exited)
-        for inst in self.instances.values():
-            if inst.name not in exited:
-                self._exit(inst)
-
-    def _exit(self, inst: Instance) -> None:
-        self._call(inst, "fmi2ExitInitializationMode", inst.slave.exitInitializationMode)
-
-    def _initial_inputs(self, exited: set[str]) -> None:
-        """The inputs in Initialization Mode, as the standard's importers set them
-        (fmpy's ``simulate_fmu``, fmusim, fmu-manipulation-toolbox's container): the
-        driven ones at ``t0``, then each connected one from its source, in the order of
-        the sources' ``<InitialUnknowns>`` dependencies
-        (:func:`~glider_cosim.master.plan.initialization_order`). The values got there
-        are those the FMUs have after Exit, so the first row is the one they give.
-
-        An external endpoint answers only after Exit (its START carries the parameters
-        and the inputs set so far): it exits when one of its outputs is first needed
-        (its name is added to ``exited``); an input set after that reaches it at the
-        start time's exchange."""
-        self._drive(self.t0)
-        for dst, src in self._init_order:
-            si, sv = self._resolve(src)
-            di, dv = self._resolve(dst)
-            if not si.outputs_before_exit and si.name not in exited:
-                self._exit(si)
-                exited.add(si.name)
-            self._set_value(di, dv.name, self._get_initial(si, sv.name))
+        self._initialization_mode()
 
     def reset(
         self, parameters: dict[str, dict[str, Any]] | None = None, replace: bool = False

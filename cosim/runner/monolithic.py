@@ -127,8 +127,7 @@ def simulate_monolithic(
         xh = (op["V_hat_0"], op["theta_g_hat_0"], op["alpha_hat_0"], op["omega2_hat_0"])
     pi = PIController(cp["K_P"], cp["K_I"] if cp["law"] == Law.PI else 0.0, cp["delta_max"])
     feedback_state = scenario.feedback == "state"
-    n = round(stop / h)
-    rows = []
+    n, rows = round(stop / h), []
     for k in range(n + 1):
         t = k * h
         theta_meas = sensor.measure(x[1] + x[2])

@@ -89,10 +89,8 @@ def _dependencies(knowns: Sequence[str], index: dict[str, int]) -> dict[str, str
     """FMI 2's ``dependencies`` (the knowns' indices, ascending) and ``dependenciesKind``
     (each ``dependent``) of an unknown; both empty when it depends on none."""
     deps = sorted(index[k] for k in knowns)
-    return {
-        "dependencies": " ".join(map(str, deps)),
-        "dependenciesKind": " ".join("dependent" for _ in deps),
-    }
+    kinds = " ".join("dependent" for _ in deps)
+    return {"dependencies": " ".join(map(str, deps)), "dependenciesKind": kinds}
 
 
 def _tuple_attrgetter(names: Sequence[str]) -> Any:
@@ -167,9 +165,8 @@ class GliderSlave(Fmi2Slave):
             vr: n for vr, n in self._real_names.items() if self._spec_by_vr[vr].causality == "input"
         }
         self._plain_reals = {vr for vr, n in self._real_names.items() if n not in self.COMPUTED}
-        self._outputs_vr = frozenset(
-            vr for vr, v in self._spec_by_vr.items() if v.causality == "output"
-        )
+        spec_vrs = self._spec_by_vr.items()
+        self._outputs_vr = frozenset(vr for vr, v in spec_vrs if v.causality == "output")
         self._get_cache: dict[tuple[int, ...], Any] = {}
         self._last_get: tuple[Any, Any] = (None, None)  # (references tuple, its getter)
         self._last_set: tuple[Any, tuple[str, ...]] = (None, ())  # (references, input names)
