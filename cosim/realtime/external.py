@@ -113,6 +113,7 @@ class ExternalSlave:
         for vr, v in zip(vrs, values, strict=True):
             if vr in self.in_index:
                 self.u[self.in_index[vr]] = float(v)
+                self.dirty = True  # after START: sent with the next exchange
             self.params[vr] = float(v)
 
     setReal = setInteger = setBoolean = _keep  # noqa: N815
@@ -172,8 +173,10 @@ class ExternalSlave:
 
     def getReal(self, vrs: list[int]) -> list[float]:  # noqa: N802
         """Outputs for the master's Initialization Mode (after START): an exchange at
-        the start time with the inputs set so far, in lockstep whatever the pacing."""
-        self._exchange(lockstep=True)
+        the start time with the inputs set so far (unless done since they were set), in
+        lockstep whatever the pacing."""
+        if self.dirty or self.stale_out:
+            self._exchange(lockstep=True)
         return [self.y[self.out_index[vr]] for vr in vrs]
 
     getInteger = getBoolean = getReal  # noqa: N815

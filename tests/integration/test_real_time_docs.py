@@ -41,7 +41,8 @@ def test_the_documented_client_runs_the_loop(native_dir, tmp_path):
         proc.wait(10)
     assert r.status == "ok" and proc.returncode == 0, err
     c = r.metrics["external"]["controller"]
-    assert c["round_trips"] == len(r.data) + 1 and c["malformed"] == 0  # START + each point
+    # START, the exchange that gives the command in Initialization Mode, each point
+    assert c["round_trips"] == len(r.data) + 2 and c["malformed"] == 0
     delta = r.column("controller.delta_cmd")
     theta_g_hat = r.column("observer.theta_g_hat")
     # the client's law, as the page writes it
