@@ -137,10 +137,11 @@ def test_a_build_on_a_terminal_draws_a_bar(tmp_path):
     assert "(1 of 4)" not in text  # a bar, not plain lines
 
 
-def test_real_time_shows_the_wall_time_against_its_total(native_dir):
+def test_real_time_shows_the_wall_time_against_its_total(native_dir, tmp_path):
     """``run --real-time`` of 3 s: from 2 s on, the wall time against the run's 3 s, in
     lines (the last at the end); on a terminal, a bar."""
-    args = ["run", "--flavor", "native", "--real-time", "--stop-time", "3", "--no-plots"]
+    args = ["run", "--flavor", "native", "--real-time", "--stop-time", "3", "--no-plots",
+            "--out", str(tmp_path / "run")]  # fmt: skip
     p = _cli(args)
     lines = p.stderr.splitlines()
     assert lines, "no progress"
