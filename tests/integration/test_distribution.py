@@ -118,8 +118,10 @@ def test_cli_and_api_from_an_empty_folder_leave_it_empty(tmp_path):
     (folder,) = (tmp_path / "cache" / "glider-cosim").glob("*/python-*")
     names = ["GliderController", "GliderObserver", "GliderPlant"]
     assert sorted(f.name for f in folder.iterdir()) == sorted(
-        [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
-    )  # each FMU and its OSP-IS file beside it, nothing else
+        [f"{n}.fmu" for n in names]
+        + [f"{n}_OspModelDescription.xml" for n in names]
+        + [".glider-cosim-fmus.json"]
+    )  # each FMU and its OSP-IS file beside it, and the record of what was built there
 
 
 @pytest.mark.parametrize("flavor", ["python", "native"])
@@ -139,8 +141,10 @@ def test_two_concurrent_builds_into_one_empty_cache_give_valid_fmus(tmp_path, fl
     (folder,) = folders
     names = ["GliderController", "GliderObserver", "GliderPlant"]
     assert sorted(f.name for f in folder.iterdir()) == sorted(
-        [f"{n}.fmu" for n in names] + [f"{n}_OspModelDescription.xml" for n in names]
-    )  # each FMU and its OSP-IS file beside it, nothing else
+        [f"{n}.fmu" for n in names]
+        + [f"{n}_OspModelDescription.xml" for n in names]
+        + [".glider-cosim-fmus.json"]
+    )  # each FMU and its OSP-IS file beside it, and the record of what was built there
     from glider_cosim.fmus import native
     from glider_cosim.fmus.python import COMPONENTS, is_current
 
