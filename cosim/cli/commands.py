@@ -124,7 +124,7 @@ def _run(args: argparse.Namespace) -> int:
             ("--step", args.step, None),
             ("--stop-time", args.stop_time, None),
             ("--fmu-dir", getattr(args, "fmu_dir_given", args.fmu_dir), None),
-            ("--flavor", getattr(args, "flavor", None), None),
+            ("--flavor", "wasm" if args.run_wasm else getattr(args, "flavor", None), None),
             ("--fmi", getattr(args, "fmi", None), None),
             ("--no-plots", args.no_plots, False),
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
@@ -141,21 +141,24 @@ def _run(args: argparse.Namespace) -> int:
     }
     real_time = _real_time(args)
     external = _externals(args, scenario)
+    from ..master.wasm import components
+
     try:
-        result = simulate(
-            scenario,
-            out,
-            fmu_dir=args.fmu_dir,
-            coupling=args.coupling,
-            step=args.step,
-            stop_time=args.stop_time,
-            plots=not args.no_plots,
-            max_steps=args.max_steps,
-            options=options,
-            results_format=args.format,
-            real_time=real_time,
-            external=external,
-        )
+        with components(args.run_wasm):
+            result = simulate(
+                scenario,
+                out,
+                fmu_dir=args.fmu_dir,
+                coupling=args.coupling,
+                step=args.step,
+                stop_time=args.stop_time,
+                plots=not args.no_plots,
+                max_steps=args.max_steps,
+                options=options,
+                results_format=args.format,
+                real_time=real_time,
+                external=external,
+            )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
     except Interrupted as err:  # the console's last line: where the rows are, what next
@@ -301,6 +304,11 @@ def dispatch(args: argparse.Namespace) -> int:
     # asked; verify builds ours only for --write-references/--export
     if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
+    args.run_wasm = getattr(args, "flavor", None) == "wasm"
+    if args.run_wasm:  # the native FMI 3.0 FMUs, run as their WebAssembly components
+        if getattr(args, "fmi", None) == 2:
+            raise UsageError("--flavor wasm runs FMI 3.0 components: expected --fmi 3 or none")
+        args.flavor, args.fmi = "native", 3
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 

@@ -171,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="results folder, written straight into (default: out/<scenario>); results "
         "an earlier run made there with other settings are replaced, with a note naming them",
     )
-    add_fmu_options(r, fmi=True)
+    add_fmu_options(r, fmi=True, wasm=True)
     r.add_argument(
         "--coupling",
         type=str.lower,
