@@ -280,6 +280,20 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _explore(args: argparse.Namespace) -> int:
+    from ..fmus.folders import prepare_fmus
+    from ..runner.explore import write_page
+    from ..scenarios.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    out = Path(args.out) if args.out is not None else Path("out") / f"{scenario.name}-explore"
+    _check_out_dir(out, "--out")
+    folder = None if args.fmu_dir is None else Path(args.fmu_dir)
+    fmus = prepare_fmus(folder, "native", 3, host_only=folder is None)
+    print(f"wrote {write_page(out, scenario, fmus)}")
+    return 0
+
+
 def _analyze(args: argparse.Namespace) -> int:
     from ..studies.analysis import analyze, format_report
 
@@ -385,6 +399,8 @@ def dispatch(args: argparse.Namespace) -> int:
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
+    if args.command == "explore":
+        return _explore(args)
     if args.command == "verify":
         from ..verify.command import run_command
 
