@@ -14,6 +14,7 @@ from ..inputs.text import command_line, one_line, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
+from . import webassembly
 from .parser import UsageError
 
 log = logging.getLogger(__name__)
@@ -141,24 +142,21 @@ def _run(args: argparse.Namespace) -> int:
     }
     real_time = _real_time(args)
     external = _externals(args, scenario)
-    from ..master.wasm import components
-
     try:
-        with components(args.run_wasm):
-            result = simulate(
-                scenario,
-                out,
-                fmu_dir=args.fmu_dir,
-                coupling=args.coupling,
-                step=args.step,
-                stop_time=args.stop_time,
-                plots=not args.no_plots,
-                max_steps=args.max_steps,
-                options=options,
-                results_format=args.format,
-                real_time=real_time,
-                external=external,
-            )
+        result = simulate(
+            scenario,
+            out,
+            fmu_dir=args.fmu_dir,
+            coupling=args.coupling,
+            step=args.step,
+            stop_time=args.stop_time,
+            plots=not args.no_plots,
+            max_steps=args.max_steps,
+            options=options,
+            results_format=args.format,
+            real_time=real_time,
+            external=external,
+        )
     except OSError as err:
         raise _os_error(err, {"--out": out, "--fmu-dir": Path(args.fmu_dir)}) from None
     except Interrupted as err:  # the console's last line: where the rows are, what next
@@ -280,20 +278,6 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _explore(args: argparse.Namespace) -> int:
-    from ..fmus.folders import prepare_fmus
-    from ..runner.explore import write_page
-    from ..scenarios.scenario import load_scenario
-
-    scenario = load_scenario(args.scenario)
-    out = Path(args.out) if args.out is not None else Path("out") / f"{scenario.name}-explore"
-    _check_out_dir(out, "--out")
-    folder = None if args.fmu_dir is None else Path(args.fmu_dir)
-    fmus = prepare_fmus(folder, "native", 3, host_only=folder is None)
-    print(f"wrote {write_page(out, scenario, fmus)}")
-    return 0
-
-
 def _analyze(args: argparse.Namespace) -> int:
     from ..studies.analysis import analyze, format_report
 
@@ -318,11 +302,8 @@ def dispatch(args: argparse.Namespace) -> int:
     # asked; verify builds ours only for --write-references/--export
     if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
-    args.run_wasm = getattr(args, "flavor", None) == "wasm"
-    if args.run_wasm:  # the native FMI 3.0 FMUs, run as their WebAssembly components
-        if getattr(args, "fmi", None) == 2:
-            raise UsageError("--flavor wasm runs FMI 3.0 components: expected --fmi 3 or none")
-        args.flavor, args.fmi = "native", 3
+    if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
+        return code
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 
@@ -399,8 +380,6 @@ def dispatch(args: argparse.Namespace) -> int:
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
-    if args.command == "explore":
-        return _explore(args)
     if args.command == "verify":
         from ..verify.command import run_command
 

@@ -65,6 +65,12 @@ def components(on: bool = True) -> Iterator[None]:
         _RUN_WASM.reset(token)
 
 
+def use_components(on: bool) -> None:
+    """From now on (in this thread), the master runs FMI 3.0 FMUs' components if ``on``
+    (the command line's ``--flavor wasm``, set for each command)."""
+    _RUN_WASM.set(on)
+
+
 def wanted() -> bool:
     """True inside :func:`components`."""
     return _RUN_WASM.get()
@@ -328,4 +334,4 @@ class WasmAdapter:
         )
 
 
-__all__ = ["WasmAdapter", "WasmError", "component_path", "components", "wanted"]
+__all__ = ["WasmAdapter", "WasmError", "component_path", "components", "use_components", "wanted"]
