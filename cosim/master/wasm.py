@@ -141,6 +141,19 @@ class _Call:
         return out
 
 
+def fmi3_name(wit: str) -> str:
+    """The FMI 3.0 call of a WIT function: ``"do-step"`` -> ``"fmi3DoStep"``."""
+    words = wit.rpartition(".")[2].split("-")
+    name = "".join(w.capitalize() for w in words)
+    return "fmi3" + name.replace("Uint", "UInt").replace("Fmu", "FMU")
+
+
+def _wasmtime_error() -> type[Exception]:
+    import wasmtime
+
+    return wasmtime.WasmtimeError
+
+
 def _status(result: Any) -> int:
     return STATUS[result] if isinstance(result, str) else 0
 
@@ -181,6 +194,8 @@ class WasmAdapter:
         if iface is None or common is None:
             raise WasmError(f"{path.name} exports no {CO_SIMULATION} (not an FMI-LS-WASM FMU)")
         self._iface = iface
+        #: the component trapped: every later call is fatal, none is made
+        self.trapped = False
         self._calls: dict[str, _Call] = {}
         self._version = _Call(store, inst.get_func(store, inst.get_export_index(
             store, "get-version", common)))  # fmt: skip
@@ -200,9 +215,17 @@ class WasmAdapter:
             if idx is None:
                 raise WasmError(f"the component exports no {full}")
             fn = self._calls[name] = _Call(self.store, self._instance.get_func(self.store, idx))
-        if name.startswith("["):
-            return fn(*args)
-        return fn(resource, *args)
+        if self.trapped:
+            return "fatal"
+        try:
+            return fn(*args) if name.startswith("[") else fn(resource, *args)
+        except _wasmtime_error() as err:  # a trap: the instance cannot be entered again
+            self.trapped = True
+            first = (str(err).strip().splitlines() or ["trap"])[0]
+            if self._log is not None:
+                text = f"{self.name}: {fmi3_name(name)}: the component trapped ({first})"
+                self._log(None, 4, b"logStatusFatal", text.encode())
+            return "fatal"
 
     def _log_message(self, store: Any, name: str, status: str, category: str, message: str):
         if self._log is not None:
@@ -230,8 +253,8 @@ class WasmAdapter:
         self._log = log_message
         res = self.call(f"[static]{RESOURCE}.instantiate-co-simulation", self.name, self.guid,
                         "", False, bool(loggingOn), False, False, [])  # fmt: skip
-        if res is None:
-            raise FMICallException("fmi3InstantiateCoSimulation", 3)
+        if res is None or isinstance(res, str):
+            raise FMICallException("fmi3InstantiateCoSimulation", 4 if res else 3)
         self._resource = res
 
     def setupExperiment(self, tolerance=None, startTime=0.0, stopTime=None) -> None:
@@ -256,7 +279,9 @@ class WasmAdapter:
         """Drop the resource (fmi3FreeInstance)."""
         if self._resource is not None:
             res, self._resource = self._resource, None
-            res.drop(self.store)
+            if not self.trapped:
+                with contextlib.suppress(_wasmtime_error()):
+                    res.drop(self.store)
 
     def _set(self, what: str, call: str, vr: Any, values: list) -> None:
         self._check(call, self.call(what, [int(v) for v in vr], values))

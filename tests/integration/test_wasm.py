@@ -159,3 +159,40 @@ def test_wasm_fuzz(wasm_dir):
     for n in NAMES:
         m = re.search(rf"{n}: (\d+) calls, (\d+) steps OK, (\d+) fmi3Error", p.stdout)
         assert m and int(m[1]) > 500 and int(m[2]) > 20 and int(m[3]) > 20, p.stdout[-2000:]
+
+
+def test_a_trap_is_fatal_with_a_message(wasm_dir):
+    """A component that traps (a guest's ``unreachable``, fuel run out) stops the run with
+    fmi3Fatal and one line naming it; no later call enters the component."""
+    import wasmtime
+
+    from glider_cosim.master import CoSimulation
+    from glider_cosim.master.errors import FMUCallError
+    from glider_cosim.master.wasm import components
+    from glider_cosim.scenarios.scenario import load_scenario
+    from glider_cosim.scenarios.system import system_for
+
+    sc = load_scenario(None)
+    with components():
+        sim = CoSimulation(system_for(sc, wasm_dir), step=sc.step, coupling=sc.coupling)
+        try:
+            sim.initialize()
+            sim.communication_point()
+            plant = sim.instances["plant"].slave
+            calls = []
+
+            def trap(*args):
+                calls.append(args)
+                raise wasmtime.WasmtimeError("wasm trap: wasm `unreachable` instruction executed")
+
+            plant._calls["do-step"] = trap
+            with pytest.raises(FMUCallError) as caught:
+                sim.do_step()
+            assert caught.value.status == 4 and len(calls) == 1
+            assert str(caught.value) == (
+                "plant: fmi3DoStep at t = 0 s returned fmi3Fatal: [fmi3Fatal] the component "
+                "trapped (wasm trap: wasm `unreachable` instruction executed)"
+            )
+            assert plant.call("get-float64", [0]) == "fatal" and len(calls) == 1
+        finally:
+            sim.close()
