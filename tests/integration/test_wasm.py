@@ -196,3 +196,47 @@ def test_a_trap_is_fatal_with_a_message(wasm_dir):
             assert plant.call("get-float64", [0]) == "fatal" and len(calls) == 1
         finally:
             sim.close()
+
+
+def _glue_sources(tmp: Path) -> list[str]:
+    """The plant's native FMI 3 sources and the glue, staged in ``tmp``."""
+    from glider_cosim.fmus.native import NATIVE_COMPONENTS, source_files, vars_header
+
+    plant = next(c for c in NATIVE_COMPONENTS if c.name == "GliderPlant")
+    for f in source_files(plant, 3):
+        (tmp / f.name).write_bytes(f.read_bytes())
+    (tmp / "GliderPlant_vars.h").write_text(vars_header(plant))
+    names = [f.name for f in source_files(plant, 3) if f.suffix == ".c"]
+    return [str(tmp / n) for n in names] + [str(wasm.glue_source())]
+
+
+@pytest.mark.parametrize("check", ["asan", "valgrind"])
+def test_the_glue_under_memory_checks(tmp_path, check):
+    """The glue built natively (warning-free), every function of the world called by
+    tests/integration/wasm_glue_harness.c, clean under ASan + UBSan and valgrind memcheck."""
+    import shutil
+
+    from glider_fmi.compile import fmi_headers
+
+    tools = {"asan": "gcc", "valgrind": "valgrind"}
+    if shutil.which(tools[check]) is None or shutil.which("gcc") is None:
+        pytest.fail(f"{tools[check]} is not installed (.ci/run installs it)")
+    sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    flags = ["-g", "-O1", "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wno-attributes",
+             "-ffp-contract=off", *(sanitize if check == "asan" else [])]  # fmt: skip
+    exe = tmp_path / "harness"
+    harness = Path(__file__).with_name("wasm_glue_harness.c")
+    build = subprocess.run(
+        ["gcc", *flags, "-isystem", str(fmi_headers()), f"-I{tmp_path}", *_glue_sources(tmp_path),
+         str(harness), "-o", str(exe), "-lm", "-lpthread"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert build.returncode == 0 and not build.stderr.strip(), build.stderr
+    cmd = [str(exe)]
+    if check == "valgrind":
+        cmd = ["valgrind", "-q", "--error-exitcode=9", "--leak-check=full",
+               "--errors-for-leak-kinds=definite,indirect", *cmd]  # fmt: skip
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert p.stdout.strip() == "steps 200, messages 676, fatal 0"
+    assert p.stderr.strip() == ""

@@ -45,7 +45,13 @@ IMPORT("fmi:fmi3/callbacks@3.0.0", "log-message")
 extern void host_log(const char *name, size_t name_len, int32_t status, const char *category,
                      size_t category_len, const char *message, size_t message_len);
 IMPORT("[export]fmi:fmi3/co-simulation@3.0.0", "[resource-new]co-simulation-instance")
-extern int32_t resource_new(int32_t rep);
+extern int32_t resource_new(intptr_t rep);
+
+/* A pointer in a return area, and the length after it: the canonical ABI's (wasm32) i32
+ * at 4 and 8 in a result's payload; in a native build of this file (the memory checks of
+ * tests/integration/wasm_glue_harness.c) pointer-sized, at 8 and 16. */
+#define PTR_AT sizeof(void *)
+#define LEN_AT (2 * sizeof(void *))
 
 /* ------------------------------------------------------------------ memory */
 static uint64_t g_ret[4]; /* the return area of a result (aligned 8, 32 bytes) */
@@ -94,14 +100,15 @@ static char *cstr(const char *p, size_t n) {
 /* result<list<T>, status> */
 static uint8_t *ret_list(int st, void *list, size_t n) {
     uint8_t *r = (uint8_t *)g_ret;
-    uint32_t p = (uint32_t)(uintptr_t)list, len = (uint32_t)n;
+    uintptr_t p = (uintptr_t)list;
+    uint32_t len = (uint32_t)n;
     memset(g_ret, 0, sizeof g_ret);
     if (st <= fmi3Warning) {
-        memcpy(r + 4, &p, 4);
-        memcpy(r + 8, &len, 4);
+        memcpy(r + PTR_AT, &p, sizeof p);
+        memcpy(r + LEN_AT, &len, 4);
     } else {
         r[0] = 1;
-        r[4] = (uint8_t)st;
+        r[PTR_AT] = (uint8_t)st;
     }
     return r;
 }
@@ -128,9 +135,10 @@ static void on_log(fmi3InstanceEnvironment env, fmi3Status status, fmi3String ca
 /* ------------------------------------------------------------------ common */
 __attribute__((export_name("fmi:fmi3/common@3.0.0#get-version"))) uint8_t *w_get_version(void) {
     const char *v = fmi3GetVersion();
-    uint32_t p = (uint32_t)(uintptr_t)v, n = (uint32_t)strlen(v);
-    memcpy((uint8_t *)g_ret, &p, 4);
-    memcpy((uint8_t *)g_ret + 4, &n, 4);
+    uintptr_t p = (uintptr_t)v;
+    uint32_t n = (uint32_t)strlen(v);
+    memcpy((uint8_t *)g_ret, &p, sizeof p);
+    memcpy((uint8_t *)g_ret + PTR_AT, &n, 4);
     return (uint8_t *)g_ret;
 }
 
@@ -157,7 +165,7 @@ uint8_t *w_instantiate(const char *name, size_t name_len, const char *token, siz
         free(g);
         return r;
     }
-    handle = resource_new((int32_t)(uintptr_t)g);
+    handle = resource_new((intptr_t)g);
     r[0] = 1;
     memcpy(r + 4, &handle, 4);
     return r;
