@@ -163,7 +163,8 @@
     let status = "ok", failure = "";
     const fail = (inst, call, st) => {
       status = st === 2 ? "stopped" : "error";
-      const last = (models[inst].messages.slice(-1)[0] || {}).message || "";
+      const log = models[inst].messages;  // its first error or discard says why
+      const last = (log.find((m) => m.status === "error" || m.status === "discard") || log[log.length - 1] || {}).message || "";
       failure = `${inst}: ${call} returned ${STATUS[st] || st}${last ? ": " + last : ""}`;
     };
     const values = {};
@@ -334,9 +335,14 @@
     return { status, period_s: pOsc, amplitude: amp, rate_per_s: sigma, window_s, in_band_s: inBand, hold_s: hold };
   }
 
+  /* the glide the loop should reach: the equilibrium, or the held tail's steady glide for
+   * the open-loop law (runner.metrics.reference_glide) */
+  const thetaGe = (s) => (s.law === "open loop" ? D.theta_ge.open : D.theta_ge.closed);
+
   function metrics(r, s, completed) {
     const t = r.time, th = r["plant.theta_g"], dc = r["controller.delta_cmd"];
-    const out = { theta_ge_rad: D.theta_ge, rows: t.length };
+    const ge = thetaGe(s);
+    const out = { theta_ge_rad: ge, rows: t.length };
     if (t.length < 2) return Object.assign(out, { outcome: completed ? null : "stopped" });
     const h = t[1] - t[0];
     let effort = 0, maxCmd = 0;
@@ -346,7 +352,7 @@
     }
     out.control_effort = effort * h;
     out.max_abs_delta_cmd_rad = maxCmd;
-    const eTurns = th.map((x) => x - D.theta_ge);
+    const eTurns = th.map((x) => x - ge);
     const e = eTurns.map((x) => pymod(x + Math.PI, 2 * Math.PI) - Math.PI);
     const e0 = e[0];
     const band = Math.max(BAND_FRACTION * Math.abs(e0), BAND_FLOOR);
@@ -387,14 +393,14 @@
     { id: "speed", title: "speed V (m/s)", series: [["plant.V", "#9467bd", "V"]], deg: false },
   ];
 
-  function draw(canvas, plot, r) {
+  function draw(canvas, plot, r, ge) {
     const ctx = canvas.getContext("2d");
     const W = canvas.width, H = canvas.height, L = 56, R = 10, T = 22, B = 26;
     ctx.clearRect(0, 0, W, H);
     const t = r.time, k = plot.deg ? 180 / Math.PI : 1;
     let lo = Infinity, hi = -Infinity;
     for (const [name] of plot.series) for (const v of r[name] || []) { const x = v * k; if (x < lo) lo = x; if (x > hi) hi = x; }
-    if (plot.ref) { lo = Math.min(lo, D.theta_ge * k); hi = Math.max(hi, D.theta_ge * k); }
+    if (plot.ref) { lo = Math.min(lo, ge * k); hi = Math.max(hi, ge * k); }
     if (!(hi > lo)) { lo -= 1; hi += 1; }
     const pad = 0.05 * (hi - lo); lo -= pad; hi += pad;
     const tEnd = t.length ? Math.max(t[t.length - 1], D.step) : 1;
@@ -410,7 +416,7 @@
     ctx.fillText(plot.title, L, 14);
     if (plot.ref) {
       ctx.setLineDash([4, 4]); ctx.strokeStyle = "#888";
-      ctx.beginPath(); ctx.moveTo(L, Y(D.theta_ge * k)); ctx.lineTo(W - R, Y(D.theta_ge * k)); ctx.stroke();
+      ctx.beginPath(); ctx.moveTo(L, Y(ge * k)); ctx.lineTo(W - R, Y(ge * k)); ctx.stroke();
       ctx.setLineDash([]);
     }
     let lx = W - R - 150;
@@ -453,7 +459,7 @@
     const start = performance.now();
     const r = simulate(s);
     const simulated = performance.now();
-    for (const p of PLOTS) draw(document.getElementById("c-" + p.id), p, r);
+    for (const p of PLOTS) draw(document.getElementById("c-" + p.id), p, r, r.metrics.theta_ge_rad);
     const drawn = performance.now();
     const m = r.metrics, deg = 180 / Math.PI;
     const f = (x, d) => (x === null || x === undefined ? "n/a" : x.toFixed(d));

@@ -84,6 +84,17 @@ def page_data(scenario: Any, fmu_dir: Path) -> dict:
     from .metrics import reference_glide
 
     system = system_for(scenario, fmu_dir)
+    what = [w for w, has in (("events", system.events), ("disturbances", system.disturbances),
+                             ("input tables", system.tables),
+                             ("external components", getattr(scenario, "external", None)))
+            if has]  # fmt: skip
+    if what:
+        raise ExploreError(
+            f"scenario {scenario.name} has {' and '.join(what)}: the explorer runs scenarios "
+            "without events, disturbances, input tables or external components (expected "
+            "one such as default)"
+        )
+    system.record = None  # every output: the page's plots and metrics need them
     sim = CoSimulation(system, step=scenario.step, coupling=scenario.coupling)
     sim.load()
     try:
@@ -121,7 +132,10 @@ def page_data(scenario: Any, fmu_dir: Path) -> dict:
 
         from glider_plant.params import GliderParams
 
-        theta_ge = reference_glide(GliderParams.from_mapping(plant), ctrl, system.events)[0]
+        # the glide the loop should reach, per law: the equilibrium, the held tail's glide
+        p = GliderParams.from_mapping(plant)
+        theta_ge = {"closed": reference_glide(p, {**ctrl, "law": 1})[0],
+                    "open": reference_glide(p, {**ctrl, "law": 0})[0]}  # fmt: skip
         law = {0: "open loop", 1: "passivity", 2: "P", 3: "PI"}[int(value("controller", "law"))]
         defaults = {
             "law": law, "K_c": value("controller", "K_c"), "K_P": value("controller", "K_P"),

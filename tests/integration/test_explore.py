@@ -4,7 +4,9 @@
   resource fetched when it runs);
 - ``window.glider.simulate`` for the default scenario and for K_c = 6 equals ``glider-cosim
   run --flavor native`` within 1e-12 at every point of every recorded column, with the
-  same settling time, overshoot and outcome;
+  same settling time, overshoot and outcome; so does a scenario whose observer stalls the
+  run (open loop with a held tail, sensor noise: sec52-tail15), to the same stop;
+- a scenario with events is refused with one line;
 - a change of a slider re-simulates and redraws the 60 s run (3000 macro steps) in at most
   50 ms (median of five changes; the page prints each one's time), with no console error;
 - a file that is not such a page is never written over.
@@ -67,11 +69,11 @@ def page(tmp_path_factory) -> Path:
     return out / "explore.html"
 
 
-def native_run(tmp: Path, *sets: str) -> tuple[dict[str, list[float]], dict]:
+def native_run(tmp: Path, *sets: str, scenario: str = "default") -> tuple[dict, dict]:
     out = tmp / ("native" + "".join(s.replace("=", "_") for s in sets))
-    args = ["run", "--flavor", "native", "--out", str(out), "--no-plots"]
+    args = ["run", scenario, "--flavor", "native", "--out", str(out), "--no-plots"]
     p = cli(*args, *[a for s in sets for a in ("--set", s)])
-    assert p.returncode == 0, p.stderr
+    assert p.returncode == (1 if scenario == "sec52-tail15" else 0), p.stderr  # 1: it stalls
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.reader(f))
     cols = {h: [float(r[i]) for r in rows[1:]] for i, h in enumerate(rows[0])}
@@ -108,6 +110,31 @@ def test_simulate_equals_the_native_run(page, tmp_path, k_c):
     assert m["outcome"] == metrics["outcome"]
     for key in ("settling_time_s", "overshoot_rad", "rise_time_s", "control_effort"):
         assert m[key] == pytest.approx(metrics[key], abs=1e-9), key
+
+
+def test_a_stalling_scenario_stops_where_the_native_run_stops(tmp_path):
+    p = cli("explore", "sec52-tail15", "--out", str(tmp_path / "page"))
+    assert p.returncode == 0, p.stderr
+    (got,), errors = evaluate(tmp_path / "page" / "explore.html", [SIMULATE.format(settings="{}")])
+    want, metrics = native_run(tmp_path, scenario="sec52-tail15")
+    assert errors == [] and metrics["status"] == "stopped" and got["status"] == "stopped"
+    assert "observer estimate glider stalled" in got["message"]
+    assert len(got["time"]) == len(want["time"]) < 1500  # stopped at the same step
+    for col, values in want.items():
+        assert max(abs(a - b) for a, b in zip(values, got[col])) <= 1e-12, col
+    assert got["metrics"]["outcome"] == metrics["outcome"] == "stopped"
+    assert got["metrics"]["theta_ge_rad"] == metrics["theta_ge_rad"]  # the held tail's glide
+
+
+def test_a_scenario_with_events_is_refused(tmp_path):
+    p = cli("explore", "sec53-protocol", "--out", str(tmp_path))
+    assert p.returncode == 2
+    assert p.stderr.strip().splitlines()[-1] == (
+        "glider-cosim explore: error: scenario sec53-protocol has events: the explorer runs "
+        "scenarios without events, disturbances, input tables or external components "
+        "(expected one such as default)"
+    )
+    assert not (tmp_path / "explore.html").exists()
 
 
 CHANGES = """window.glider.ready.then(() => new Promise(done => setTimeout(() => {
