@@ -2,10 +2,11 @@
 
 - one self-contained ``explore.html`` (at most 5 MB, no ``src``/``href`` to anything, no
   resource fetched when it runs);
-- ``window.glider.simulate`` for the default scenario and for K_c = 6 equals ``glider-cosim
-  run --flavor native`` within 1e-12 at every point of every recorded column, with the
-  same settling time, overshoot and outcome; so does a scenario whose observer stalls the
-  run (open loop with a held tail, sensor noise: sec52-tail15), to the same stop;
+- ``window.glider.simulate`` for the default scenario and for K_c = 6 (and K_c = 5, a limit
+  cycle, and the open loop, not settled) equals ``glider-cosim run --flavor native``
+  within 1e-12 at every point of every recorded column, with the same metrics; so does a
+  scenario whose observer stalls the run (open loop with a held tail, sensor noise:
+  sec52-tail15), to the same stop;
 - a scenario with events is refused with one line;
 - a change of a slider re-simulates and redraws the 60 s run (3000 macro steps) in at most
   50 ms (median of five changes; the page prints each one's time), with no console error;
@@ -95,11 +96,18 @@ SIMULATE = (
 )
 
 
-@pytest.mark.parametrize("k_c", [None, 6.0])
-def test_simulate_equals_the_native_run(page, tmp_path, k_c):
-    settings = "{}" if k_c is None else json.dumps({"K_c": k_c})
-    (got,), errors = evaluate(page, [SIMULATE.format(settings=settings)])
-    want, metrics = native_run(tmp_path, *([] if k_c is None else [f"controller.K_c={k_c}"]))
+@pytest.mark.parametrize(
+    ("settings", "sets"),
+    [
+        ({}, []),  # settles
+        ({"K_c": 6.0}, ["controller.K_c=6.0"]),
+        ({"K_c": 5.0}, ["controller.K_c=5.0"]),  # a limit cycle
+        ({"law": "open loop"}, ["controller.law=0"]),  # not settled
+    ],
+)
+def test_simulate_equals_the_native_run(page, tmp_path, settings, sets):
+    (got,), errors = evaluate(page, [SIMULATE.format(settings=json.dumps(settings))])
+    want, metrics = native_run(tmp_path, *sets)
     assert errors == [] and got["status"] == "ok"
     assert len(got["time"]) == len(want["time"]) == 3001
     for col, values in want.items():
@@ -108,7 +116,8 @@ def test_simulate_equals_the_native_run(page, tmp_path, k_c):
         assert worst <= 1e-12, (col, worst)
     m = got["metrics"]
     assert m["outcome"] == metrics["outcome"]
-    for key in ("settling_time_s", "overshoot_rad", "rise_time_s", "control_effort"):
+    for key in ("settling_time_s", "overshoot_rad", "rise_time_s", "control_effort",
+                "outcome_period_s", "outcome_amplitude_rad", "outcome_rate_per_s"):  # fmt: skip
         assert m[key] == pytest.approx(metrics[key], abs=1e-9), key
 
 
