@@ -389,7 +389,7 @@
   const PLOTS = [
     { id: "glide", title: "glide angle theta_g (deg)", series: [["plant.theta_g", "#1f77b4", "theta_g"]], deg: true, ref: true },
     { id: "pitch", title: "pitch theta and its estimate (deg)", series: [["plant.theta", "#1f77b4", "theta"], ["observer.theta_hat", "#d62728", "estimate"]], deg: true },
-    { id: "tail", title: "tail angle delta and command (deg)", series: [["plant.delta", "#2ca02c", "delta"], ["controller.delta_cmd", "#ff7f0e", "command"]], deg: true },
+    { id: "tail", title: "tail angle delta and command (deg)", series: [["plant.delta", "#98df8a", "delta", 4], ["controller.delta_cmd", "#d62728", "command", 1.2, [5, 3]]], deg: true },
     { id: "speed", title: "speed V (m/s)", series: [["plant.V", "#9467bd", "V"]], deg: false },
   ];
 
@@ -420,12 +420,12 @@
       ctx.setLineDash([]);
     }
     let lx = W - R - 150;
-    for (const [name, color, label] of plot.series) {
+    for (const [name, color, label, width, dash] of plot.series) {
       const v = r[name] || [];
-      ctx.strokeStyle = color; ctx.lineWidth = 1.5; ctx.beginPath();
+      ctx.strokeStyle = color; ctx.lineWidth = width || 1.5; ctx.setLineDash(dash || []); ctx.beginPath();
       const stride = Math.max(1, Math.floor(v.length / (2 * (W - L - R))));
       for (let i = 0; i < v.length; i += stride) { const px = X(t[i]), py = Y(v[i] * k); if (i === 0) ctx.moveTo(px, py); else ctx.lineTo(px, py); }
-      ctx.stroke();
+      ctx.stroke(); ctx.setLineDash([]);
       ctx.fillStyle = color; ctx.fillRect(lx, 8, 12, 3); ctx.fillStyle = "#333"; ctx.fillText(label, lx + 16, 13); lx += 75;
     }
   }

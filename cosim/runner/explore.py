@@ -196,7 +196,12 @@ canvas {{ border: 1px solid #ddd; }}
 in this page as WebAssembly (the core modules of their FMI-LS-WASM components), under a
 co-simulation master in JavaScript. Every change re-simulates the whole run.
 API: <code>await window.glider.ready; window.glider.simulate({{law: "PI", K_P: 0.5}})</code>
-returns the time series, the metrics and the run's status.</p>
+with any of <code>law</code> ("passivity", "P", "PI", "open loop"), <code>K_c</code>,
+<code>K_P</code>, <code>K_I</code>, <code>noise_std</code> (rad), <code>tau_servo</code> (s),
+<code>f_cutoff</code> (Hz), <code>theta_g_0</code> (rad), <code>coupling</code>,
+<code>stop_time</code> (s) (the others: <code>window.glider.defaults</code>) returns
+<code>{{time: [...], "plant.theta_g": [...], ..., metrics, status, message, messages,
+elapsed_ms}}</code>.</p>
 <div id="form"></div><div id="metrics"></div><div id="timing"></div>
 <div id="plots">{canvases}</div>
 <script>const GLIDER_DATA = {_json(data)};</script>
