@@ -333,6 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     xp.add_argument("--fmu-dir", default=None,
                     help="native FMI 3 FMUs with their components (default: the per-user "
                     "cache's, built if missing)")  # fmt: skip
+    add_overwrite_option(xp)
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")

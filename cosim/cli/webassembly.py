@@ -38,6 +38,7 @@ def explore(args: argparse.Namespace, check_out_dir: Callable[[Path, str], None]
     out = Path(args.out) if args.out is not None else Path("out") / f"{scenario.name}-explore"
     check_out_dir(out, "--out")
     folder = None if args.fmu_dir is None else Path(args.fmu_dir)
-    fmus = prepare_fmus(folder, "native", 3, host_only=folder is None)
+    fmus = prepare_fmus(folder, "native", 3, host_only=folder is None,
+                        overwrite=getattr(args, "overwrite_fmus", False))  # fmt: skip
     print(f"wrote {write_page(out, scenario, fmus)}")
     return 0
