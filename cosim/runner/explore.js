@@ -5,9 +5,10 @@
  * The modules are the core modules inside the FMUs' FMI-LS-WASM components (the model, the
  * native back end and the FMI layer, and the canonical-ABI glue of the world
  * co-simulation-fmu): this small host speaks that ABI for the few calls a run makes
- * (instantiate, set/get, enter/exit initialisation, do-step, drop), the master repeats the
- * exchange our Python master plans (GLIDER_DATA.plans: its order of gets and sets per
- * coupling), and the metrics are those of glider_cosim.runner.metrics.
+ * (instantiate, set/get, enter/exit initialisation, do-step, drop), the master repeats
+ * what our Python master does: Initialization Mode's inputs (GLIDER_DATA.init_order), then
+ * the exchange it plans (GLIDER_DATA.plans: its order of gets and sets per coupling); the
+ * metrics are those of glider_cosim.runner.metrics.
  *
  * API: window.glider.ready (a promise), window.glider.simulate(settings) -> {time: [...],
  * "plant.theta_g": [...], ..., metrics: {...}, status, messages, elapsed_ms},
@@ -186,14 +187,25 @@
           const st = m.set(hd, v.type, [v.vr], [value]);
           if (st > 1) { fail(inst, `set ${name}`, st); return finish(); }
         }
-        let st = m.enter(hd, t0);
+        const st = m.enter(hd, t0);
         if (st > 1) { fail(inst, "enter-initialization-mode", st); return finish(); }
-        st = m.exit(hd);
-        if (st > 1) { fail(inst, "exit-initialization-mode", st); return finish(); }
       }
+      // Initialization Mode (master.initial): the driven inputs, then each connected input
+      // from its source in the order of the <InitialUnknowns> dependencies, then every exit
       for (const g of D.driven) {
         const st = models[g.inst].set(handles[g.inst], "Real", g.vrs, g.values);
         if (st > 1) { fail(g.inst, "set driven inputs", st); return finish(); }
+      }
+      const one = [0];
+      for (const o of D.init_order) {
+        let st = models[o.src].get(handles[o.src], o.type, [o.svr], one);
+        if (st > 1) { fail(o.src, "get in Initialization Mode", st); return finish(); }
+        st = models[o.dst].set(handles[o.dst], o.type, [o.dvr], [one[0]]);
+        if (st > 1) { fail(o.dst, "set in Initialization Mode", st); return finish(); }
+      }
+      for (const inst of D.instances) {
+        const st = models[inst].exit(handles[inst]);
+        if (st > 1) { fail(inst, "exit-initialization-mode", st); return finish(); }
       }
       const buf = [];
       for (let k = 0; k <= n; k++) {

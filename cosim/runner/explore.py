@@ -10,8 +10,10 @@ the components as they are: the same C as the native libraries (model, back end,
 with the canonical-ABI glue. The page's host speaks that ABI itself for the few calls a run
 makes, so the page needs neither jco nor a bundler (nor npm in CI), and it runs exactly
 the code the FMUs ship. The master repeats the exchange our Python master plans for the
-scenario (:func:`glider_cosim.master.plan.plan_exchange`, per coupling): the same calls in
-the same order, hence the same numbers (to the last bits of libm).
+scenario (Initialization Mode's inputs in the order of
+:func:`glider_cosim.master.plan.initialization_order`, then the exchange of
+:func:`glider_cosim.master.plan.plan_exchange`, per coupling): the same calls in the same
+order, hence the same numbers (to the last bits of libm).
 """
 
 from __future__ import annotations
@@ -119,6 +121,11 @@ def page_data(scenario: Any, fmu_dir: Path) -> dict:
             modules.append(base64.b64encode(core_module(component)).decode())
         variables = {n: {v.name: {"vr": v.valueReference, "type": v.type} for v in i.vars.values()}
                      for n, i in inst.items()}  # fmt: skip
+        init_order = []  # the inputs set in Initialization Mode (master.initial), in order
+        for dst, src in sim._init_order:
+            (di, dv), (si, sv) = sim._resolve(dst), sim._resolve(src)
+            init_order.append({"dst": di.name, "dvr": dv.valueReference, "src": si.name,
+                               "svr": sv.valueReference, "type": dv.type})  # fmt: skip
         driven = [{"inst": i.name, "vrs": list(g.vr),
                    "values": [float(system.driven.get(r, 0.0)) for r in refs]}
                   for i, g, refs in ex.driven]  # fmt: skip
@@ -156,6 +163,7 @@ def page_data(scenario: Any, fmu_dir: Path) -> dict:
             "variables": variables,
             "parameters": params,
             "driven": driven,
+            "init_order": init_order,
             "step": float(scenario.step),
             "t0": 0.0,
             "theta_ge": theta_ge,
