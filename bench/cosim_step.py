@@ -2,11 +2,13 @@
 against the same sampled loop calling the model code directly (no FMI).
 
 Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only]
-       [--fresh-font-cache]
+       [--wasm-only] [--fresh-font-cache]
 The last line with --json is one JSON object (figures quoted in
 docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
 cold run. --cli-only measures the command line alone: ``glider-cosim run`` with and
 without plots (median of 5 warm runs each, both flavors) and ``glider-cosim --help``.
+--wasm-only measures the FMI 3.0 native FMUs' WebAssembly components under wasmtime
+(``run --flavor wasm``) beside the same FMUs' native libraries, alone.
 """
 
 from __future__ import annotations
@@ -85,6 +87,21 @@ def runs_seconds_per_step(fmu_dir: Path, recorders: dict, repeat: int) -> dict[s
                 rec.close()
                 sim.close()
     return best
+
+
+def wasm_and_native_fmi3(fmi3_dir: Path, repeat: int) -> tuple[float, float]:
+    """The FMI 3 native FMUs run in memory (as :func:`runs_seconds_per_step`) by their
+    WebAssembly components under wasmtime (``run --flavor wasm``) and by their native
+    libraries, alternated (one of each per round), best of ``repeat`` each. Seconds per
+    macro step."""
+    from glider_cosim.master.wasm import components
+
+    wasm = native = float("inf")
+    for _ in range(repeat):
+        with components():
+            wasm = min(wasm, runs_seconds_per_step(fmi3_dir, {"mem": ArrayRecorder}, 1)["mem"])
+        native = min(native, runs_seconds_per_step(fmi3_dir, {"mem": ArrayRecorder}, 1)["mem"])
+    return wasm, native
 
 
 def native_and_floor(native_dir: Path, repeat: int) -> tuple[float, float]:
@@ -340,16 +357,28 @@ def main() -> None:
     ap.add_argument("--native-dir", default="fmus/native", help="the native flavor's FMUs")
     ap.add_argument("--native-only", action="store_true", help="the native figures alone")
     ap.add_argument("--cli-only", action="store_true", help="the command line's figures alone")
+    ap.add_argument("--wasm-only", action="store_true", help="the WebAssembly figures alone")
+    ap.add_argument("--fmi3-dir", default="fmus/fmi3/native",
+                    help="the native FMI 3 FMUs (with their WebAssembly components)")  # fmt: skip
     ap.add_argument("--fresh-font-cache", action="store_true",
                     help="each command with a new, empty matplotlib font cache (as before "
                          "the CLI kept it)")  # fmt: skip
     args = ap.parse_args()
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
+    fmi3_dir = Path(args.fmi3_dir)
+    build_all(fmi3_dir, only_stale=True, flavor="native", fmi=3)
+    wasm, native3 = wasm_and_native_fmi3(fmi3_dir, args.repeat)
+    result: dict = {
+        "wasm_us_per_macro_step": round(wasm * 1e6, 1),
+        "native_fmi3_us_per_macro_step": round(native3 * 1e6, 2),
+    }
+    if args.wasm_only:
+        emit({**result, "load_average": os.getloadavg(), "cpus": os.cpu_count()}, args.json)
+        return
     if not args.native_only:
         build_all(fmu_dir, only_stale=True, flavor="python")
     build_all(native_dir, only_stale=True, flavor="native")
-    result: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         if args.fresh_font_cache:
@@ -434,7 +463,9 @@ def main() -> None:
         "native_csv_sync: CSV formatted and written in the run's thread (no writer thread); "
         "native_csv_python_thread: the writer a Python thread (before csvwriter.c); "
         "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g' in the run's thread, "
-        "the text before)",
+        "the text before; wasm: the FMI 3 native FMUs' WebAssembly components under "
+        "wasmtime, run --flavor wasm, in memory, alternated with native_fmi3: the same FMUs' "
+        "native libraries)",
         "cpus": os.cpu_count(),
     })  # fmt: skip
     emit(result, args.json)

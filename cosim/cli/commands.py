@@ -14,6 +14,7 @@ from ..inputs.text import command_line, one_line, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
+from . import webassembly
 from .parser import UsageError
 
 log = logging.getLogger(__name__)
@@ -124,7 +125,7 @@ def _run(args: argparse.Namespace) -> int:
             ("--step", args.step, None),
             ("--stop-time", args.stop_time, None),
             ("--fmu-dir", getattr(args, "fmu_dir_given", args.fmu_dir), None),
-            ("--flavor", getattr(args, "flavor", None), None),
+            ("--flavor", "wasm" if args.run_wasm else getattr(args, "flavor", None), None),
             ("--fmi", getattr(args, "fmi", None), None),
             ("--no-plots", args.no_plots, False),
             ("--max-steps", args.max_steps, DEFAULT_MAX_STEPS),
@@ -301,6 +302,8 @@ def dispatch(args: argparse.Namespace) -> int:
     # asked; verify builds ours only for --write-references/--export
     if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
+    if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
+        return code
     if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 

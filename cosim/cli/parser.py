@@ -171,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="results folder, written straight into (default: out/<scenario>); results "
         "an earlier run made there with other settings are replaced, with a note naming them",
     )
-    add_fmu_options(r, fmi=True)
+    add_fmu_options(r, fmi=True, wasm=True)
     r.add_argument(
         "--coupling",
         type=str.lower,
@@ -319,6 +319,21 @@ def build_parser() -> argparse.ArgumentParser:
                      "7x5; none: skip the map)")  # fmt: skip
     rep.add_argument("--workers", type=int, default=2, help="local Dask workers for the map")
     rep.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+
+    xp = sub.add_parser(
+        "explore",
+        help="write a page that runs the glider in the browser, live",
+        description="Write one self-contained explore.html: the three FMUs' WebAssembly\n"
+        "modules under a master in the page; every slider re-simulates the run.",
+    )
+    xp.add_argument("scenario", nargs="?", default=None,
+                    help="TOML file or shipped name; default: default")  # fmt: skip
+    xp.add_argument("--out", default=None, metavar="DIR",
+                    help="folder of explore.html (default: out/<scenario>-explore)")  # fmt: skip
+    xp.add_argument("--fmu-dir", default=None,
+                    help="native FMI 3 FMUs with their components (default: the per-user "
+                    "cache's, built if missing)")  # fmt: skip
+    add_overwrite_option(xp)
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")

@@ -32,7 +32,7 @@ import glider_observer
 import glider_plant
 from glider_fmi import toolchain
 
-from . import objects, osp, platforms
+from . import objects, osp, platforms, wasm
 from .files import FLAVOR_FILE, build_progress, package_version, replacing
 from .native_description import build_description, model_description
 from .platforms import binary_entries, zip_member
@@ -214,7 +214,7 @@ def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | N
     that writes the model description (``slave_base.py``)."""
     h = hashlib.sha256(vars_header(c).encode())
     h.update((_pkg(glider_fmi) / "slave_base.py").read_bytes())
-    h.update(f"fmi{fmi}".encode())
+    h.update(f"fmi{fmi}{wasm.fingerprint() if fmi == 3 else ''}".encode())  # + the component
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(toolchain.fingerprint(chain).encode())
     h.update(package_version().encode())
@@ -276,9 +276,9 @@ def holds_host_only(folder: Path, chain: toolchain.Toolchain | None = None) -> b
 
 
 # ---------------------------------------------------------------- building
-def _package(c: NativeComponent, out: Path, chain: toolchain.Toolchain, fmi: int,
-             src: Path, built: dict[str, Path]) -> Path:  # fmt: skip
-    """Write ``<out>/<name>.fmu`` with the libraries ``built`` (platform key -> file)."""
+def _package(c: NativeComponent, out: Path, chain: toolchain.Toolchain, fmi: int, src: Path,
+             built: dict[str, Path], extra: dict[str, dict] | None = None) -> Path:  # fmt: skip
+    """Write ``<out>/<name>.fmu``: the libraries ``built`` (platform key -> file), ``extra``."""
     own = {f.name for f in source_files(c, fmi)} | {f"{c.name}_vars.h"}
     files = sorted(src / n for n in own)
     c_names = [p.name for p in files if p.suffix == ".c"]
@@ -292,14 +292,16 @@ def _package(c: NativeComponent, out: Path, chain: toolchain.Toolchain, fmi: int
     with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", md)
         z.writestr(osp.extra_path(md), osp.generate(md))
-        for entry, data in binary_entries(c.name, built, fmi).items():
+        mine = (extra or {}).get(c.name, {})  # zip path -> bytes: its component, manifest
+        for entry, data in {**binary_entries(c.name, built, fmi), **mine}.items():
             z.writestr(zip_member(entry), data)
         for p in files:
             z.write(p, f"sources/{p.name}")
         z.writestr("sources/buildDescription.xml", build_description(c, c_names))
         z.writestr(FLAVOR_FILE, "native\n")
         z.writestr(NATIVE_HASH_FILE, native_hash(c, fmi, chain) + "\n")
-        z.writestr(PLATFORMS_FILE, "".join(f"{k}\n" for k in built))
+        wasm_key = [wasm.WASM_PLATFORM] if mine else []
+        z.writestr(PLATFORMS_FILE, "".join(f"{k}\n" for k in [*built, *wasm_key]))
     osp.write_beside(fmu)  # where OSP's tools look for it
     return fmu
 
@@ -328,7 +330,9 @@ def build_native_components(
             built = objects.build_binaries(sources, targets, CFLAGS, stage, progress=progress)
         except toolchain.ToolchainError as err:
             raise NativeBuildError(str(err)) from None
-        return {c.name: _package(c, out, chain, fmi, src, built[c.name]) for c in todo}
+        # FMI-LS-WASM: each FMU's component and manifest (WasmBuildError: a ToolchainError)
+        extra = wasm.fmu_components(sources, stage, CFLAGS) if fmi == 3 else {}
+        return {c.name: _package(c, out, chain, fmi, src, built[c.name], extra) for c in todo}
 
 
 def staged_sources(fmi: int, chain: toolchain.Toolchain, fallback: Path) -> Path:

@@ -7,6 +7,9 @@ from typing import Any
 
 #: the flavors of our FMUs: the Python reference (default) and the native C99 build
 FLAVORS = ("python", "native")
+#: what ``run --flavor`` also takes: the native FMI 3.0 FMUs' WebAssembly components,
+#: run by wasmtime (FMI-LS-WASM)
+WASM_FLAVOR = "wasm"
 #: the FMI versions we build (``--fmi``)
 FMI_VERSIONS = (2, 3)
 
@@ -24,9 +27,9 @@ def add_overwrite_option(parser: Any, folder: str = "--fmu-dir") -> None:
     )
 
 
-def add_fmu_options(parser: Any, fmi: bool = False) -> None:
+def add_fmu_options(parser: Any, fmi: bool = False, wasm: bool = False) -> None:
     """``--fmu-dir`` and ``--flavor`` on a command that runs our FMUs (and ``--fmi``
-    with ``fmi``)."""
+    with ``fmi``; ``--flavor wasm`` with ``wasm``)."""
     parser.add_argument(
         "--fmu-dir",
         default=None,
@@ -36,10 +39,15 @@ def add_fmu_options(parser: Any, fmi: bool = False) -> None:
     )
     parser.add_argument(
         "--flavor",
-        choices=FLAVORS,
+        choices=(*FLAVORS, WASM_FLAVOR) if wasm else FLAVORS,
         default=None,
-        help="which FMUs: the Python reference or the native C99 build (default: the "
-        "flavor the FMU folder holds, python if it is empty)",
+        help="which FMUs: the Python reference or the native C99 build"
+        + (
+            ", or wasm: the native FMI 3.0 FMUs' WebAssembly components under wasmtime"
+            if wasm
+            else ""
+        )
+        + " (default: the flavor the FMU folder holds, python if it is empty)",
     )
     add_overwrite_option(parser)
     if fmi:

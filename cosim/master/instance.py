@@ -26,6 +26,7 @@ from glider_fmi.compile import PYTHON_CONFIG_FILE
 from ..inputs.archives import InputFileError, read_fmu, safe_extract
 from ..inputs.tempdirs import new_temp_dir
 from ..inputs.text import did_you_mean, one_line, quote
+from . import wasm
 from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError
 from .fmi3 import (
     TYPE_AS_FMI2,
@@ -112,7 +113,10 @@ class Instance:
         except InputFileError as err:
             raise SystemSpecError(f"instance {name}: {err}") from None
         try:
-            self.slave = (FMU3Adapter if self.fmi == 3 else FMU2Slave)(
+            adapter = FMU3Adapter if self.fmi == 3 else FMU2Slave
+            if self.fmi == 3 and wasm.wanted():  # run --flavor wasm: the component
+                adapter = wasm.WasmAdapter
+            self.slave = adapter(
                 guid=self.md.guid,
                 unzipDirectory=self.unzipdir,
                 modelIdentifier=self.md.coSimulation.modelIdentifier,
