@@ -28,8 +28,11 @@ from glider_plant.model import (
     check_state,
     constants,
     equilibrium,
+    plant_derivatives,
+    plant_jacobian,
     plant_step,
     rhs,
+    rhs_jacobian,
     saturate,
 )
 from glider_plant.params import GliderParams, ParameterError
@@ -128,6 +131,10 @@ def build(tmp_path_factory):
         "glider_equilibrium": (None, [ctypes.POINTER(CParams), ctypes.POINTER(CEq)]),
         "glider_rhs": (None, [D, D, D, D, D, ctypes.POINTER(CParams), D, D, D, D4]),
         "glider_saturate": (D, [D, D]),
+        "glider_rhs_jacobian": (None, [D, D, D, D, D, ctypes.POINTER(CParams), D, D, D, D * 32]),
+        "glider_plant_jacobian": (None, [D6, D, D, D3, ctypes.POINTER(CParams), D, D, D * 88]),
+        "glider_plant_derivatives": (None, [D6, D, D, D3, ctypes.POINTER(CParams), D, D,
+                                            D * 7]),
         "glider_check_state": (ctypes.c_int, [ctypes.POINTER(D), ctypes.c_int, ctypes.c_char_p,
                                               ctypes.c_size_t]),
         "glider_plant_step": (ctypes.c_int, [D6, ctypes.POINTER(D), D, D,
@@ -285,6 +292,32 @@ def test_rhs_bit_identical(lib):
             0.0, 0.0, 0.0)  # fmt: skip
         lib.glider_rhs(*args, ctypes.byref(cp), *dist, out)
         assert same(out, rhs(*args, constants(p), *dist)), (k, args, dist)
+
+
+def test_jacobian_and_derivatives_bit_identical(lib):
+    """glider_rhs_jacobian, glider_plant_jacobian and glider_plant_derivatives equal the
+    Python model's rhs_jacobian, plant_jacobian and plant_derivatives bit for bit (the
+    command on both sides of the tail limit)."""
+    rng = random.Random(12)
+    body, jac, der = (D * 32)(), (D * 88)(), (D * 7)()
+    for k in range(2000):
+        p = PERTURBED[k % len(PERTURBED)]
+        cp = cparams(p)
+        x = (rng.uniform(0.01, 1.0), rng.uniform(-1.5, 1.5), rng.uniform(-0.5, 0.5),
+             rng.uniform(-2, 2), rng.uniform(-9, 9), rng.uniform(-9, 9))  # fmt: skip
+        delta, cmd, tau, dmax = rng.uniform(-1, 1), rng.uniform(-2, 2), 0.01, rng.uniform(0, 2)
+        dist = (rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-0.1, 0.1)) if k % 2 else (
+            0.0, 0.0, 0.0)  # fmt: skip
+        u = p.K_udelta * delta
+        lib.glider_rhs_jacobian(*x[:4], u, ctypes.byref(cp), *dist, body)
+        want = rhs_jacobian(*x[:4], u, constants(p), *dist)
+        assert same(body, [v for r in want for v in r]), k
+        lib.glider_plant_jacobian(D6(*x), delta, cmd, D3(*dist), ctypes.byref(cp), tau, dmax, jac)
+        want = plant_jacobian(x, delta, cmd, dist, p, tau, dmax)
+        assert same(jac, [v for r in want for v in r]), k
+        lib.glider_plant_derivatives(D6(*x), delta, cmd, D3(*dist), ctypes.byref(cp), tau, dmax,
+                                     der)  # fmt: skip
+        assert same(der, plant_derivatives(x, delta, cmd, dist, p, tau, dmax)), k
 
 
 def _c_plant_step(lib, cp, x, delta, cmd, h, tau, dist, h_max):

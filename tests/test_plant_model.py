@@ -14,6 +14,8 @@ from glider_plant.model import (
     StallError,
     derivatives,
     equilibrium,
+    plant_derivatives,
+    plant_jacobian,
     plant_step,
     servo_response,
 )
@@ -128,3 +130,56 @@ def test_params_round_trip():
     p = GliderParams.from_mapping({"m": 12.0, "unrelated": 1})
     assert p.m == 12.0 and p.as_dict()["K_L"] == 303.6
     assert np.isclose(equilibrium(p).V, equilibrium(P).V)  # V_e does not depend on m
+
+
+def _random_points(n: int, seed: int):
+    """(state, delta, delta_cmd, disturbance, params) spread over the model's range, the
+    command on both sides of the tail limit 0.9 rad."""
+    rng = np.random.default_rng(seed)
+    params = (P, GliderParams(m=12.0, J2=0.1), GliderParams(K_q=-0.3, m0=0.2, K_L=250.0))
+    for k in range(n):
+        x = (rng.uniform(0.05, 1.0), rng.uniform(-1.5, 1.5), rng.uniform(-0.5, 0.5),
+             rng.uniform(-2, 2), rng.uniform(-5, 5), rng.uniform(-5, 5))  # fmt: skip
+        dist = tuple(rng.uniform(-1, 1, 3) * (1.0, 1.0, 0.1)) if k % 2 else (0.0, 0.0, 0.0)
+        yield x, rng.uniform(-0.5, 0.5), rng.uniform(-1.2, 1.2), dist, params[k % 3]
+
+
+def test_plant_jacobian_matches_central_differences():
+    """Every entry of the analytic Jacobian (8 x 11) against central differences of
+    plant_derivatives and of the pitch, to 1e-6 relative (1e-6 absolute near 0)."""
+    tau, dmax = 0.01, 0.9
+    worst = 0.0
+    for x, delta, cmd, dist, p in _random_points(200, 3):
+        if abs(abs(cmd) - dmax) < 1e-3:
+            continue  # the saturation's kink: no derivative there
+
+        def f(z):
+            d = plant_derivatives(tuple(z[:6]), z[6], z[7], tuple(z[8:]), p, tau, dmax)
+            return np.array([*d, z[1] + z[2]])
+
+        z0 = np.array([*x, delta, cmd, *dist])
+        J = np.array(plant_jacobian(x, delta, cmd, dist, p, tau, dmax))
+        assert J.shape == (8, 11)
+        for i in range(11):
+            h = 1e-6 * max(1.0, abs(z0[i]))
+            e = np.zeros(11)
+            e[i] = h
+            fd = (f(z0 + e) - f(z0 - e)) / (2 * h)
+            worst = max(worst, float(np.max(np.abs(fd - J[:, i]) / np.maximum(1.0, np.abs(fd)))))
+    assert worst < 1e-6
+
+
+def test_plant_jacobian_at_the_equilibrium_is_the_observers_matrix():
+    """The observer's A_o (its own closed form, Sec. 4) is the plant Jacobian's body block at
+    the equilibrium with the tail at zero, to rounding."""
+    from glider_observer.model import linearization
+
+    for p in (P, GliderParams(m=12.0, J2=0.1)):
+        e = equilibrium(p)
+        J = np.array(plant_jacobian((e.V, e.theta_g, e.alpha, 0.0, 0.0, 0.0), 0.0, 0.0,
+                                    (0.0, 0.0, 0.0), p, 0.01, 1.0))  # fmt: skip
+        np.testing.assert_allclose(J[:4, :4], np.array(linearization(p)), rtol=1e-12, atol=1e-14)
+        # the derivatives vanish there (a steady glide), the kinematics do not
+        d = plant_derivatives((e.V, e.theta_g, e.alpha, 0.0, 0.0, 0.0), 0.0, 0.0,
+                              (0.0, 0.0, 0.0), p, 0.01, 1.0)  # fmt: skip
+        assert np.max(np.abs(d[:4])) < 1e-14 and d[6] == 0.0 and d[4] > 0.0

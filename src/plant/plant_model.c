@@ -322,6 +322,80 @@ void glider_rhs(double V, double th, double al, double w, double u_delta, const 
     rhs_c(V, th, al, w, u_delta, p, m0g, F_x, F_z, M_y, out, sc_th);
 }
 
+void glider_rhs_jacobian(double V, double th, double al, double w, double u_delta,
+                         const GliderParams *p, double F_x, double F_z, double M_y,
+                         double out[32])
+{
+    double m = p->m, J2 = p->J2, K_Fdelta = p->K_Fdelta, m0g = p->m0 * p->g;
+    double V2 = V * V;
+    double s_th, c_th, s_al, c_al;
+    GLIDER_SINCOS(th, &s_th, &c_th);
+    GLIDER_SINCOS(al, &s_al, &c_al);
+    double k_lift = p->K_L0 + p->K_L * al;
+    double f_delta = K_Fdelta * V2 * u_delta;
+    double f_v = F_x * c_th - F_z * s_th;
+    double f_n = -F_x * s_th - F_z * c_th;
+    double mV = m * V;
+    double dth = (-m0g * c_th + k_lift * V2 + f_delta * c_al + f_n) / mV;
+    double V_V = (-2.0 * V * (p->K_D0 + p->K_D * al * al) + 2.0 * K_Fdelta * V * u_delta * s_al) / m;
+    double V_th = (-m0g * c_th + f_n) / m;
+    double V_al = (-2.0 * p->K_D * al * V2 + f_delta * c_al) / m;
+    double V_u = K_Fdelta * V2 * s_al / m;
+    double th_V = (2.0 * V * k_lift + 2.0 * K_Fdelta * V * u_delta * c_al) / mV - dth / V;
+    double th_th = (m0g * s_th - f_v) / mV;
+    double th_al = (p->K_L * V2 - f_delta * s_al) / mV;
+    double th_u = K_Fdelta * V2 * c_al / mV;
+    double w_V = 2.0 * V * (p->K_M0 + p->K_M * al + p->K_q * w - p->K_M * u_delta) / J2;
+    const double J[32] = {
+        V_V,   V_th,   V_al,   0.0, V_u,   c_th / m,   -s_th / m,  0.0,
+        th_V,  th_th,  th_al,  0.0, th_u,  -s_th / mV, -c_th / mV, 0.0,
+        -th_V, -th_th, -th_al, 1.0, -th_u, s_th / mV,  c_th / mV,  0.0,
+        w_V, 0.0, p->K_M * V2 / J2, p->K_q * V2 / J2, -p->K_M * V2 / J2, 0.0, 0.0, 1.0 / J2,
+    };
+    (void)M_y; /* enters linearly: its column is constant */
+    memcpy(out, J, sizeof J);
+}
+
+void glider_plant_jacobian(const double x[6], double delta, double delta_cmd,
+                           const double disturbance[3], const GliderParams *p, double tau_servo,
+                           double delta_max, double out[GP_JAC_ROWS * GP_JAC_COLS])
+{
+    double body[32], s_th, c_th, ku = p->K_udelta, V = x[0];
+    int i, j;
+    glider_rhs_jacobian(x[0], x[1], x[2], x[3], ku * delta, p, disturbance[0], disturbance[1],
+                        disturbance[2], body);
+    for (i = 0; i < GP_JAC_ROWS * GP_JAC_COLS; i++) out[i] = 0.0;
+    for (i = 0; i < 4; i++) { /* (V, th, al, w), then x, z, delta: u_delta = K_udelta delta */
+        double *r = out + i * GP_JAC_COLS;
+        const double *b = body + i * 8;
+        for (j = 0; j < 4; j++) r[j] = b[j];
+        r[6] = b[4] * ku;
+        for (j = 0; j < 3; j++) r[8 + j] = b[5 + j];
+    }
+    GLIDER_SINCOS(x[1], &s_th, &c_th);
+    out[4 * GP_JAC_COLS + 0] = c_th;
+    out[4 * GP_JAC_COLS + 1] = -V * s_th;
+    out[5 * GP_JAC_COLS + 0] = -s_th;
+    out[5 * GP_JAC_COLS + 1] = -V * c_th;
+    out[6 * GP_JAC_COLS + 6] = -1.0 / tau_servo;
+    out[6 * GP_JAC_COLS + 7] = -delta_max <= delta_cmd && delta_cmd <= delta_max ? 1.0 / tau_servo
+                                                                                 : 0.0;
+    out[7 * GP_JAC_COLS + 1] = 1.0;
+    out[7 * GP_JAC_COLS + 2] = 1.0;
+}
+
+void glider_plant_derivatives(const double x[6], double delta, double delta_cmd,
+                              const double disturbance[3], const GliderParams *p,
+                              double tau_servo, double delta_max, double out[GP_NSTATES])
+{
+    double sc_th[2];
+    rhs_c(x[0], x[1], x[2], x[3], p->K_udelta * delta, p, p->m0 * p->g, disturbance[0],
+          disturbance[1], disturbance[2], out, sc_th);
+    out[4] = x[0] * sc_th[1];
+    out[5] = -x[0] * sc_th[0];
+    out[6] = (glider_saturate(delta_cmd, delta_max) - delta) / tau_servo;
+}
+
 double glider_servo_response(double delta0, double command, double tau, double dt)
 {
     return command + (delta0 - command) * exp(-dt / tau);

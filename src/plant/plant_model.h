@@ -73,6 +73,31 @@ void glider_equilibrium(const GliderParams *p, GliderEquilibrium *eq);
 void glider_rhs(double V, double th, double al, double w, double u_delta, const GliderParams *p,
                 double F_x, double F_z, double M_y, double out[4]);
 
+/* rhs_jacobian(V, th, al, w, u_delta, constants(p), F_x, F_z, M_y): the exact partial
+ * derivatives of Eqs. (6)-(9), 4 rows (dV, dth, dal, dw) x 8 columns (V, th, al, w,
+ * u_delta, F_x, F_z, M_y), row-major */
+void glider_rhs_jacobian(double V, double th, double al, double w, double u_delta,
+                         const GliderParams *p, double F_x, double F_z, double M_y,
+                         double out[32]);
+
+/* the plant's states (V, theta_g, alpha, omega2, x, z, delta) and inputs (delta_cmd, F_x,
+ * F_z, M_y): GP_NSTATES + GP_NINPUTS columns of glider_plant_jacobian */
+#define GP_NSTATES 7
+#define GP_NINPUTS 4
+#define GP_JAC_ROWS 8
+#define GP_JAC_COLS (GP_NSTATES + GP_NINPUTS)
+
+/* plant_jacobian(x, delta, delta_cmd, disturbance, p, tau_servo, delta_max): rows the
+ * states' time derivatives and the pitch theta_g + alpha, row-major */
+void glider_plant_jacobian(const double x[6], double delta, double delta_cmd,
+                           const double disturbance[3], const GliderParams *p, double tau_servo,
+                           double delta_max, double out[GP_JAC_ROWS * GP_JAC_COLS]);
+
+/* plant_derivatives(...): the states' time derivatives */
+void glider_plant_derivatives(const double x[6], double delta, double delta_cmd,
+                              const double disturbance[3], const GliderParams *p,
+                              double tau_servo, double delta_max, double out[GP_NSTATES]);
+
 /* servo_response(delta0, command, tau, dt) */
 double glider_servo_response(double delta0, double command, double tau, double dt);
 
