@@ -153,7 +153,7 @@ def test_plant_jacobian_matches_central_differences():
         if abs(abs(cmd) - dmax) < 1e-3:
             continue  # the saturation's kink: no derivative there
 
-        def f(z):
+        def f(z, p=p):
             d = plant_derivatives(tuple(z[:6]), z[6], z[7], tuple(z[8:]), p, tau, dmax)
             return np.array([*d, z[1] + z[2]])
 
