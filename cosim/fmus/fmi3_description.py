@@ -36,6 +36,8 @@ def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> by
     cs = ET.SubElement(root, "CoSimulation", modelIdentifier=cs2.get("modelIdentifier"))
     for key, value in _COSIM_FLAGS.items():
         cs.set(key, value)
+    if cs2.get("providesDirectionalDerivative") == "true":
+        cs.set("providesDirectionalDerivatives", "true")
     if needs_execution_tool:
         cs.set("needsExecutionTool", "true")
     units = src.find("UnitDefinitions")
@@ -64,6 +66,9 @@ def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> by
         if typed.tag == "Boolean" and "start" in attrs:
             attrs["start"] = "true" if attrs["start"] in ("true", "1") else "false"
         ET.SubElement(variables, FMI3_TYPES[typed.tag], attrs)
+    for v in variables:  # a state derivative names its state by value reference
+        if v.get("derivative"):
+            v.set("derivative", vr_of_index[int(v.get("derivative"))])
     # FMI 3 wants its independent variable declared: time, after the others' references
     next_vr = max((int(v) for v in vr_of_index.values()), default=-1) + 1
     ET.SubElement(variables, "Float64", name="time", valueReference=str(next_vr),
@@ -71,7 +76,8 @@ def fmi3_model_description(md2: bytes, needs_execution_tool: bool = False) -> by
                   description="simulation time [s]", unit="s")  # fmt: skip
     structure = ET.SubElement(root, "ModelStructure")
     s2 = src.find("ModelStructure")
-    for tag, out_tag in (("Outputs", "Output"), ("InitialUnknowns", "InitialUnknown")):
+    for tag, out_tag in (("Outputs", "Output"), ("Derivatives", "ContinuousStateDerivative"),
+                         ("InitialUnknowns", "InitialUnknown")):  # fmt: skip
         group = s2.find(tag)
         for u in group if group is not None else ():
             attrs = {"valueReference": vr_of_index[int(u.get("index"))]}

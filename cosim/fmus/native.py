@@ -137,6 +137,30 @@ def _slave_variables(cls: type) -> list[tuple[int, Any]]:
     return pairs
 
 
+def c_name(name: str) -> str:
+    """A variable's name as a C identifier: ``der(V)`` -> ``der_V``."""
+    return name.replace("(", "_").replace(")", "")
+
+
+def _jacobian_lines(cls: type, up: str) -> list[str]:
+    """``<MODEL>_JAC_ROW``, ``_JAC_COL``, ``_JAC_NROWS``, ``_JAC_NCOLS`` of the slave's
+    directional derivatives (``glider_fmi.slave_base.GliderSlave._jacobian_tables``;
+    NULL and 0 when it provides none)."""
+    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
+        tables = cls(instance_name="codegen", resources=tmp)._jacobian_tables()
+    if tables is None:
+        return [f"#define {up}_JAC_ROW NULL", f"#define {up}_JAC_COL NULL",
+                f"#define {up}_JAC_NROWS 0", f"#define {up}_JAC_NCOLS 0"]  # fmt: skip
+    rows, cols, nrows, ncols = tables
+    return [
+        "/* directional derivatives: each value reference's row and column (-1: none) */",
+        f"static const int {up}_JAC_ROW[] = {{{', '.join(map(str, rows))}}};",
+        f"static const int {up}_JAC_COL[] = {{{', '.join(map(str, cols))}}};",
+        f"#define {up}_JAC_NROWS {nrows}",
+        f"#define {up}_JAC_NCOLS {ncols}",
+    ]
+
+
 def vars_header(c: NativeComponent) -> str:
     """``<Model>_vars.h``: the component's variables as a C struct and a NativeVar table."""
     cls = c.slave_class()
@@ -156,13 +180,13 @@ def vars_header(c: NativeComponent) -> str:
         "",
         "typedef struct {",
         *(
-            f"    {ctype[v.type]} {v.name}; /* vr {vr}, {v.causality}, [{v.unit}] */"
+            f"    {ctype[v.type]} {c_name(v.name)}; /* vr {vr}, {v.causality}, [{v.unit}] */"
             for vr, v in pairs
         ),
         f"}} {c.name}Vars;",
         "",
         "enum {",
-        *(f"    VR_{v.name} = {vr}," for vr, v in pairs),
+        *(f"    VR_{c_name(v.name)} = {vr}," for vr, v in pairs),
         f"    {c.name.upper()}_NVARS = {len(pairs)}",
         "};",
         "",
@@ -176,9 +200,10 @@ def vars_header(c: NativeComponent) -> str:
         f"static const NativeVar {c.name.upper()}_VARS[] = {{",
     ]
     for _, v in pairs:
-        causality = {"input": "NV_INPUT", "output": "NV_OUTPUT", "parameter": "NV_PARAMETER"}
+        causality = {"input": "NV_INPUT", "output": "NV_OUTPUT", "parameter": "NV_PARAMETER",
+                     "local": "NV_LOCAL"}  # fmt: skip
         r = v.valid
-        if r is None or v.causality == "output":
+        if r is None or v.causality in ("output", "local"):
             rng = "0, -HUGE_VAL, HUGE_VAL, 0, 0, NULL"
         else:
             low = -math.inf if r.low is None else r.low
@@ -189,14 +214,16 @@ def vars_header(c: NativeComponent) -> str:
             )
         lines.append(
             f"    {{{_c_string(v.name)}, '{v.type[0]}', {causality[v.causality]}, "
-            f"{int(v.tunable)}, {int(v.name in computed)}, offsetof({c.name}Vars, {v.name}), "
+            f"{int(v.tunable)}, {int(v.name in computed)}, "
+            f"offsetof({c.name}Vars, {c_name(v.name)}), "
             f"{_c_double(float(v.start))}, {rng}}},"
         )
     inputs = [str(vr) for vr, v in pairs if v.causality == "input" and v.type == "Real"]
     up = c.name.upper()
     lines += ["};", "", "/* the Real inputs' value references (checked finite at each step) */",
               f"static const unsigned {up}_REAL_INPUTS[] = {{{', '.join(inputs or ['0'])}}};",
-              f"#define {up}_NREAL_INPUTS {len(inputs)}", "", "#endif", ""]  # fmt: skip
+              f"#define {up}_NREAL_INPUTS {len(inputs)}", "", *_jacobian_lines(cls, up), "",
+              "#endif", ""]  # fmt: skip
     return "\n".join(lines)
 
 

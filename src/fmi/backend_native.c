@@ -73,6 +73,12 @@ static Status nat_create(Ctx *x) {
     inst->nvars = M.nvars;
     inst->var_type = M.var_types;
     inst->var_names = M.var_names;
+    if (M.jacobian) {
+        inst->jac_row = M.jac_row;
+        inst->jac_col = M.jac_col;
+        inst->jac_nrows = M.jac_nrows;
+        inst->jac_ncols = M.jac_ncols;
+    }
     return ST_OK;
 }
 
@@ -193,7 +199,9 @@ static Status nat_set(Ctx *x, char type, const ValueRef vr[], size_t nvr, const 
         double value = type == T_REAL      ? ((const double *)values)[i]
                        : type == T_INTEGER ? (double)((const int *)values)[i]
                                            : (double)(((const int *)values)[i] != 0);
-        if (v->causality == NV_OUTPUT) return FAIL(x, "%s is an output: it cannot be set", v->name);
+        if (v->causality == NV_OUTPUT || v->causality == NV_LOCAL)
+            return FAIL(x, "%s is %s: it cannot be set", v->name,
+                        v->causality == NV_OUTPUT ? "an output" : "a calculated variable");
         if (ni->initialized && v->causality == NV_PARAMETER) {
             if (!v->tunable)
                 return FAIL(x, "%s is a fixed parameter: it cannot be set after initialisation "
@@ -261,6 +269,13 @@ static Status nat_step(Ctx *x, double t, double h, int *go_on) {
     return ST_OK;
 }
 
+/* ------------------------------------------------------------------ derivatives */
+static Status nat_jacobian(Ctx *x, double *J) {
+    NativeInstance *ni = NI(x->inst);
+    M.jacobian(ni->model, ni->initialized, J);
+    return ST_OK;
+}
+
 /* ------------------------------------------------------------------ FMU state */
 static Status nat_state_get(Ctx *x, FmuState *s) {
     if (!s->value && !(s->value = malloc(BLOCK_SIZE))) return FAIL(x, "out of memory");
@@ -311,4 +326,5 @@ const Backend GLIDER_BACKEND = {
     nat_reset,            nat_destroy,      nat_alive,           nat_setup,      nat_transition,
     nat_get,              nat_set,          nat_step,            nat_state_get,  nat_state_set,
     nat_state_release,    nat_state_bytes,  nat_state_from_bytes, nat_quick_real,
+    nat_jacobian,
 };

@@ -138,6 +138,7 @@ typedef struct {
     char **strings;     /* buffers returned by fmi2GetString, valid until the next call */
     size_t nstrings;
     RefCache refs[C_COUNT];
+    int *jac_row, *jac_col; /* Instance.jac_row, jac_col (NULL: no directional derivatives) */
     int counted; /* in g_live */
 } PyInstance;
 
@@ -403,15 +404,57 @@ static void drain_log_queue(Ctx *x) {
     XDECREF(q);
 }
 
-/* Call a bound slave method with 0-3 arguments (new reference, or NULL with the Python
- * exception pending); the slave's log queue is drained either way. */
-static PyObject *call_slave(Ctx *x, int method, PyObject *a, PyObject *b, PyObject *c) {
-    PyObject *r = pPyObject_CallFunctionObjArgs(PY(x->inst)->method[method], a, b, c, NULL);
+/* Call fn with 0-3 arguments (new reference, or NULL with the Python exception pending);
+ * the slave's log queue is drained either way. */
+static PyObject *call_object(Ctx *x, PyObject *fn, PyObject *a, PyObject *b, PyObject *c) {
+    PyObject *r = pPyObject_CallFunctionObjArgs(fn, a, b, c, NULL);
     PyObject *t = NULL, *v = NULL, *tb = NULL;
     if (!r) pPyErr_Fetch(&t, &v, &tb); /* keep the exception while the queue is read */
     drain_log_queue(x);
     if (!r) pPyErr_Restore(t, v, tb);
     return r;
+}
+
+/* A bound slave method (SLAVE_METHODS) called as call_object does. */
+static PyObject *call_slave(Ctx *x, int method, PyObject *a, PyObject *b, PyObject *c) {
+    return call_object(x, PY(x->inst)->method[method], a, b, c);
+}
+
+/* slave.<name>() for the optional protocol (directional derivatives): NULL with the
+ * exception pending if it fails; *absent = 1 (and NULL) if the slave has no such method */
+static PyObject *call_optional(Ctx *x, const char *name, int *absent) {
+    PyObject *fn = pPyObject_GetAttrString(PY(x->inst)->slave, name);
+    *absent = fn == NULL;
+    if (!fn) {
+        pPyErr_Clear();
+        return NULL;
+    }
+    PyObject *r = call_object(x, fn, NULL, NULL, NULL);
+    DECREF(fn);
+    return r;
+}
+
+/* n floats (ints when ints is set) of a Python sequence into out; fmi2OK, or an error
+ * naming what (the sequence's length, a value) */
+static fmi2Status read_numbers(Ctx *x, PyObject *seq, size_t n, int ints, void *out,
+                               const char *what) {
+    Py_ssize_t len = seq ? pPySequence_Size(seq) : -1;
+    if (len != (Py_ssize_t)n) {
+        pPyErr_Clear();
+        return FAIL(x, "%s has %zd values: expected %zu", what, len, n);
+    }
+    for (size_t i = 0; i < n; ++i) {
+        PyObject *o = pPySequence_GetItem(seq, (Py_ssize_t)i);
+        if (ints) {
+            long v = o ? pPyLong_AsLong(o) : -1;
+            ((int *)out)[i] = (int)v;
+        } else {
+            ((double *)out)[i] = o ? pPyFloat_AsDouble(o) : -1.0;
+        }
+        XDECREF(o);
+        if (pPyErr_Occurred()) return py_error(x);
+    }
+    return fmi2OK;
 }
 
 /* A call whose result only matters as success or failure (steals a, b, c). */
@@ -532,6 +575,46 @@ done:
     return st;
 }
 
+/* The directional derivatives' tables from slave._jacobian_tables() (rows and columns
+ * per value reference, their numbers; None or no such method: not provided). */
+static fmi2Status read_jacobian(Ctx *x) {
+    Instance *inst = x->inst;
+    PyInstance *p = PY(inst);
+    int absent;
+    PyObject *t = call_optional(x, "_jacobian_tables", &absent);
+    if (absent) return fmi2OK;
+    if (!t) return py_error(x);
+    fmi2Status st = fmi2OK;
+    if (t != pNone) {
+        PyObject *item[4];
+        for (int i = 0; i < 4; ++i) item[i] = pPySequence_GetItem(t, i);
+        long nr = item[2] ? pPyLong_AsLong(item[2]) : -1;
+        long nc = item[3] ? pPyLong_AsLong(item[3]) : -1;
+        pPyErr_Clear();
+        if (!item[0] || !item[1] || nr <= 0 || nc <= 0 || nr > INT_MAX || nc > INT_MAX)
+            st = FAIL(x, "_jacobian_tables() is not (rows, columns, nrows, ncolumns)");
+        else if (!(p->jac_row = calloc(p->nvars + 1, sizeof(int))) ||
+                 !(p->jac_col = calloc(p->nvars + 1, sizeof(int))))
+            st = FAIL(x, "out of memory");
+        if (st == fmi2OK) st = read_numbers(x, item[0], p->nvars, 1, p->jac_row, "the rows");
+        if (st == fmi2OK) st = read_numbers(x, item[1], p->nvars, 1, p->jac_col, "the columns");
+        for (size_t i = 0; st == fmi2OK && i < p->nvars; ++i)
+            if (p->jac_row[i] < -1 || p->jac_row[i] >= nr || p->jac_col[i] < -1 ||
+                p->jac_col[i] >= nc)
+                st = FAIL(x, "_jacobian_tables(): value reference %zu is outside the %ldx%ld "
+                             "Jacobian", i, nr, nc);
+        if (st == fmi2OK) {
+            inst->jac_row = p->jac_row;
+            inst->jac_col = p->jac_col;
+            inst->jac_nrows = (size_t)nr;
+            inst->jac_ncols = (size_t)nc;
+        }
+        for (int i = 0; i < 4; ++i) XDECREF(item[i]);
+    }
+    DECREF(t);
+    return st;
+}
+
 /* Log categories from the slave class's log_categories (its keys, in order). */
 static void read_categories(Instance *inst) {
     PyObject *cats = pPyObject_GetAttrString(PY(inst)->cls, "log_categories");
@@ -614,6 +697,7 @@ static fmi2Status py_create(Ctx *x) {
     if (st == fmi2OK) read_categories(inst);
     if (st == fmi2OK) st = make_slave(x);
     if (st == fmi2OK) st = read_variables(x);
+    if (st == fmi2OK) st = read_jacobian(x);
     if (st == fmi2OK) {
         pthread_mutex_lock(&g_lock);
         ++g_live;
@@ -644,6 +728,8 @@ static void py_destroy(Instance *inst, int alive) {
     free(p->strings);
     free(p->var_names);
     free(p->var_type);
+    free(p->jac_row);
+    free(p->jac_col);
     free(p);
     inst->backend = NULL;
     inst->nvars = 0;
@@ -828,6 +914,18 @@ static fmi2Status py_step(Ctx *x, double t, double h, int *go_on) {
     return fmi2OK;
 }
 
+/* ------------------------------------------------------------------ derivatives */
+static fmi2Status py_jacobian(Ctx *x, double *J) {
+    int absent;
+    PyObject *r = call_optional(x, "jacobian", &absent);
+    if (!r) return absent ? FAIL(x, "the slave class %s has no method jacobian", g_model)
+                          : py_error(x);
+    fmi2Status st = read_numbers(x, r, x->inst->jac_nrows * x->inst->jac_ncols, 0, J,
+                                 "the slave's jacobian()");
+    DECREF(r);
+    return st;
+}
+
 /* ------------------------------------------------------------------ FMU state */
 static fmi2Status py_state_get(Ctx *x, FmuState *s) {
     PyObject *value = call_slave(x, M_GET_STATE, NULL, NULL, NULL);
@@ -883,4 +981,5 @@ const Backend GLIDER_BACKEND = {
     py_reset,            py_destroy,   py_alive,       py_setup,         py_transition,
     py_get,              py_set,       py_step,        py_state_get,     py_state_set,
     py_state_release,    py_state_bytes, py_state_from_bytes, NULL,
+    py_jacobian,
 };

@@ -130,9 +130,8 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         size_t nUnknown, const fmi2ValueReference vKnown_ref[],
                                         size_t nKnown, const fmi2Real dvKnown[],
                                         fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref, (void)nUnknown, (void)vKnown_ref, (void)nKnown, (void)dvKnown,
-        (void)dvUnknown;
-    return (fmi2Status)glider_op_unsupported(c, C_DIRECTIONAL);
+    return (fmi2Status)glider_op_directional(c, vUnknown_ref, nUnknown, vKnown_ref, nKnown,
+                                             dvKnown, nKnown, dvUnknown, nUnknown);
 }
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],

@@ -791,6 +791,70 @@ int glider_op_unsupported(void *c, int call) {
     return end(&x, begin(&x, c, call));
 }
 
+/* A value reference of a directional derivative: an unknown (row >= 0, or a state that is
+ * an output: a column) or a known (column), named in the message if it is neither. */
+static Status check_jacobian_refs(Ctx *x, const unsigned vr[], size_t n, int unknowns) {
+    const Instance *inst = x->inst;
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        unsigned r = vr[i];
+        if (r >= inst->nvars)
+            return FAIL(x, "value reference %u does not exist: expected 0..%lu", r,
+                        (unsigned long)(inst->nvars - 1));
+        if (inst->jac_col[r] >= 0 || (unknowns && inst->jac_row[r] >= 0)) continue;
+        return FAIL(x, unknowns ? "value reference %u (%s) is not an unknown: expected an "
+                                  "output or a state derivative"
+                                : "value reference %u (%s) is not a known: expected a "
+                                  "continuous state or an input",
+                    r, inst->var_names[r]);
+    }
+    return ST_OK;
+}
+
+int glider_op_directional(void *c, const unsigned unknown[], size_t nunknown,
+                          const unsigned known[], size_t nknown, const double seed[],
+                          size_t nseed, double sensitivity[], size_t nsensitivity) {
+    Ctx x;
+    Instance *inst;
+    double *J;
+    size_t i, k;
+    Status st = begin(&x, c, C_DIRECTIONAL);
+    if (st != ST_OK) return end(&x, st);
+    inst = x.inst;
+    if (!inst->jac_row || !B.jacobian) return end(&x, FAIL(&x, "not supported by this FMU"));
+    if (nseed != nknown || nsensitivity != nunknown)
+        return end(&x, FAIL(&x, "%s = %lu is invalid: expected %lu (one per %s)",
+                            nseed != nknown ? "nSeed" : "nSensitivity",
+                            (unsigned long)(nseed != nknown ? nseed : nsensitivity),
+                            (unsigned long)(nseed != nknown ? nknown : nunknown),
+                            nseed != nknown ? "known" : "unknown"));
+    if (nunknown == 0) return end(&x, ST_OK);
+    if (!unknown || !sensitivity || (nknown && (!known || !seed)))
+        return end(&x, FAIL(&x, "NULL %s array with %lu unknowns and %lu knowns",
+                            !unknown ? "unknown" : !sensitivity ? "sensitivity"
+                            : !known ? "known" : "seed",
+                            (unsigned long)nunknown, (unsigned long)nknown));
+    if ((st = check_jacobian_refs(&x, unknown, nunknown, 1)) != ST_OK ||
+        (st = check_jacobian_refs(&x, known, nknown, 0)) != ST_OK)
+        return end(&x, st);
+    if (!(J = malloc(inst->jac_nrows * inst->jac_ncols * sizeof *J)))
+        return end(&x, FAIL(&x, "out of memory"));
+    if ((st = B.jacobian(&x, J)) == ST_OK) {
+        for (i = 0; i < nunknown; ++i) {
+            int row = inst->jac_row[unknown[i]], col = inst->jac_col[unknown[i]];
+            double s = 0.0;
+            for (k = 0; k < nknown; ++k) {
+                int kc = inst->jac_col[known[k]];
+                s += (row >= 0 ? J[(size_t)row * inst->jac_ncols + (size_t)kc]
+                               : (double)(kc == col)) * seed[k];
+            }
+            sensitivity[i] = s;
+        }
+    }
+    free(J);
+    return end(&x, st);
+}
+
 int glider_op_do_step(void *c, double t, double h, int *terminated, double *last) {
     Ctx x;
     Instance *inst;

@@ -76,7 +76,8 @@ enum {
     X(C_STATE_SIZE, "fmi2SerializedFMUstateSize", "fmi3SerializedFMUStateSize", S_LIVE)    \
     X(C_SERIALIZE, "fmi2SerializeFMUstate", "fmi3SerializeFMUState", S_LIVE)               \
     X(C_DESERIALIZE, "fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState", S_LIVE)         \
-    X(C_DIRECTIONAL, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative", 0)    \
+    X(C_DIRECTIONAL, "fmi2GetDirectionalDerivative", "fmi3GetDirectionalDerivative",      \
+      S_STEPPING | S_TERMINATED)                                                           \
     X(C_SET_INPUT_DERIVATIVES, "fmi2SetRealInputDerivatives", "-", 0)                      \
     X(C_GET_OUTPUT_DERIVATIVES, "fmi2GetRealOutputDerivatives", "fmi3GetOutputDerivatives", \
       0)                                                                                   \
@@ -148,6 +149,13 @@ typedef struct Instance {
      * after the model's: cosim/fmus/fmi3_description.py writes it there); a get of it
      * returns the instance's current time, a set is refused. FMI 2.0 declares none. */
     int has_time;
+    /* directional derivatives (NULL jac_row: none; filled by the back end at
+     * instantiation): per value reference, its row of the back end's Jacobian (an
+     * unknown: a state derivative or an output) and its column (a known: a state or an
+     * input), -1 for none; a state that is an output has a column and no row (its row is
+     * the column's unit vector) */
+    const int *jac_row, *jac_col;
+    size_t jac_nrows, jac_ncols;
     FmuState *states;
     void *backend; /* the back end's per-instance data */
 } Instance;
@@ -208,6 +216,12 @@ int glider_op_state_size(void *c, void *state, size_t *size);
 int glider_op_serialize(void *c, void *state, char buffer[], size_t size);
 int glider_op_deserialize(void *c, const char data[], size_t size, void **state);
 int glider_op_unsupported(void *c, int call);
+/* fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative: sensitivity = J seed with J
+ * the partial derivatives of the unknowns with respect to the knowns at the current point
+ * (nseed must equal nknown and nsensitivity nunknown) */
+int glider_op_directional(void *c, const unsigned unknown[], size_t nunknown,
+                          const unsigned known[], size_t nknown, const double seed[],
+                          size_t nseed, double sensitivity[], size_t nsensitivity);
 /* one step; *terminated: the model stopped (the status is Discard), *last: the last
  * successful time */
 int glider_op_do_step(void *c, double t, double h, int *terminated, double *last);
@@ -259,6 +273,10 @@ typedef struct {
      * get/set's checks or messages (then the call takes the full path) */
     int (*quick_real)(Instance *inst, const ValueRef vr[], size_t nvr, const double *in,
                       double *out);
+    /* optional (NULL: none): the Jacobian at the current point, inst->jac_nrows x
+     * inst->jac_ncols row-major into J (the layer checks the references and forms the
+     * directional derivative) */
+    Status (*jacobian)(Ctx *x, double *J);
 } Backend;
 
 /* defined once per binary by its back end; internal to the binary (its definition is

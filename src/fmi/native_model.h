@@ -15,14 +15,14 @@
 
 #include <stddef.h>
 
-enum { NV_INPUT = 'i', NV_OUTPUT = 'o', NV_PARAMETER = 'p' };
+enum { NV_INPUT = 'i', NV_OUTPUT = 'o', NV_PARAMETER = 'p', NV_LOCAL = 'l' };
 
 typedef struct {
     const char *name;
     char type;      /* 'R' Real (double), 'I' Integer (int), 'B' Boolean (int) */
-    char causality; /* NV_INPUT, NV_OUTPUT, NV_PARAMETER */
+    char causality; /* NV_INPUT, NV_OUTPUT, NV_PARAMETER, NV_LOCAL (a state derivative) */
     char tunable;   /* a parameter that may change after initialisation */
-    char computed;  /* an output the model computes when read (direct feedthrough) */
+    char computed;  /* computed when read (direct feedthrough, a state derivative) */
     size_t offset;  /* of its value in the data */
     double start;
     /* valid range (checked at fmi2ExitInitializationMode, and when a tunable parameter
@@ -59,6 +59,13 @@ typedef struct {
      * <MODEL>_REAL_INPUTS, <MODEL>_NREAL_INPUTS) */
     const unsigned *real_inputs;
     size_t nreal_inputs;
+    /* directional derivatives (generated from the slave's JACOBIAN_ROWS and
+     * JACOBIAN_COLUMNS: <MODEL>_JAC_ROW, _JAC_COL, _JAC_NROWS, _JAC_NCOLS; NULL: none):
+     * the row and column of each value reference (-1: none, Instance.jac_row) and the
+     * Jacobian at the current point, nrows x ncols row-major */
+    const int *jac_row, *jac_col;
+    size_t jac_nrows, jac_ncols;
+    void (*jacobian)(void *data, int initialized, double *J);
 } NativeModel;
 
 /* internal to the binary, as GLIDER_BACKEND (fmi_layer.h): reached without the GOT */

@@ -43,7 +43,7 @@ class Var(NamedTuple):
     """One FMU variable: name, causality, unit, description, start, type, variability."""
 
     name: str
-    causality: str  # "input" | "output" | "parameter"
+    causality: str  # "input" | "output" | "parameter" | "local" (a state derivative)
     unit: str
     description: str
     start: float = 0.0
@@ -66,6 +66,7 @@ _UNITS: dict[str, dict[str, str]] = {
     "m/s2": {"m": "1", "s": "-2"},
     "rad": {"rad": "1"},
     "rad/s": {"rad": "1", "s": "-1"},
+    "rad/s2": {"rad": "1", "s": "-2"},
     "rad2": {"rad": "2"},
     "s": {"s": "1"},
     "Hz": {"s": "-1"},
@@ -77,7 +78,8 @@ _UNITS: dict[str, dict[str, str]] = {
     "kg.m2": {"kg": "1", "m": "2"},
     "rad.s": {"rad": "1", "s": "1"},
 }
-_DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad.s": ("deg.s", DEG)}
+_DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad/s2": ("deg/s2", DEG),
+            "rad.s": ("deg.s", DEG)}  # fmt: skip
 
 
 def _expected(v: Var) -> str:
@@ -118,6 +120,14 @@ class GliderSlave(Fmi2Slave):
     INTERNAL_STATE: tuple[str, ...] = ()
     #: module prefixes whose objects may appear in a serialized FMU state
     STATE_MODULES: tuple[str, ...] = ("glider_",)
+    #: continuous states exposed with their derivatives: derivative variable -> state
+    #: variable (FMI 2 ``<Derivatives>``, FMI 3 ``<ContinuousStateDerivative>``)
+    STATE_DERIVATIVES: dict[str, str] = {}
+    #: directional derivatives (``providesDirectionalDerivative``): the knowns (states and
+    #: inputs), the columns of :meth:`jacobian`, and the unknowns with a row of it (variable
+    #: -> row; an output that is a state needs none); empty: not provided
+    JACOBIAN_COLUMNS: tuple[str, ...] = ()
+    JACOBIAN_ROWS: dict[str, int] = {}
 
     log_categories = {
         **Fmi2Slave.log_categories,
@@ -224,7 +234,54 @@ class GliderSlave(Fmi2Slave):
                 if initial is not None and name in initial:  # a subclass may drop knowns
                     attrs |= _dependencies([k for k in initial[name] if k in index], index)
                 SubElement(init_el, "Unknown", attrs)
+        self._declare_derivatives(root, index)
         return root
+
+    def _declare_derivatives(self, root: Element, index: dict[str, int]) -> None:
+        """The state derivatives (``derivative`` attributes, ``<Derivatives>`` between
+        ``<Outputs>`` and ``<InitialUnknowns>``, and as initial unknowns: they are
+        calculated) and ``providesDirectionalDerivative``."""
+        if self.JACOBIAN_COLUMNS:
+            root.find("CoSimulation").set("providesDirectionalDerivative", "true")
+        if not self.STATE_DERIVATIVES:
+            return
+        variables = list(root.find("ModelVariables"))
+        structure = root.find("ModelStructure")
+        derivatives = Element("Derivatives")
+        pos = 1 if structure.find("Outputs") is not None else 0
+        structure.insert(pos, derivatives)
+        init_el = structure.find("InitialUnknowns")
+        if init_el is None:
+            init_el = SubElement(structure, "InitialUnknowns")
+        # FMI 2.0 orders InitialUnknowns by index: the derivatives come after the outputs
+        last = max((int(u.get("index")) for u in init_el), default=0)
+        if min(index[d] for d in self.STATE_DERIVATIVES) < last:
+            raise TypeError(f"{type(self).__name__}: declare the state derivatives last")
+        for der, state in self.STATE_DERIVATIVES.items():
+            variables[index[der] - 1].find("Real").set("derivative", str(index[state]))
+            SubElement(derivatives, "Unknown", {"index": str(index[der])})
+            SubElement(init_el, "Unknown", {"index": str(index[der])})
+
+    def _jacobian_tables(self) -> tuple[list[int], list[int], int, int] | None:
+        """The runtime's view of :attr:`JACOBIAN_ROWS` and :attr:`JACOBIAN_COLUMNS`: per
+        value reference its row and its column (-1: none), the numbers of rows and
+        columns; None if the slave provides no directional derivatives."""
+        if not self.JACOBIAN_COLUMNS:
+            return None
+        n = max(self.vars) + 1
+        rows, cols = [-1] * n, [-1] * n
+        by_name = {v.name: vr for vr, v in self.vars.items()}
+        for name, row in self.JACOBIAN_ROWS.items():
+            rows[by_name[name]] = row
+        for col, name in enumerate(self.JACOBIAN_COLUMNS):
+            cols[by_name[name]] = col
+        return rows, cols, max(self.JACOBIAN_ROWS.values()) + 1, len(self.JACOBIAN_COLUMNS)
+
+    def jacobian(self) -> Sequence[float]:  # pragma: no cover - overridden
+        """The Jacobian at the current point, row-major (rows :attr:`JACOBIAN_ROWS`,
+        columns :attr:`JACOBIAN_COLUMNS`); the runtime forms the directional derivatives
+        from it."""
+        raise NotImplementedError
 
     # ----------------------------------------------------------- validation
     def fail(self, message: str) -> None:
@@ -309,8 +366,9 @@ class GliderSlave(Fmi2Slave):
         v = self._spec_by_vr.get(vr)
         if v is None:
             self.fail(f"value reference {vr} is unknown")
-        if v.causality == "output":
-            self.fail(f"{v.name} is an output: it cannot be set")
+        if v.causality in ("output", "local"):
+            what = "an output" if v.causality == "output" else "a calculated variable"
+            self.fail(f"{v.name} is {what}: it cannot be set")
         if self._initialized and v.causality == "parameter":
             if not v.tunable:
                 self.fail(

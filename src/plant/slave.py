@@ -9,7 +9,16 @@ import math
 
 from glider_fmi.slave_base import GliderSlave, Var
 from glider_plant.fmi_vars import model_constant_vars
-from glider_plant.model import PitchSensor, StallError, plant_step, saturate
+from glider_plant.model import (
+    PLANT_INPUTS,
+    PLANT_STATES,
+    PitchSensor,
+    StallError,
+    plant_derivatives,
+    plant_jacobian,
+    plant_step,
+    saturate,
+)
 from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 
 R90 = math.pi / 2
@@ -75,6 +84,19 @@ class GliderPlant(GliderSlave):
         Var("delta_0", "parameter", "rad", "initial tail angle", 0.0, valid=Range()),
         Var("x_0", "parameter", "m", "initial horizontal position", 0.0, valid=Range()),
         Var("z_0", "parameter", "m", "initial depth", 0.0, valid=Range()),
+        # the continuous states' derivatives (last: new value references after the others)
+        *(
+            Var(f"der({x})", "local", unit, f"time derivative of {x}")
+            for x, unit in (
+                ("V", "m/s2"),
+                ("theta_g", "rad/s"),
+                ("alpha", "rad/s"),
+                ("omega2", "rad/s2"),
+                ("x", "m/s"),
+                ("z", "m/s"),
+                ("delta", "rad/s"),
+            )
+        ),  # fmt: skip
     )
     # in Initialization Mode: the initial state, nothing of the inputs (no feedthrough)
     INITIAL_DEPENDENCIES = {
@@ -89,6 +111,37 @@ class GliderPlant(GliderSlave):
         "z": ("z_0",),
     }
     INTERNAL_STATE = ("_p", "_sensor", "_state")
+    STATE_DERIVATIVES = {f"der({x})": x for x in PLANT_STATES}
+    COMPUTED = tuple(STATE_DERIVATIVES)  # from the state and the inputs when read
+    # plant_jacobian's rows: the derivatives, then the pitch (theta_meas: theta + noise)
+    JACOBIAN_ROWS = {**{d: i for i, d in enumerate(STATE_DERIVATIVES)}, "theta": 7,
+                     "theta_meas": 7}  # fmt: skip
+    JACOBIAN_COLUMNS = PLANT_STATES + PLANT_INPUTS
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        for v in self.vars.values():
+            if v.name in self.STATE_DERIVATIVES:
+                k = PLANT_STATES.index(self.STATE_DERIVATIVES[v.name])
+                v.getter = lambda k=k: self._derivatives()[k]
+        self._index_reals()
+
+    def _point(self) -> tuple:
+        """The arguments of plant_derivatives and plant_jacobian now: the state (before
+        initialisation the one the parameters give) and the inputs."""
+        if self._initialized:
+            x, delta, p = self._state, self.delta, self._p
+        else:
+            x = (self.V_0, self.theta_g_0, self.alpha_0, self.omega2_0, self.x_0, self.z_0)
+            delta, p = self.delta_0, GliderParams.from_mapping(vars(self))
+        return (x, delta, self.delta_cmd, (self.F_x, self.F_z, self.M_y), p, self.tau_servo,
+                self.delta_max)  # fmt: skip
+
+    def _derivatives(self) -> tuple[float, ...]:
+        return plant_derivatives(*self._point())
+
+    def jacobian(self) -> list[float]:
+        return [v for row in plant_jacobian(*self._point()) for v in row]
 
     def initialize(self) -> None:
         self._p = GliderParams.from_mapping(vars(self))
