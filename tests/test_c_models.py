@@ -22,17 +22,15 @@ import pytest
 from glider_controller.laws import PIController, passivity_law, passivity_output
 from glider_observer.filter import ButterworthFilter, butterworth_coefficients
 from glider_observer.model import linearization, observer_gain, observer_step, riccati_solution
+from glider_plant.jacobian import plant_derivatives, plant_jacobian, rhs_jacobian
 from glider_plant.model import (
     PitchSensor,
     StallError,
     check_state,
     constants,
     equilibrium,
-    plant_derivatives,
-    plant_jacobian,
     plant_step,
     rhs,
-    rhs_jacobian,
     saturate,
 )
 from glider_plant.params import GliderParams, ParameterError

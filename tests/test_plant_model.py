@@ -9,13 +9,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from glider_plant.jacobian import plant_derivatives, plant_jacobian
 from glider_plant.model import (
     PitchSensor,
     StallError,
     derivatives,
     equilibrium,
-    plant_derivatives,
-    plant_jacobian,
     plant_step,
     servo_response,
 )

@@ -34,7 +34,7 @@ from glider_fmi import toolchain
 
 from . import objects, osp, platforms, wasm
 from .files import FLAVOR_FILE, build_progress, package_version, replacing
-from .native_description import build_description, model_description
+from .native_description import build_description, c_name, jacobian_lines, model_description
 from .platforms import binary_entries, zip_member
 
 log = logging.getLogger(__name__)
@@ -137,30 +137,6 @@ def _slave_variables(cls: type) -> list[tuple[int, Any]]:
     return pairs
 
 
-def c_name(name: str) -> str:
-    """A variable's name as a C identifier: ``der(V)`` -> ``der_V``."""
-    return name.replace("(", "_").replace(")", "")
-
-
-def _jacobian_lines(cls: type, up: str) -> list[str]:
-    """``<MODEL>_JAC_ROW``, ``_JAC_COL``, ``_JAC_NROWS``, ``_JAC_NCOLS`` of the slave's
-    directional derivatives (``glider_fmi.slave_base.GliderSlave._jacobian_tables``;
-    NULL and 0 when it provides none)."""
-    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
-        tables = cls(instance_name="codegen", resources=tmp)._jacobian_tables()
-    if tables is None:
-        return [f"#define {up}_JAC_ROW NULL", f"#define {up}_JAC_COL NULL",
-                f"#define {up}_JAC_NROWS 0", f"#define {up}_JAC_NCOLS 0"]  # fmt: skip
-    rows, cols, nrows, ncols = tables
-    return [
-        "/* directional derivatives: each value reference's row and column (-1: none) */",
-        f"static const int {up}_JAC_ROW[] = {{{', '.join(map(str, rows))}}};",
-        f"static const int {up}_JAC_COL[] = {{{', '.join(map(str, cols))}}};",
-        f"#define {up}_JAC_NROWS {nrows}",
-        f"#define {up}_JAC_NCOLS {ncols}",
-    ]
-
-
 def vars_header(c: NativeComponent) -> str:
     """``<Model>_vars.h``: the component's variables as a C struct and a NativeVar table."""
     cls = c.slave_class()
@@ -222,7 +198,7 @@ def vars_header(c: NativeComponent) -> str:
     up = c.name.upper()
     lines += ["};", "", "/* the Real inputs' value references (checked finite at each step) */",
               f"static const unsigned {up}_REAL_INPUTS[] = {{{', '.join(inputs or ['0'])}}};",
-              f"#define {up}_NREAL_INPUTS {len(inputs)}", "", *_jacobian_lines(cls, up), "",
+              f"#define {up}_NREAL_INPUTS {len(inputs)}", "", *jacobian_lines(cls, up), "",
               "#endif", ""]  # fmt: skip
     return "\n".join(lines)
 

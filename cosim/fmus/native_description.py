@@ -1,5 +1,6 @@
 """The model description and ``sources/buildDescription.xml`` of a native FMU (``c``: a
-:class:`glider_cosim.fmus.native.NativeComponent`)."""
+:class:`glider_cosim.fmus.native.NativeComponent`), and what its generated variables header
+declares besides the variables (C names, the directional derivatives' tables)."""
 
 from __future__ import annotations
 
@@ -59,3 +60,27 @@ def build_description(c: Any, sources: list[str]) -> bytes:
     ET.SubElement(config, "Library", name="m", description="libm (POSIX platforms)")
     ET.indent(root, "\t")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+def c_name(name: str) -> str:
+    """A variable's name as a C identifier: ``der(V)`` -> ``der_V``."""
+    return name.replace("(", "_").replace(")", "")
+
+
+def jacobian_lines(cls: type, up: str) -> list[str]:
+    """``<MODEL>_JAC_ROW``, ``_JAC_COL``, ``_JAC_NROWS``, ``_JAC_NCOLS`` of the slave's
+    directional derivatives (``glider_fmi.slave_base.GliderSlave._jacobian_tables``;
+    NULL and 0 when it provides none)."""
+    with tempfile.TemporaryDirectory(prefix="glider_native_") as tmp:
+        tables = cls(instance_name="codegen", resources=tmp)._jacobian_tables()
+    if tables is None:
+        return [f"#define {up}_JAC_ROW NULL", f"#define {up}_JAC_COL NULL",
+                f"#define {up}_JAC_NROWS 0", f"#define {up}_JAC_NCOLS 0"]  # fmt: skip
+    rows, cols, nrows, ncols = tables
+    return [
+        "/* directional derivatives: each value reference's row and column (-1: none) */",
+        f"static const int {up}_JAC_ROW[] = {{{', '.join(map(str, rows))}}};",
+        f"static const int {up}_JAC_COL[] = {{{', '.join(map(str, cols))}}};",
+        f"#define {up}_JAC_NROWS {nrows}",
+        f"#define {up}_JAC_NCOLS {ncols}",
+    ]

@@ -26,7 +26,7 @@ from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
 from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real
 
-from . import state_codec
+from . import derivatives, state_codec
 
 DEG = 180.0 / math.pi
 
@@ -234,48 +234,14 @@ class GliderSlave(Fmi2Slave):
                 if initial is not None and name in initial:  # a subclass may drop knowns
                     attrs |= _dependencies([k for k in initial[name] if k in index], index)
                 SubElement(init_el, "Unknown", attrs)
-        self._declare_derivatives(root, index)
+        derivatives.declare(root, index, self.STATE_DERIVATIVES, bool(self.JACOBIAN_COLUMNS))
         return root
 
-    def _declare_derivatives(self, root: Element, index: dict[str, int]) -> None:
-        """The state derivatives (``derivative`` attributes, ``<Derivatives>`` between
-        ``<Outputs>`` and ``<InitialUnknowns>``, and as initial unknowns: they are
-        calculated) and ``providesDirectionalDerivative``."""
-        if self.JACOBIAN_COLUMNS:
-            root.find("CoSimulation").set("providesDirectionalDerivative", "true")
-        if not self.STATE_DERIVATIVES:
-            return
-        variables = list(root.find("ModelVariables"))
-        structure = root.find("ModelStructure")
-        derivatives = Element("Derivatives")
-        pos = 1 if structure.find("Outputs") is not None else 0
-        structure.insert(pos, derivatives)
-        init_el = structure.find("InitialUnknowns")
-        if init_el is None:
-            init_el = SubElement(structure, "InitialUnknowns")
-        # FMI 2.0 orders InitialUnknowns by index: the derivatives come after the outputs
-        last = max((int(u.get("index")) for u in init_el), default=0)
-        if min(index[d] for d in self.STATE_DERIVATIVES) < last:
-            raise TypeError(f"{type(self).__name__}: declare the state derivatives last")
-        for der, state in self.STATE_DERIVATIVES.items():
-            variables[index[der] - 1].find("Real").set("derivative", str(index[state]))
-            SubElement(derivatives, "Unknown", {"index": str(index[der])})
-            SubElement(init_el, "Unknown", {"index": str(index[der])})
-
     def _jacobian_tables(self) -> tuple[list[int], list[int], int, int] | None:
-        """The runtime's view of :attr:`JACOBIAN_ROWS` and :attr:`JACOBIAN_COLUMNS`: per
-        value reference its row and its column (-1: none), the numbers of rows and
-        columns; None if the slave provides no directional derivatives."""
-        if not self.JACOBIAN_COLUMNS:
-            return None
-        n = max(self.vars) + 1
-        rows, cols = [-1] * n, [-1] * n
-        by_name = {v.name: vr for vr, v in self.vars.items()}
-        for name, row in self.JACOBIAN_ROWS.items():
-            rows[by_name[name]] = row
-        for col, name in enumerate(self.JACOBIAN_COLUMNS):
-            cols[by_name[name]] = col
-        return rows, cols, max(self.JACOBIAN_ROWS.values()) + 1, len(self.JACOBIAN_COLUMNS)
+        """The runtime's tables of the directional derivatives
+        (:func:`glider_fmi.derivatives.jacobian_tables`)."""
+        names = {vr: v.name for vr, v in self.vars.items()}
+        return derivatives.jacobian_tables(names, self.JACOBIAN_ROWS, self.JACOBIAN_COLUMNS)
 
     def jacobian(self) -> Sequence[float]:  # pragma: no cover - overridden
         """The Jacobian at the current point, row-major (rows :attr:`JACOBIAN_ROWS`,

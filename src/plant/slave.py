@@ -9,16 +9,8 @@ import math
 
 from glider_fmi.slave_base import GliderSlave, Var
 from glider_plant.fmi_vars import model_constant_vars
-from glider_plant.model import (
-    PLANT_INPUTS,
-    PLANT_STATES,
-    PitchSensor,
-    StallError,
-    plant_derivatives,
-    plant_jacobian,
-    plant_step,
-    saturate,
-)
+from glider_plant.jacobian import PLANT_INPUTS, PLANT_STATES, plant_derivatives, plant_jacobian
+from glider_plant.model import PitchSensor, StallError, plant_step, saturate
 from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 
 R90 = math.pi / 2
