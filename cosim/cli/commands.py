@@ -281,7 +281,8 @@ def _report(args: argparse.Namespace) -> int:
 def _analyze(args: argparse.Namespace) -> int:
     from ..studies.analysis import analyze, format_report
 
-    result = analyze()
+    plant = Path(args.fmu_dir) / "GliderPlant.fmu" if args.from_fmu else None
+    result = analyze(plant_fmu=plant)
     if args.json:
         print(json.dumps(result))
     else:
@@ -304,7 +305,13 @@ def dispatch(args: argparse.Namespace) -> int:
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
     if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
         return code
-    if hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
+    if args.command == "analyze" and not args.from_fmu:
+        given = [o for o, v in (("--fmu-dir", args.fmu_dir), ("--flavor", args.flavor),
+                                ("--fmi", args.fmi)) if v is not None]  # fmt: skip
+        if given:
+            raise UsageError(f"{', '.join(given)} needs --from-fmu (the model's own "
+                             "Jacobian uses no FMU)")  # fmt: skip
+    elif hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None

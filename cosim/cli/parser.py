@@ -337,6 +337,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    a.add_argument("--from-fmu", action="store_true",
+                   help="the continuous-time Jacobian from the plant FMU's directional "
+                   "derivatives (of the --flavor and --fmi asked) instead of the model's "
+                   "central differences")  # fmt: skip
+    add_fmu_options(a, fmi=True)
 
     from ..sweeps.options import add_parser as add_sweep_parser
 

@@ -7,12 +7,19 @@ passivity law (continuous time, full-state feedback), the paper's reduced-model 
 loop at the communication step with the servo (the one-step map linearised by central
 differences, with and without observer and pre-filter), the observer's gain and error
 dynamics, and the stable ranges of K_c for each loop.
+
+With a plant FMU (``--from-fmu``, :func:`fmu_plant_jacobian`) the continuous-time
+Jacobian is the FMU's own, from its directional derivatives at the equilibrium
+(:mod:`glider_cosim.studies.linearize`) with the passivity law's exact gradient, instead
+of central differences of the model: the open- and closed-loop eigenvalues, the
+reduced-model test and the continuous stable K_c come from the FMU.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -55,9 +62,58 @@ def time_scales(p: GliderParams) -> dict[str, float]:
     return {"tau_s": tau_s, "eps1": eps1, "eps2": eps2, "mu": max(eps1, eps2)}
 
 
-def closed_loop_matrix(p: GliderParams, K_c: float | None) -> np.ndarray:
+#: the body's Jacobian at the equilibrium from elsewhere (an FMU): p -> (A, b), A 4 x 4
+#: over (V, theta_g, alpha, omega2) [1/s and the like], b the column of the tail angle
+PlantJacobian = Callable[[GliderParams], tuple[np.ndarray, np.ndarray]]
+
+
+def fmu_plant_jacobian(fmu: Path | str) -> PlantJacobian:
+    """The body's Jacobian at the equilibrium from the plant FMU's directional derivatives
+    (:func:`glider_cosim.studies.linearize.linearize`, the FMU's parameters set to ``p``
+    and its initial state to the equilibrium; once per parameter set).
+    ``.residual(p)``: the largest |state derivative| the FMU reports there (0 at an exact
+    equilibrium)."""
+    from .linearize import linearize
+
+    done: dict[tuple, Any] = {}
+
+    def lin(p: GliderParams) -> Any:
+        key = tuple(p.as_dict().items())
+        if key not in done:
+            e = equilibrium(p)
+            start = {**p.as_dict(), "V_0": e.V, "theta_g_0": e.theta_g, "alpha_0": e.alpha,
+                     "omega2_0": 0.0, "delta_0": 0.0}  # fmt: skip
+            done[key] = linearize(fmu, start)
+        return done[key]
+
+    def jacobian(p: GliderParams) -> tuple[np.ndarray, np.ndarray]:
+        L = lin(p)
+        body = [L.states.index(n) for n in ("V", "theta_g", "alpha", "omega2")]
+        return L.A[np.ix_(body, body)], L.A[body, L.states.index("delta")]
+
+    jacobian.residual = lambda p: float(np.max(np.abs(lin(p).derivatives[:4])))  # type: ignore[attr-defined]
+    return jacobian
+
+
+def _law_gradient(p: GliderParams, K_c: float) -> np.ndarray:
+    """d delta_cmd / d(V, theta_g, alpha, omega2) of the passivity law at the equilibrium
+    (unsaturated): there y_r = 0, dy_r/dV = 2 k sin(alpha_e) / V_e, dy_r/dtheta_g =
+    k cos(alpha_e) with k = K_Fdelta / K_De, and d delta/dy_r = -1 / (K_c K_udelta)."""
+    e = equilibrium(p)
+    k = p.K_Fdelta / e.K_De
+    dy = np.array([2.0 * k * math.sin(e.alpha) / e.V, k * math.cos(e.alpha), 0.0, 0.0])
+    return -dy / (K_c * p.K_udelta)
+
+
+def closed_loop_matrix(
+    p: GliderParams, K_c: float | None, jacobian: PlantJacobian | None = None
+) -> np.ndarray:
     """Jacobian [1/s] of Eqs. (6)-(9) at the equilibrium, with the passivity law on the
-    true state (``K_c=None``: open loop, ``u_delta = 0``)."""
+    true state (``K_c=None``: open loop, ``u_delta = 0``); by central differences of the
+    model, or from ``jacobian`` (e.g. :func:`fmu_plant_jacobian`)."""
+    if jacobian is not None:
+        A, b = jacobian(p)
+        return A.copy() if K_c is None else A + np.outer(b, _law_gradient(p, K_c))
     e = equilibrium(p)
 
     def f(x):
@@ -67,7 +123,9 @@ def closed_loop_matrix(p: GliderParams, K_c: float | None) -> np.ndarray:
     return _jacobian(f, np.array([e.V, e.theta_g, e.alpha, 0.0]))
 
 
-def reduced_model_test(p: GliderParams, K_c: float) -> dict[str, Any]:
+def reduced_model_test(
+    p: GliderParams, K_c: float, jacobian: PlantJacobian | None = None
+) -> dict[str, Any]:
     """The paper's Sec. 3.2 test on the nondimensional closed-loop Jacobian.
 
     States (Vbar, thbar | alphabar, omegabar), time t/tau_s. A22 (fast block) and the
@@ -77,7 +135,7 @@ def reduced_model_test(p: GliderParams, K_c: float) -> dict[str, Any]:
     e = equilibrium(p)
     ts = time_scales(p)
     T = np.diag([1.0 / e.V, 1.0, 1.0, p.K_q / p.K_M])
-    A = ts["tau_s"] * T @ closed_loop_matrix(p, K_c) @ np.linalg.inv(T)
+    A = ts["tau_s"] * T @ closed_loop_matrix(p, K_c, jacobian) @ np.linalg.inv(T)
     A11, A12, A21, A22 = A[:2, :2], A[:2, 2:], A[2:, :2], A[2:, 2:]
     S = A11 - A12 @ np.linalg.solve(A22, A21)
     ev22, evS = np.linalg.eigvals(A22), np.linalg.eigvals(S)
@@ -193,12 +251,13 @@ def stable_kc_range(
 
 
 def stable_kc_ranges(
-    p: GliderParams, h: float = 0.02, tau_servo: float = 0.01
-) -> dict[str, list[float | None]]:
+    p: GliderParams, h: float = 0.02, tau_servo: float = 0.01,
+    jacobian: PlantJacobian | None = None,
+) -> dict[str, list[float | None]]:  # fmt: skip
     """Stable K_c ranges of the continuous loop and of the sampled loops."""
     return {
         "continuous": stable_kc_range(
-            lambda k: bool(np.all(np.linalg.eigvals(closed_loop_matrix(p, k)).real < 0))
+            lambda k: bool(np.all(np.linalg.eigvals(closed_loop_matrix(p, k, jacobian)).real < 0))
         ),
         "sampled": stable_kc_range(
             lambda k: bool(
@@ -225,23 +284,28 @@ def analyze(
     K_c_list: Sequence[float] = K_C_LIST,
     h: float = 0.02,
     tau_servo: float = 0.01,
+    plant_fmu: Path | str | None = None,
 ) -> dict[str, Any]:
     """Everything ``glider-cosim analyze`` reports, as a JSON-serialisable dict (about 3 s:
-    its five steps shown on stderr, :mod:`glider_cosim.progress`)."""
+    its five steps shown on stderr, :mod:`glider_cosim.progress`); with ``plant_fmu`` the
+    continuous-time Jacobian is that FMU's (:func:`fmu_plant_jacobian`) and
+    ``linearization`` says so."""
     from ..progress import Progress
 
     with Progress(5, "analyze") as bar:
-        return _analyze(p or GliderParams(), K_c_list, h, tau_servo, bar)
+        return _analyze(p or GliderParams(), K_c_list, h, tau_servo, bar, plant_fmu)
 
 
 def _analyze(
-    p: GliderParams, K_c_list: Sequence[float], h: float, tau_servo: float, bar: Any
-) -> dict[str, Any]:
+    p: GliderParams, K_c_list: Sequence[float], h: float, tau_servo: float, bar: Any,
+    plant_fmu: Path | str | None,
+) -> dict[str, Any]:  # fmt: skip
     e = equilibrium(p)
+    jac = fmu_plant_jacobian(plant_fmu) if plant_fmu is not None else None
     per_kc = []
     bar.step(f"analyze: the closed loop at {len(K_c_list)} gains K_c")
     for k in K_c_list:
-        ev = np.linalg.eigvals(closed_loop_matrix(p, k))
+        ev = np.linalg.eigvals(closed_loop_matrix(p, k, jac))
         zs = sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo)
         zo = sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo, observer=True)
         per_kc.append({
@@ -249,7 +313,7 @@ def _analyze(
             "continuous_eigenvalues": _cplx(ev),
             "continuous_max_real": float(ev.real.max()),
             "continuous_stable": bool(ev.real.max() < 0),
-            "reduced_model_test": reduced_model_test(p, k),
+            "reduced_model_test": reduced_model_test(p, k, jac),
             "sampled_spectral_radius": float(np.abs(zs).max()),
             "sampled_with_observer_spectral_radius": float(np.abs(zo).max()),
         })  # fmt: skip
@@ -257,19 +321,22 @@ def _analyze(
     for kf in (15.0, 29.5, 45.0):
         bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {kf:g}")
         pk = GliderParams(**{**p.as_dict(), "K_Fdelta": kf})
-        r = stable_kc_ranges(pk, h, tau_servo)
+        r = stable_kc_ranges(pk, h, tau_servo, jac)
         sens[f"{kf:g}"] = {"continuous": r["continuous"], "sampled": r["sampled"]}
-    ol = np.linalg.eigvals(closed_loop_matrix(p, None))
+    ol = np.linalg.eigvals(closed_loop_matrix(p, None, jac))
     bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {p.K_Fdelta:g} (the model's)")
+    source = {} if jac is None else {"linearization": {
+        "plant_fmu": str(plant_fmu), "residual": jac.residual(p)}}  # fmt: skip
     return {
         "equilibrium": {"V": e.V, "theta_g": e.theta_g, "alpha": e.alpha, "omega2": e.omega2},
         "time_scales": time_scales(p),
         "open_loop_eigenvalues": _cplx(ol),
         "closed_loop": per_kc,
         "observer": observer_analysis(p),
-        "stable_K_c": stable_kc_ranges(p, h, tau_servo),
+        "stable_K_c": stable_kc_ranges(p, h, tau_servo, jac),
         "K_Fdelta_sensitivity": sens,
         "settings": {"h": h, "tau_servo": tau_servo, "K_Fdelta": p.K_Fdelta},
+        **source,
     }
 
 
@@ -291,6 +358,14 @@ def format_report(a: dict[str, Any]) -> str:
         f"eps2 = {ts['eps2']:.4g}, mu = {ts['mu']:.4g} (dimensionless)",
         "open-loop eigenvalues [1/s]: "
         + ", ".join(f"{re:.4f}{im:+.4f}j" for re, im in a["open_loop_eigenvalues"]),
+        *(
+            [
+                f"linearization: the plant FMU's directional derivatives ({lin['plant_fmu']}), "
+                f"its state derivatives at the equilibrium <= {lin['residual']:.1e}"
+            ]
+            if (lin := a.get("linearization"))
+            else []
+        ),  # fmt: skip
         "",
         f"{'K_c':>6} {'cont. max Re':>13} {'A22':>5} {'Schur':>6} {'|z| sampled':>12} "
         f"{'|z| +observer':>14}",
