@@ -176,3 +176,26 @@ def test_cli_from_fmu_and_its_errors(fmu_dir, capsys):
         "glider-cosim analyze: error: --flavor needs --from-fmu (the model's own Jacobian "
         "uses no FMU)"
     )
+
+
+def test_the_docs_fmpy_snippet_linearizes_the_plant(fmu_dir, capsys):
+    """docs/how-to/linearize.md's snippet, run as written on our plant: A and B equal the
+    model's Jacobian at the FMU's start values."""
+    page = (Path(__file__).resolve().parents[2] / "docs" / "how-to" / "linearize.md").read_text()
+    code = page[page.index("```python\n") + 10 : page.index("\n```", page.index("```python"))]
+    assert 'fmu = "GliderPlant.fmu"\n' in code
+    ns: dict = {}
+    exec(code.replace('"GliderPlant.fmu"', repr(str(fmu_dir / "GliderPlant.fmu"))), ns)
+    J = np.array(plant_jacobian(*_start_point()))
+    assert np.array_equal(ns["A"], J[:7, :7]) and np.array_equal(ns["B"], J[:7, 7:])
+    assert capsys.readouterr().out.count("j") == 4  # four complex-typed eigenvalues printed
+
+
+def _start_point() -> tuple:
+    """plant_jacobian's arguments at the plant FMU's start values (the slave's defaults)."""
+    from glider_plant.slave import GliderPlant
+
+    start = {v.name: v.start for v in GliderPlant.VARIABLES}
+    x = tuple(start[f"{n}_0"] for n in ("V", "theta_g", "alpha", "omega2", "x", "z"))
+    return (x, start["delta_0"], start["delta_cmd"], (start["F_x"], start["F_z"], start["M_y"]),
+            GliderParams(), start["tau_servo"], start["delta_max"])  # fmt: skip
