@@ -87,7 +87,10 @@ def test_model_description_has_units_structure_and_state_flag(flavor_dir, name):
     rad = next(u for u in md.unitDefinitions if u.name == "rad")
     assert [d.name for d in rad.displayUnits] == ["deg"]
     outputs = [v for v in md.modelVariables if v.causality == "output"]
-    assert len(md.initialUnknowns) == len(outputs) > 0
+    # the initial unknowns: the outputs and the state derivatives (the plant's: FMI 2.0)
+    derivatives = [u.variable for u in md.derivatives]
+    assert [u.variable for u in md.initialUnknowns] == outputs + derivatives and outputs
+    assert len(derivatives) == (7 if name == "GliderPlant" else 0)
     for v in md.modelVariables:
         if v.type in ("Integer", "Boolean"):
             assert v.variability != "continuous"
