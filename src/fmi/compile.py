@@ -40,6 +40,7 @@ RUNTIME_HEADERS = tuple(
         "python_threads.h",
         "glider_python.h",
         "bundle_loader.h",
+        "glider_fp.h",
     )
 )
 #: the platforms the Python flavor's runtime is built for (its back end is POSIX and

@@ -16,6 +16,7 @@
 #if !defined(_WIN32) && !defined(_POSIX_C_SOURCE)
 #define _POSIX_C_SOURCE 200809L
 #endif
+#include "glider_fp.h" /* first: no fused multiply-add (the directional derivatives' sums) */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>

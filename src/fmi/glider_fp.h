@@ -2,8 +2,9 @@
  * rounded, never one fused multiply-add, whatever the compiler, its language mode, -O
  * level or -march. So a native FMU rebuilt from its sources/ with an importer's flags
  * (e.g. -O3 -march=native on a CPU with FMA) gives the shipped binary's results bit for
- * bit (tests/integration/test_source_build.py). Every C file of the models, their glue
- * and the native back end includes this first, before any other header.
+ * bit (tests/integration/test_source_build.py). Every C file of the models, their glue,
+ * the native back end and the layer (its directional derivatives' sums) includes this
+ * first, before any other header.
  *
  * - clang (and zig cc): the C99 pragma STDC FP_CONTRACT OFF. It wins over clang's default
  *   (-ffp-contract=on) and over -ffp-contract=on or fast-honor-pragmas, not over an
