@@ -66,14 +66,19 @@ def jacobian_tables(
     rows : mapping
         Unknown -> its row (a state derivative, an output not a state).
     columns : sequence of str
-        The knowns (states, inputs), in column order.
+        The knowns (states, inputs), in column order; a name that is no variable's is
+        left out (its column is never asked for).
     """
     if not columns:
         return None
     vr_of = {name: vr for vr, name in names.items()}
     row_of, col_of = [-1] * len(names), [-1] * len(names)
+    # a subclass may declare fewer variables (no disturbance inputs, say): those rows and
+    # columns are then out of reach, the others as they were
     for name, row in rows.items():
-        row_of[vr_of[name]] = row
+        if name in vr_of:
+            row_of[vr_of[name]] = row
     for col, name in enumerate(columns):
-        col_of[vr_of[name]] = col
+        if name in vr_of:
+            col_of[vr_of[name]] = col
     return row_of, col_of, max(rows.values()) + 1, len(columns)
