@@ -799,6 +799,10 @@ static Status check_jacobian_refs(Ctx *x, const unsigned vr[], size_t n, int unk
     size_t i;
     for (i = 0; i < n; ++i) {
         unsigned r = vr[i];
+        if (is_time(inst, r))
+            return FAIL(x, "value reference %u (time) is not %s", r,
+                        unknowns ? "an unknown: expected an output or a state derivative"
+                                 : "a known: expected a continuous state or an input");
         if (r >= inst->nvars)
             return FAIL(x, "value reference %u does not exist: expected 0..%lu", r,
                         (unsigned long)(inst->nvars - 1));

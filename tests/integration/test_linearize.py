@@ -199,3 +199,28 @@ def _start_point() -> tuple:
     x = tuple(start[f"{n}_0"] for n in ("V", "theta_g", "alpha", "omega2", "x", "z"))
     return (x, start["delta_0"], start["delta_cmd"], (start["F_x"], start["F_z"], start["M_y"]),
             GliderParams(), start["tau_servo"], start["delta_max"])  # fmt: skip
+
+
+def test_fmi3_refuses_time_as_a_known(fmi3_dirs, capfd):
+    """FMI 3's independent variable is declared (value reference after the model's) but is
+    neither a known nor an unknown of the step mode's derivatives."""
+    from fmpy.fmi3 import FMU3Slave
+
+    for flavor in ("python", "native"):
+        fmu = fmi3_dirs[flavor] / "GliderPlant.fmu"
+        md = read_model_description(str(fmu))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        mid = md.coSimulation.modelIdentifier
+        s = FMU3Slave(guid=md.guid, unzipDirectory=_extracted(fmu), modelIdentifier=mid)
+        s.instantiate()
+        s.enterInitializationMode(startTime=0.0)
+        s.exitInitializationMode()
+        assert s.getDirectionalDerivative([vr["der(z)"]], [vr["V"]], [1.0]) != [0.0]
+        capfd.readouterr()
+        with pytest.raises(FMICallException):
+            s.getDirectionalDerivative([vr["der(V)"]], [vr["time"]], [1.0])
+        assert (
+            f"fmi3GetDirectionalDerivative: value reference {vr['time']} (time) is not a "
+            "known: expected a continuous state or an input"
+        ) in capfd.readouterr().out
+        s.freeInstance()
