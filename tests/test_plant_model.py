@@ -182,3 +182,19 @@ def test_plant_jacobian_at_the_equilibrium_is_the_observers_matrix():
         d = plant_derivatives((e.V, e.theta_g, e.alpha, 0.0, 0.0, 0.0), 0.0, 0.0,
                               (0.0, 0.0, 0.0), p, 0.01, 1.0)  # fmt: skip
         assert np.max(np.abs(d[:4])) < 1e-14 and d[6] == 0.0 and d[4] > 0.0
+
+
+def test_the_slaves_derivative_dependencies_are_the_jacobians_nonzeros():
+    """Each state derivative's declared dependencies (the FMUs' <Derivatives>) are exactly
+    the columns where plant_jacobian is nonzero at generic points."""
+    from glider_plant.jacobian import PLANT_INPUTS, PLANT_STATES
+    from glider_plant.slave import GliderPlant
+
+    names = PLANT_STATES + PLANT_INPUTS
+    seen = np.zeros((7, 11), dtype=bool)
+    for x, delta, cmd, dist, p in _random_points(50, 5):
+        if abs(cmd) < 0.9 and all(dist):  # inside the tail limit, every disturbance on
+            seen |= np.array(plant_jacobian(x, delta, cmd, dist, p, 0.01, 0.9))[:7] != 0.0
+    for i, state in enumerate(PLANT_STATES):
+        declared = GliderPlant.DERIVATIVE_DEPENDENCIES[f"der({state})"]
+        assert {names[j] for j in np.flatnonzero(seen[i])} == set(declared), state

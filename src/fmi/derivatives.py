@@ -17,7 +17,11 @@ from xml.etree.ElementTree import Element, SubElement
 
 
 def declare(
-    root: Element, index: Mapping[str, int], state_derivatives: Mapping[str, str], provides: bool
+    root: Element,
+    index: Mapping[str, int],
+    state_derivatives: Mapping[str, str],
+    provides: bool,
+    dependencies: Mapping[str, Sequence[str]] | None = None,
 ) -> None:
     """Declare the state derivatives in an FMI 2.0 model description ``root``.
 
@@ -31,6 +35,10 @@ def declare(
         Derivative variable -> state variable (both Real); declared after the outputs.
     provides : bool
         Set ``providesDirectionalDerivative="true"``.
+    dependencies : mapping, optional
+        Derivative variable -> the knowns (states, inputs) it depends on, written as the
+        ``<Derivatives>`` entry's ``dependencies`` (kind ``dependent``); one not listed
+        has none written (it depends on every known).
     """
     if provides:
         root.find("CoSimulation").set("providesDirectionalDerivative", "true")
@@ -49,7 +57,14 @@ def declare(
         raise TypeError("the state derivatives must be declared after the outputs")
     for der, state in state_derivatives.items():
         variables[index[der] - 1].find("Real").set("derivative", str(index[state]))
-        SubElement(listed, "Unknown", {"index": str(index[der])})
+        attrs = {"index": str(index[der])}
+        deps = (dependencies or {}).get(der)
+        if deps is not None:
+            listed_deps = sorted(index[d] for d in deps if d in index)  # by index
+            attrs["dependencies"] = " ".join(map(str, listed_deps))
+            if listed_deps:
+                attrs["dependenciesKind"] = " ".join("dependent" for _ in listed_deps)
+        SubElement(listed, "Unknown", attrs)
         SubElement(init_el, "Unknown", {"index": str(index[der])})
 
 

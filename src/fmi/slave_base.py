@@ -128,6 +128,9 @@ class GliderSlave(Fmi2Slave):
     #: -> row; an output that is a state needs none); empty: not provided
     JACOBIAN_COLUMNS: tuple[str, ...] = ()
     JACOBIAN_ROWS: dict[str, int] = {}
+    #: state derivative -> the states and inputs it depends on (``<Derivatives>``'s
+    #: ``dependencies``; a derivative not listed depends on every known)
+    DERIVATIVE_DEPENDENCIES: dict[str, tuple[str, ...]] = {}
 
     log_categories = {
         **Fmi2Slave.log_categories,
@@ -234,7 +237,8 @@ class GliderSlave(Fmi2Slave):
                 if initial is not None and name in initial:  # a subclass may drop knowns
                     attrs |= _dependencies([k for k in initial[name] if k in index], index)
                 SubElement(init_el, "Unknown", attrs)
-        derivatives.declare(root, index, self.STATE_DERIVATIVES, bool(self.JACOBIAN_COLUMNS))
+        derivatives.declare(root, index, self.STATE_DERIVATIVES, bool(self.JACOBIAN_COLUMNS),
+                            self.DERIVATIVE_DEPENDENCIES)  # fmt: skip
         return root
 
     def _jacobian_tables(self) -> tuple[list[int], list[int], int, int] | None:

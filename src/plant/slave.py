@@ -109,6 +109,16 @@ class GliderPlant(GliderSlave):
     JACOBIAN_ROWS = {**{d: i for i, d in enumerate(STATE_DERIVATIVES)}, "theta": 7,
                      "theta_meas": 7}  # fmt: skip
     JACOBIAN_COLUMNS = PLANT_STATES + PLANT_INPUTS
+    # the knowns each state derivative depends on (plant_jacobian's nonzero columns, tested)
+    DERIVATIVE_DEPENDENCIES = {
+        "der(V)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
+        "der(theta_g)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
+        "der(alpha)": ("V", "theta_g", "alpha", "omega2", "delta", "F_x", "F_z"),
+        "der(omega2)": ("V", "alpha", "omega2", "delta", "M_y"),
+        "der(x)": ("V", "theta_g"),
+        "der(z)": ("V", "theta_g"),
+        "der(delta)": ("delta", "delta_cmd"),
+    }
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)

@@ -55,6 +55,13 @@ def test_the_fmu_declares_its_states_and_directional_derivatives(plant):
     assert provides_directional_derivatives(plant)
     assert [u.variable.derivative.name for u in md.derivatives] == list(PLANT_STATES)
     assert [u.variable.name for u in md.derivatives] == [f"der({s})" for s in PLANT_STATES]
+    # the dependencies declared are the FMU's own nonzero partial derivatives at POINT
+    lin = linearize(plant, POINT)
+    knowns = lin.states + lin.inputs
+    for i, u in enumerate(md.derivatives):
+        declared = {d.name for d in u.dependencies}
+        nonzero = {knowns[j] for j in np.flatnonzero(np.hstack([lin.A[i], lin.B[i]]))}
+        assert declared == nonzero, u.variable.name
 
 
 def test_the_fmu_jacobian_is_the_models_bit_for_bit(plant):
