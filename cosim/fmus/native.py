@@ -214,9 +214,10 @@ def source_files(c: NativeComponent, fmi: int = 2) -> list[Path]:
 def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | None = None) -> str:
     """SHA-256 over the C sources, the generated variables, the flags, the compilers
     (``chain``, default :func:`glider_fmi.toolchain.select`), the version and the code
-    that writes the model description (``slave_base.py``)."""
+    that writes the model description (``slave_base.py``, ``derivatives.py``)."""
     h = hashlib.sha256(vars_header(c).encode())
-    h.update((_pkg(glider_fmi) / "slave_base.py").read_bytes())
+    for writer in ("slave_base.py", "derivatives.py"):  # they write the model description
+        h.update((_pkg(glider_fmi) / writer).read_bytes())
     h.update(f"fmi{fmi}{wasm.fingerprint() if fmi == 3 else ''}".encode())  # + the component
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(toolchain.fingerprint(chain).encode())
