@@ -15,7 +15,7 @@ from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from . import webassembly
-from .parser import UsageError
+from .parser import UsageError, refuse_fmu_options
 
 log = logging.getLogger(__name__)
 
@@ -306,11 +306,7 @@ def dispatch(args: argparse.Namespace) -> int:
     if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
         return code
     if args.command == "analyze" and not args.from_fmu:
-        given = [o for o, v in (("--fmu-dir", args.fmu_dir), ("--flavor", args.flavor),
-                                ("--fmi", args.fmi)) if v is not None]  # fmt: skip
-        if given:
-            raise UsageError(f"{', '.join(given)} needs --from-fmu (the model's own "
-                             "Jacobian uses no FMU)")  # fmt: skip
+        refuse_fmu_options(args)  # the model's own Jacobian uses no FMU
     elif hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
         from ..fmus.folders import cache_root, prepare_fmus
 

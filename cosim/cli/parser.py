@@ -34,6 +34,16 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
         return text + " (default: %(default)s)"
 
 
+def refuse_fmu_options(args: argparse.Namespace) -> None:
+    """``analyze`` without ``--from-fmu``: ``--fmu-dir``, ``--flavor`` and ``--fmi`` name
+    FMUs it does not use (one line naming those given)."""
+    given = [o for o, v in (("--fmu-dir", args.fmu_dir), ("--flavor", args.flavor),
+                            ("--fmi", args.fmi)) if v is not None]  # fmt: skip
+    if given:
+        raise UsageError(f"{', '.join(given)} needs --from-fmu (the model's own Jacobian "
+                         "uses no FMU)")  # fmt: skip
+
+
 def _plain(text: str) -> str:
     text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
     return text.replace("``", "'")
