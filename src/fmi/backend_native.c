@@ -174,7 +174,8 @@ static Status nat_get(Ctx *x, char type, const ValueRef vr[], size_t nvr, void *
     if (type == T_REAL) {
         int init_mode = x->inst->state == S_INIT;
         for (i = 0; init_mode && i < nvr; ++i) {
-            if (M.vars[vr[i]].causality == NV_OUTPUT) { /* an initial unknown */
+            if (M.vars[vr[i]].causality == NV_OUTPUT || M.vars[vr[i]].causality == NV_LOCAL) {
+                /* an initial unknown (an output, a state derivative) */
                 Status st = initial_values(x);
                 if (st != ST_OK) return st;
                 break;

@@ -78,8 +78,7 @@ _UNITS: dict[str, dict[str, str]] = {
     "kg.m2": {"kg": "1", "m": "2"},
     "rad.s": {"rad": "1", "s": "1"},
 }
-_DISPLAY = {"rad": ("deg", DEG), "rad/s": ("deg/s", DEG), "rad/s2": ("deg/s2", DEG),
-            "rad.s": ("deg.s", DEG)}  # fmt: skip
+_DISPLAY = {u: ("deg" + u[3:], DEG) for u in ("rad", "rad/s", "rad/s2", "rad.s")}
 
 
 def _expected(v: Var) -> str:
@@ -103,7 +102,7 @@ def _tuple_attrgetter(names: Sequence[str]) -> Any:
     return get if len(names) > 1 else (lambda obj: (get(obj),))
 
 
-class GliderSlave(Fmi2Slave):
+class GliderSlave(derivatives.StateDerivatives, Fmi2Slave):
     """Base of the glider slaves: declare :attr:`VARIABLES`, implement :meth:`initialize`
     and :meth:`step`; list :attr:`FEEDTHROUGH` (output -> inputs it depends on directly).
     """
@@ -120,17 +119,6 @@ class GliderSlave(Fmi2Slave):
     INTERNAL_STATE: tuple[str, ...] = ()
     #: module prefixes whose objects may appear in a serialized FMU state
     STATE_MODULES: tuple[str, ...] = ("glider_",)
-    #: continuous states exposed with their derivatives: derivative variable -> state
-    #: variable (FMI 2 ``<Derivatives>``, FMI 3 ``<ContinuousStateDerivative>``)
-    STATE_DERIVATIVES: dict[str, str] = {}
-    #: directional derivatives (``providesDirectionalDerivative``): the knowns (states and
-    #: inputs), the columns of :meth:`jacobian`, and the unknowns with a row of it (variable
-    #: -> row; an output that is a state needs none); empty: not provided
-    JACOBIAN_COLUMNS: tuple[str, ...] = ()
-    JACOBIAN_ROWS: dict[str, int] = {}
-    #: state derivative -> the states and inputs it depends on (``<Derivatives>``'s
-    #: ``dependencies``; a derivative not listed depends on every known)
-    DERIVATIVE_DEPENDENCIES: dict[str, tuple[str, ...]] = {}
 
     log_categories = {
         **Fmi2Slave.log_categories,
@@ -237,21 +225,7 @@ class GliderSlave(Fmi2Slave):
                 if initial is not None and name in initial:  # a subclass may drop knowns
                     attrs |= _dependencies([k for k in initial[name] if k in index], index)
                 SubElement(init_el, "Unknown", attrs)
-        derivatives.declare(root, index, self.STATE_DERIVATIVES, bool(self.JACOBIAN_COLUMNS),
-                            self.DERIVATIVE_DEPENDENCIES)  # fmt: skip
-        return root
-
-    def _jacobian_tables(self) -> tuple[list[int], list[int], int, int] | None:
-        """The runtime's tables of the directional derivatives
-        (:func:`glider_fmi.derivatives.jacobian_tables`)."""
-        names = {vr: v.name for vr, v in self.vars.items()}
-        return derivatives.jacobian_tables(names, self.JACOBIAN_ROWS, self.JACOBIAN_COLUMNS)
-
-    def jacobian(self) -> Sequence[float]:  # pragma: no cover - overridden
-        """The Jacobian at the current point, row-major (rows :attr:`JACOBIAN_ROWS`,
-        columns :attr:`JACOBIAN_COLUMNS`); the runtime forms the directional derivatives
-        from it."""
-        raise NotImplementedError
+        return derivatives.declare(self, root, index, _dependencies)  # states, Jacobian
 
     # ----------------------------------------------------------- validation
     def fail(self, message: str) -> None:
@@ -336,9 +310,8 @@ class GliderSlave(Fmi2Slave):
         v = self._spec_by_vr.get(vr)
         if v is None:
             self.fail(f"value reference {vr} is unknown")
-        if v.causality in ("output", "local"):
-            what = "an output" if v.causality == "output" else "a calculated variable"
-            self.fail(f"{v.name} is {what}: it cannot be set")
+        if v.causality in derivatives.UNSETTABLE:
+            self.fail(f"{v.name} is {derivatives.UNSETTABLE[v.causality]}: it cannot be set")
         if self._initialized and v.causality == "parameter":
             if not v.tunable:
                 self.fail(

@@ -16,6 +16,15 @@ from glider_plant.params import NON_NEGATIVE, POSITIVE, GliderParams, Range
 R90 = math.pi / 2
 
 
+def _initial_dependencies(
+    step: dict[str, tuple[str, ...]], constants: dict[str, tuple[str, ...]]
+) -> dict[str, tuple[str, ...]]:
+    """What each state derivative depends on in Initialization Mode: the start values of the
+    states it depends on after it (``V`` -> ``V_0``), the inputs, its constants."""
+    start = {x: f"{x}_0" for x in PLANT_STATES}
+    return {d: tuple(start.get(k, k) for k in knowns) + constants[d] for d, knowns in step.items()}
+
+
 class GliderPlant(GliderSlave):
     """Underwater glider in the sagittal plane with a whale-tail control surface."""
 
@@ -90,6 +99,27 @@ class GliderPlant(GliderSlave):
             )
         ),  # fmt: skip
     )
+    # the knowns each state derivative depends on (plant_jacobian's nonzero columns, tested)
+    DERIVATIVE_DEPENDENCIES = {
+        "der(V)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
+        "der(theta_g)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
+        "der(alpha)": ("V", "theta_g", "alpha", "omega2", "delta", "F_x", "F_z"),
+        "der(omega2)": ("V", "alpha", "omega2", "delta", "M_y"),
+        "der(x)": ("V", "theta_g"),
+        "der(z)": ("V", "theta_g"),
+        "der(delta)": ("delta", "delta_cmd"),
+    }
+
+    # ... and the model constants and servo parameters of each one's equation
+    DERIVATIVE_CONSTANTS = {
+        "der(V)": ("m", "K_D0", "K_D", "K_Fdelta", "K_udelta", "m0", "g"),
+        "der(theta_g)": ("m", "K_L0", "K_L", "K_Fdelta", "K_udelta", "m0", "g"),
+        "der(alpha)": ("m", "K_L0", "K_L", "K_Fdelta", "K_udelta", "m0", "g"),
+        "der(omega2)": ("J2", "K_M0", "K_M", "K_q", "K_udelta"),
+        "der(x)": (),
+        "der(z)": (),
+        "der(delta)": ("tau_servo", "delta_max"),
+    }
     # in Initialization Mode: the initial state, nothing of the inputs (no feedthrough)
     INITIAL_DEPENDENCIES = {
         "theta_meas": ("theta_g_0", "alpha_0", "noise_std", "noise_seed"),
@@ -101,6 +131,8 @@ class GliderPlant(GliderSlave):
         "delta": ("delta_0",),
         "x": ("x_0",),
         "z": ("z_0",),
+        # the state derivatives: of the start values, the inputs and the constants
+        **_initial_dependencies(DERIVATIVE_DEPENDENCIES, DERIVATIVE_CONSTANTS),
     }
     INTERNAL_STATE = ("_p", "_sensor", "_state")
     STATE_DERIVATIVES = {f"der({x})": x for x in PLANT_STATES}
@@ -109,16 +141,6 @@ class GliderPlant(GliderSlave):
     JACOBIAN_ROWS = {**{d: i for i, d in enumerate(STATE_DERIVATIVES)}, "theta": 7,
                      "theta_meas": 7}  # fmt: skip
     JACOBIAN_COLUMNS = PLANT_STATES + PLANT_INPUTS
-    # the knowns each state derivative depends on (plant_jacobian's nonzero columns, tested)
-    DERIVATIVE_DEPENDENCIES = {
-        "der(V)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
-        "der(theta_g)": ("V", "theta_g", "alpha", "delta", "F_x", "F_z"),
-        "der(alpha)": ("V", "theta_g", "alpha", "omega2", "delta", "F_x", "F_z"),
-        "der(omega2)": ("V", "alpha", "omega2", "delta", "M_y"),
-        "der(x)": ("V", "theta_g"),
-        "der(z)": ("V", "theta_g"),
-        "der(delta)": ("delta", "delta_cmd"),
-    }
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)

@@ -180,9 +180,15 @@ def test_a_parameter_refused_in_initialization_mode_is_an_error_naming_it(fmu_se
 #: only with noise on, *_hat_0 only without the equilibrium start (and the switch only
 #: with *_hat_0 away from the equilibrium), the P gain under the P law, delta_open under
 #: the open loop, delta_max when the command saturates, the law's inputs away from the
-#: equilibrium
+#: equilibrium; the plant's state derivatives: the tail's constants with the tail
+#: deflected, K_q with a pitch rate, its delta_max with the command beyond it
 SETTINGS = {
-    "GliderPlant": [{}, {"noise_std": 0.01}],
+    "GliderPlant": [
+        {},
+        {"noise_std": 0.01},
+        {"delta_0": 0.1, "omega2_0": 0.1},
+        {"delta_cmd": 2.0},
+    ],  # fmt: skip
     "GliderObserver": [
         {},
         {"start_at_equilibrium": False},
