@@ -13,12 +13,15 @@ from typing import Any
 
 
 def initial_inputs(fmu: Path) -> set[str] | None:
-    """The inputs that the initial unknowns of ``fmu`` depend on (the dependencies of its
-    ``<InitialUnknowns>``); None: one declares none (then it depends on every input)."""
+    """The inputs that the initial unknowns of ``fmu`` that are outputs depend on (the
+    dependencies of its ``<InitialUnknowns>``; a state derivative links nothing); None:
+    one declares none (then it depends on every input)."""
     from fmpy import read_model_description
 
     inputs: set[str] = set()
     for u in read_model_description(str(fmu)).initialUnknowns:
+        if u.variable.causality != "output":
+            continue
         if u.dependencies is None:
             return None
         inputs |= {d.name for d in u.dependencies if d.causality == "input"}
