@@ -291,10 +291,10 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def runs_here(args: argparse.Namespace) -> bool:
-    """True if the command runs our FMUs on this machine alone (a run, a sweep or a
-    report without a Dask scheduler elsewhere): the cache's host-only set serves it.
-    Exports hand the FMUs on: every platform's binary."""
-    return args.command in ("run", "sweep", "report") and not getattr(args, "scheduler", None)
+    """True if the command runs our FMUs here alone (run, sweep or report without a Dask
+    scheduler, analyze): the host-only set serves it (exports hand every platform's on)."""
+    here = ("run", "sweep", "report", "analyze")
+    return args.command in here and not getattr(args, "scheduler", None)
 
 
 def dispatch(args: argparse.Namespace) -> int:
