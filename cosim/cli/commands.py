@@ -15,7 +15,7 @@ from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from . import webassembly
-from .parser import UsageError, refuse_fmu_options
+from .parser import UsageError, uses_fmu_options
 
 log = logging.getLogger(__name__)
 
@@ -281,8 +281,7 @@ def _report(args: argparse.Namespace) -> int:
 def _analyze(args: argparse.Namespace) -> int:
     from ..studies.analysis import analyze, format_report
 
-    plant = Path(args.fmu_dir) / "GliderPlant.fmu" if args.from_fmu else None
-    result = analyze(plant_fmu=plant)
+    result = analyze(plant_fmu=Path(args.fmu_dir) / "GliderPlant.fmu" if args.from_fmu else None)
     if args.json:
         print(json.dumps(result))
     else:
@@ -305,9 +304,7 @@ def dispatch(args: argparse.Namespace) -> int:
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
     if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
         return code
-    if args.command == "analyze" and not args.from_fmu:
-        refuse_fmu_options(args)  # the model's own Jacobian uses no FMU
-    elif hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor"):
+    if uses_fmu_options(args):  # analyze only with --from-fmu, verify builds its own
         from ..fmus.folders import cache_root, prepare_fmus
 
         folder = Path(args.fmu_dir) if args.fmu_dir is not None else None

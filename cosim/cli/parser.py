@@ -34,14 +34,16 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
         return text + " (default: %(default)s)"
 
 
-def refuse_fmu_options(args: argparse.Namespace) -> None:
-    """``analyze`` without ``--from-fmu``: ``--fmu-dir``, ``--flavor`` and ``--fmi`` name
-    FMUs it does not use (one line naming those given)."""
-    given = [o for o, v in (("--fmu-dir", args.fmu_dir), ("--flavor", args.flavor),
-                            ("--fmi", args.fmi)) if v is not None]  # fmt: skip
-    if given:
-        raise UsageError(f"{', '.join(given)} needs --from-fmu (the model's own Jacobian "
-                         "uses no FMU)")  # fmt: skip
+def uses_fmu_options(args: argparse.Namespace) -> bool:
+    """True if ``--fmu-dir``/``--flavor`` name FMUs to prepare (not verify's; analyze's with
+    ``--from-fmu`` only: without it they are refused, the model's Jacobian uses no FMU)."""
+    if args.command == "analyze" and not args.from_fmu:
+        given = [o for o in ("fmu_dir", "flavor", "fmi") if getattr(args, o) is not None]
+        if given:
+            raise UsageError(f"--{given[0].replace('_', '-')} needs --from-fmu (the model's "
+                             "own Jacobian uses no FMU)")  # fmt: skip
+        return False
+    return hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor")
 
 
 def _plain(text: str) -> str:

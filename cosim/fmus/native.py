@@ -176,8 +176,6 @@ def vars_header(c: NativeComponent) -> str:
         f"static const NativeVar {c.name.upper()}_VARS[] = {{",
     ]
     for _, v in pairs:
-        causality = {"input": "NV_INPUT", "output": "NV_OUTPUT", "parameter": "NV_PARAMETER",
-                     "local": "NV_LOCAL"}  # fmt: skip
         r = v.valid
         if r is None or v.causality in ("output", "local"):
             rng = "0, -HUGE_VAL, HUGE_VAL, 0, 0, NULL"
@@ -189,10 +187,9 @@ def vars_header(c: NativeComponent) -> str:
                 f"{int(r.high_open)}, {_c_string(r.describe(v.type == 'Integer'))}"
             )
         lines.append(
-            f"    {{{_c_string(v.name)}, '{v.type[0]}', {causality[v.causality]}, "
+            f"    {{{_c_string(v.name)}, '{v.type[0]}', NV_{v.causality.upper()}, "
             f"{int(v.tunable)}, {int(v.name in computed)}, "
-            f"offsetof({c.name}Vars, {c_name(v.name)}), "
-            f"{_c_double(float(v.start))}, {rng}}},"
+            f"offsetof({c.name}Vars, {c_name(v.name)}), {_c_double(float(v.start))}, {rng}}},"
         )
     inputs = [str(vr) for vr, v in pairs if v.causality == "input" and v.type == "Real"]
     up = c.name.upper()
@@ -216,8 +213,7 @@ def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | N
     (``chain``, default :func:`glider_fmi.toolchain.select`), the version and the code
     that writes the model description (``slave_base.py``, ``derivatives.py``)."""
     h = hashlib.sha256(vars_header(c).encode())
-    for writer in ("slave_base.py", "derivatives.py"):  # they write the model description
-        h.update((_pkg(glider_fmi) / writer).read_bytes())
+    h.update(b"".join((FMI_DIR / w).read_bytes() for w in ("slave_base.py", "derivatives.py")))
     h.update(f"fmi{fmi}{wasm.fingerprint() if fmi == 3 else ''}".encode())  # + the component
     h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
     h.update(toolchain.fingerprint(chain).encode())
