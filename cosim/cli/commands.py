@@ -147,6 +147,8 @@ def _run(args: argparse.Namespace) -> int:
             scenario,
             out,
             fmu_dir=args.fmu_dir,
+            # the cache's set is built and checked by dispatch (prepare_fmus): not twice
+            build=getattr(args, "fmu_dir_given", True) is not None,
             coupling=args.coupling,
             step=args.step,
             stop_time=args.stop_time,

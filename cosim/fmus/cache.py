@@ -6,7 +6,8 @@ Layout: ``<cache_root>/<version>/<entry>``, where an entry is an FMU set
 native set with this machine's binary alone, to run here
 ``native[-fmi3]-only-<platform>-<sources key>``, the compiled fast loop
 ``fastloop-<key>``, the native sources ``native-src`` or their objects ``native-obj``
-(:mod:`glider_cosim.fmus.objects`), matplotlib's font cache ``matplotlib`` (the CLI's).
+(:mod:`glider_cosim.fmus.objects`), the native FMUs' variable tables ``native-vars``,
+the cache's FMUs unpacked to run ``unpacked``, matplotlib's font cache ``matplotlib`` (the CLI's).
 ``--prune`` removes every version folder but the installed version's. The installed
 version's sets built from other sources (an edited checkout, another branch) are kept
 and listed as such: switching back to those sources reuses them.
@@ -63,6 +64,10 @@ def _describe(version: str, name: str, keys: dict[str, str]) -> str:
         return "native sources' builds"
     if name == "native-obj":
         return "native objects (each C file compiled per platform)"
+    if name == "native-vars":
+        return "native FMUs' variable tables (generated from the Python slaves)"
+    if name == "unpacked":
+        return "the cache's FMUs unpacked to run (one folder per FMU file)"
     if name == "matplotlib":
         return "matplotlib's font cache (the sweep's and report's figures)"
     kind, only, host = kind.partition("-only-")

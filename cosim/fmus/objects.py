@@ -17,7 +17,6 @@ empty zig cache.
 
 from __future__ import annotations
 
-import concurrent.futures
 import hashlib
 import logging
 import os
@@ -227,6 +226,8 @@ def zig_first_note(target: Target) -> str | None:
 
 def _run_all(jobs: list[Callable[[], None]], workers: int) -> None:
     """Run ``jobs`` in one pool; the first error, after every job has ended."""
+    import concurrent.futures  # a build's alone, not a run's
+
     with concurrent.futures.ThreadPoolExecutor(max(1, workers)) as pool:
         for future in [pool.submit(job) for job in jobs]:
             future.result()

@@ -141,8 +141,11 @@ class CsvRecorder:
     THREADED = True  # False: formatted and written in the caller's thread
     C_THREAD = True  # False: the writer thread is a Python thread (as where C's cannot start)
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, keep: ArrayRecorder | None = None) -> None:
         self.path = Path(path)
+        #: also handed every row (the run's table for its metrics, without reading the
+        #: file back: the same doubles, as the file holds each value exactly)
+        self.keep = keep
         self._f = None
         self.n_rows = 0
         self._lib = None
@@ -178,6 +181,8 @@ class CsvRecorder:
     def start(self, columns: Sequence[str]) -> None:
         from ..master.fastloop import library
 
+        if self.keep is not None:
+            self.keep.start(columns)
         header = (",".join(columns) + "\n").encode()
         self._ncol = len(columns)
         self._started = True
@@ -201,6 +206,8 @@ class CsvRecorder:
         self._f.write(header)
 
     def row(self, values: Sequence[float]) -> None:
+        if self.keep is not None:
+            self.keep.row(list(values))
         if self._lib is None:
             self._f.write(repr_row(values).encode())
         else:
@@ -218,6 +225,8 @@ class CsvRecorder:
             for j in range(nrows):
                 self.row(values[j * ncol : (j + 1) * ncol])
             return
+        if self.keep is not None:
+            self.keep.rows_block(values, nrows, ncol)
         self._flush()
         self._hand_over(values, nrows)
         self.n_rows += nrows

@@ -295,7 +295,7 @@ def simulate(
                 recorder: Any = ParquetRecorder(files["results"])
             else:
                 files["results"] = out / "results.csv"
-                recorder = CsvRecorder(files["results"])
+                recorder = CsvRecorder(files["results"], keep=ArrayRecorder())
         else:
             recorder = ArrayRecorder()
         from ..progress import RunProgress, mode
@@ -334,8 +334,8 @@ def simulate(
             columns = sim.columns
         elif isinstance(recorder, CsvRecorder):
             data = (
-                np.loadtxt(files["results"], delimiter=",", skiprows=1, ndmin=2)
-                if recorder.n_rows
+                recorder.keep.array(len(sim.columns))
+                if recorder.n_rows and recorder.keep is not None
                 else np.empty((0, len(sim.columns)))
             )
             columns = sim.columns

@@ -47,6 +47,8 @@ def test_a_run_builds_this_machines_binary_alone_and_an_export_every_platforms(
         "native-obj",
         host.name,
         "native-src",
+        "native-vars",  # the variable tables, made once (issue 48)
+        "unpacked",  # the FMUs the run loaded, unpacked once (issue 48)
     }  # no full set: nothing can take this one for it
     for name in NAMES:
         assert binaries(host / f"{name}.fmu") == [f"binaries/linux64/{name}.so"]
