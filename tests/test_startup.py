@@ -1,0 +1,116 @@
+"""What a run does before its first step, done once rather than at every run (issue 48):
+the native variable tables made once and kept in the cache, the cache's FMUs unpacked
+once for every process, the run's table kept as it is written rather than read back from
+``results.csv``. Checked by what is done (calls, files), not by a clock: the figures are
+``bench/whole_run.py``'s."""
+
+from __future__ import annotations
+
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from glider_cosim.fmus import native
+from glider_cosim.fmus.files import package_version
+from glider_cosim.inputs import archives
+from glider_cosim.master import instance
+from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
+
+PLANT = native.NATIVE_COMPONENTS[0]
+
+
+def test_a_variable_table_is_made_once_then_read_from_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
+    made = []
+    real = native.make_vars_header
+    monkeypatch.setattr(native, "make_vars_header", lambda c: made.append(c.name) or real(c))
+    first = native.vars_header(PLANT)
+    assert made == ["GliderPlant"]
+    (kept,) = (tmp_path / package_version() / "native-vars").iterdir()
+    assert kept.name.startswith("GliderPlant-") and kept.read_text() == first
+    assert native.vars_header(PLANT) == first  # read back, not made again
+    assert made == ["GliderPlant"]
+    assert first == real(PLANT)  # the same text the slave makes
+
+
+def test_a_variable_table_is_made_anew_when_its_sources_change(tmp_path, monkeypatch):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
+    native.vars_header(PLANT)
+    made = []
+    real = native.make_vars_header
+    monkeypatch.setattr(native, "make_vars_header", lambda c: made.append(c.name) or real(c))
+    monkeypatch.setattr(native, "_header_key", lambda c: "another-key")  # an edited slave
+    native.vars_header(PLANT)
+    assert made == ["GliderPlant"]
+    assert len(list((tmp_path / package_version() / "native-vars").iterdir())) == 2
+
+
+def test_an_unwritable_cache_still_gives_the_table(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(blocker))
+    assert native.vars_header(PLANT) == native.make_vars_header(PLANT)
+
+
+def _fmu(path, payload: bytes = b"\x7fELF binary"):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", "<fmiModelDescription/>")
+        z.writestr("binaries/linux64/M.so", payload)
+    return path
+
+
+def test_an_fmu_of_the_cache_is_unpacked_once_for_every_process(tmp_path, monkeypatch):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+    fmu = _fmu(tmp_path / "cache" / package_version() / "native-x" / "M.fmu")
+    folder = instance.unpacked_in_cache(fmu)
+    assert folder is not None
+    assert os.path.dirname(folder) == str(tmp_path / "cache" / package_version() / "unpacked")
+    assert (tmp_path / folder / "binaries" / "linux64" / "M.so").read_bytes() == b"\x7fELF binary"
+
+    def no_unpacking(*args, **kwargs):
+        raise AssertionError("unpacked again")
+
+    monkeypatch.setattr(instance, "safe_extract", no_unpacking)
+    assert instance.unpacked_in_cache(fmu) == folder  # another process: the same folder
+    monkeypatch.undo()
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+    _fmu(fmu, b"\x7fELF rebuilt")  # another build: another folder, never the old one
+    again = instance.unpacked_in_cache(fmu)
+    assert again != folder
+    assert (tmp_path / again / "binaries" / "linux64" / "M.so").read_bytes() == b"\x7fELF rebuilt"
+
+
+def test_an_fmu_outside_the_cache_is_not_kept(tmp_path, monkeypatch):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+    assert instance.unpacked_in_cache(_fmu(tmp_path / "mine" / "M.fmu")) is None
+    assert not (tmp_path / "cache").exists()
+
+
+def test_a_bad_fmu_of_the_cache_leaves_no_folder(tmp_path, monkeypatch):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+    fmu = tmp_path / "cache" / package_version() / "native-x" / "M.fmu"
+    fmu.parent.mkdir(parents=True)
+    fmu.write_bytes(b"not a zip")
+    with pytest.raises(archives.InputFileError, match="not a readable zip"):
+        instance.unpacked_in_cache(fmu)
+    assert list((tmp_path / "cache" / package_version() / "unpacked").iterdir()) == []
+
+
+@pytest.mark.parametrize("threaded", [True, False])
+def test_a_csv_recorder_keeps_the_rows_it_writes(tmp_path, monkeypatch, threaded):
+    monkeypatch.setattr(CsvRecorder, "THREADED", threaded)
+    rows = np.random.default_rng(3).normal(size=(300, 4)) * 10.0 ** np.arange(-8, 8, 4)
+    rows[5, 1], rows[7, 2] = -0.0, np.inf
+    rec = CsvRecorder(tmp_path / "r.csv", keep=ArrayRecorder())
+    rec.start(["time", "a", "b", "c"])
+    for r in rows[:130]:  # one by one, then a block
+        rec.row(list(r))
+    block = (np.ctypeslib.as_ctypes_type(np.float64) * rows[130:].size)(*rows[130:].ravel())
+    rec.rows_block(block, len(rows) - 130, 4)
+    rec.close()
+    kept = rec.keep.array()
+    read = np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert kept.tobytes() == read.tobytes() == rows.tobytes()  # bit for bit
