@@ -114,3 +114,15 @@ def test_a_csv_recorder_keeps_the_rows_it_writes(tmp_path, monkeypatch, threaded
     kept = rec.keep.array()
     read = np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1, ndmin=2)
     assert kept.tobytes() == read.tobytes() == rows.tobytes()  # bit for bit
+
+
+def test_a_reference_is_parsed_once():
+    from glider_cosim.master.errors import SystemSpecError
+    from glider_cosim.master.spec import VarRef
+
+    ref = VarRef.parse("controller.K_c")
+    assert VarRef.parse("controller.K_c") is ref  # a sweep resolves its names at every run
+    assert (ref.instance, ref.variable) == ("controller", "K_c")
+    for bad in ("K_c", "controller.", ".K_c"):
+        with pytest.raises(SystemSpecError, match="is not a variable reference"):
+            VarRef.parse(bad)

@@ -16,6 +16,10 @@ COUPLINGS = ("gauss-seidel", "jacobi")
 DEFAULT_MAX_STEPS = 1_000_000
 
 
+#: :meth:`VarRef.parse`'s references, by text
+_PARSED: dict[str, VarRef] = {}
+
+
 @dataclass(frozen=True)
 class VarRef:
     """``instance.variable``."""
@@ -25,12 +29,20 @@ class VarRef:
 
     @classmethod
     def parse(cls, text: str) -> VarRef:
+        """``"instance.variable"`` as a reference (the same object for the same text: a
+        sweep's worker resolves its parameters' names at every run)."""
+        known = _PARSED.get(text) if cls is VarRef and isinstance(text, str) else None
+        if known is not None:
+            return known
         inst, sep, var = text.partition(".")
         if not sep or not inst or not var:
             raise SystemSpecError(
                 f"{quote(text)} is not a variable reference: expected instance.variable"
             )
-        return cls(inst, var)
+        ref = cls(inst, var)
+        if cls is VarRef and len(_PARSED) < 10_000:
+            _PARSED[text] = ref
+        return ref
 
     def __str__(self) -> str:
         return f"{self.instance}.{self.variable}"
