@@ -7,10 +7,13 @@ process, into a new temporary ``$GLIDER_COSIM_CACHE`` and, by default, a new
 library pieces first, Windows' MinGW runtime the longest). ``--zig-warm-repeat N`` adds
 the ``*_zig_warm_s`` figures, with zig's own cache (as it is on this machine, warmed by
 one build first): a new FMU cache on a machine that has built before. ``--python``
-runs the commands with another interpreter (e.g. a venv of another checkout, for before
-and after figures in one session).
+(repeatable) runs the commands with other interpreters (e.g. a venv of another
+checkout), each command with each in turn: before and after figures in one session.
 
-Usage: python bench/cold_build.py [--repeat 1] [--zig-warm-repeat 0] [--python PY] [--json]
+``--command`` (repeatable) times only those named.
+
+Usage: python bench/cold_build.py [--repeat 1] [--zig-warm-repeat 0] [--python PY ...]
+       [--command NAME ...] [--json]
 """
 
 from __future__ import annotations
@@ -62,18 +65,31 @@ def main() -> None:
                     help="runs per figure, zig's cache empty too (median; 0 skips)")  # fmt: skip
     ap.add_argument("--zig-warm-repeat", type=int, default=0,
                     help="runs per figure with zig's cache warm (0: none)")  # fmt: skip
-    ap.add_argument("--python", default=sys.executable, help="interpreter running glider-cosim")
+    ap.add_argument("--python", action="append",
+                    help="interpreter running glider-cosim (repeatable: each command is "
+                         "timed with each in turn, interleaved)")  # fmt: skip
+    ap.add_argument("--command", action="append", choices=list(COMMANDS),
+                    help="the commands timed (default: every one)")  # fmt: skip
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    result: dict[str, object] = {"python": args.python, "load_before": os.getloadavg()[0]}
-    if args.zig_warm_repeat > 0:  # zig's cache warmed for this interpreter's sources
-        timed(args.python, COMMANDS["build_native_all"], zig_cold=False)
+    pythons = args.python or [sys.executable]
+    commands = {k: v for k, v in COMMANDS.items() if k in (args.command or COMMANDS)}
+    result: dict[str, object] = {"python": pythons if len(pythons) > 1 else pythons[0],
+                                 "load_before": os.getloadavg()[0]}  # fmt: skip
+    if args.zig_warm_repeat > 0:  # zig's cache warmed for these interpreters' sources
+        for py in pythons:
+            timed(py, COMMANDS["build_native_all"], zig_cold=False)
     for zig_cold, repeat in ((True, args.repeat), (False, args.zig_warm_repeat)):
-        for name, cmd in COMMANDS.items() if repeat > 0 else ():
-            times = [timed(args.python, cmd, zig_cold) for _ in range(repeat)]
-            key = f"{name}_zig_{'cold' if zig_cold else 'warm'}_s"
-            result[key] = round(statistics.median(times), 2)
-            result[key.removesuffix("_s") + "_runs_s"] = [round(t, 2) for t in times]
+        for name, cmd in commands.items() if repeat > 0 else ():
+            times: dict[int, list[float]] = {i: [] for i in range(len(pythons))}
+            for _ in range(repeat):
+                for i, py in enumerate(pythons):
+                    times[i].append(timed(py, cmd, zig_cold))
+            for i in times:
+                prefix = f"{i}_" if len(pythons) > 1 else ""
+                key = f"{prefix}{name}_zig_{'cold' if zig_cold else 'warm'}_s"
+                result[key] = round(statistics.median(times[i]), 2)
+                result[key.removesuffix("_s") + "_runs_s"] = [round(t, 2) for t in times[i]]
     result["load_after"] = os.getloadavg()[0]
     emit(result, args.json)
 

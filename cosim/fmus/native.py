@@ -16,6 +16,7 @@ with every C file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.metadata
 import logging
@@ -139,13 +140,18 @@ def _slave_variables(cls: type) -> list[tuple[int, Any]]:
     return pairs
 
 
+@functools.cache
+def _pythonfmu_version() -> str:
+    return importlib.metadata.version("pythonfmu")
+
+
 def _header_key(c: NativeComponent) -> str:
     """A hash over everything :func:`vars_header` reads: the Python sources of the four
     packages the slaves come from (their variables, ranges, wording), this generator and
     the pythonfmu that numbers the variables."""
     h = hashlib.sha256(f"{c.name}\n{c.slave}\n".encode())
     h.update(Path(__file__).read_bytes())
-    h.update(importlib.metadata.version("pythonfmu").encode())
+    h.update(_pythonfmu_version().encode())
     for pkg in (glider_fmi, glider_plant, glider_observer, glider_controller):
         for f in sorted(_pkg(pkg).glob("*.py")):
             h.update(f"{pkg.__name__}/{f.name}\n".encode())

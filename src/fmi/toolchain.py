@@ -110,7 +110,10 @@ def zig_available() -> bool:
     return importlib.util.find_spec("ziglang") is not None
 
 
+@functools.cache
 def zig_version() -> str:
+    """The installed ziglang's version ("" if none); read once a process (each FMU's
+    staleness hash asks for it)."""
     try:
         return importlib.metadata.version("ziglang")
     except importlib.metadata.PackageNotFoundError:
