@@ -12,7 +12,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from glider_cosim.fmus import native
+from glider_cosim.fmus import native, native_vars
 from glider_cosim.fmus.files import package_version
 from glider_cosim.inputs import archives
 from glider_cosim.master import instance
@@ -24,8 +24,8 @@ PLANT = native.NATIVE_COMPONENTS[0]
 def test_a_variable_table_is_made_once_then_read_from_the_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
     made = []
-    real = native.make_vars_header
-    monkeypatch.setattr(native, "make_vars_header", lambda c: made.append(c.name) or real(c))
+    real = native_vars.make_vars_header
+    monkeypatch.setattr(native_vars, "make_vars_header", lambda c: made.append(c.name) or real(c))
     first = native.vars_header(PLANT)
     assert made == ["GliderPlant"]
     (kept,) = (tmp_path / package_version() / "native-vars").iterdir()
@@ -39,12 +39,23 @@ def test_a_variable_table_is_made_anew_when_its_sources_change(tmp_path, monkeyp
     monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
     native.vars_header(PLANT)
     made = []
-    real = native.make_vars_header
-    monkeypatch.setattr(native, "make_vars_header", lambda c: made.append(c.name) or real(c))
-    monkeypatch.setattr(native, "_header_key", lambda c: "another-key")  # an edited slave
+    real = native_vars.make_vars_header
+    monkeypatch.setattr(native_vars, "make_vars_header", lambda c: made.append(c.name) or real(c))
+    monkeypatch.setattr(native_vars, "_header_key", lambda c: "another-key")  # an edited slave
     native.vars_header(PLANT)
     assert made == ["GliderPlant"]
     assert len(list((tmp_path / package_version() / "native-vars").iterdir())) == 2
+
+
+def test_listing_the_cache_adds_no_table_to_it(tmp_path, monkeypatch, capsys):
+    from glider_cosim.cli.main import main
+
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+    assert main(["cache"]) == 0
+    assert not (tmp_path / "cache").exists()
+    with native_vars.tables_not_kept():
+        assert native.vars_header(PLANT) == native.make_vars_header(PLANT)
+    assert not (tmp_path / "cache").exists()
 
 
 def test_an_unwritable_cache_still_gives_the_table(tmp_path, monkeypatch):

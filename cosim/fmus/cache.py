@@ -47,11 +47,13 @@ def folder_size(path: Path) -> int:
 def _current_keys() -> dict[str, str]:
     """Kind -> the sources key this install builds (unknown kinds are missing)."""
     from .folders import sources_key
+    from .native_vars import tables_not_kept
 
     keys = {}
     for flavor in ("python", "native"):
         try:
-            key = sources_key(flavor)
+            with tables_not_kept():  # listed, not added to
+                key = sources_key(flavor)
         except (OSError, ValueError):  # no compiler to fingerprint for native
             continue
         keys[flavor] = keys[f"{flavor}-fmi3"] = key

@@ -149,15 +149,22 @@ def test_sweep_leaves_no_temporary_folder(fmu_dir, tmp_path):
     assert list((tmp_path / "t").iterdir()) == []
 
 
-def test_extractions_are_reused_within_a_process(fmu_dir):
+def test_extractions_are_reused_within_a_process(fmu_dir, tmp_path):
+    import shutil
+
+    from glider_cosim.fmus.files import cache_root
+    from glider_cosim.inputs.tempdirs import temp_root
     from glider_cosim.master.instance import _extracted
 
-    a = _extracted(fmu_dir / "GliderPlant.fmu")
-    b = _extracted(fmu_dir / "GliderPlant.fmu")
+    mine = tmp_path / "GliderPlant.fmu"  # a user's FMU: in the temporary folder
+    shutil.copy(fmu_dir / "GliderPlant.fmu", mine)
+    a = _extracted(mine)
+    b = _extracted(mine)
     assert a == b and Path(a).is_dir()
-    from glider_cosim.inputs.tempdirs import temp_root
-
     assert Path(a).is_relative_to(temp_root())
+    # the cache's own: unpacked once for every process, in the cache (issue 48)
+    kept = _extracted(fmu_dir / "GliderPlant.fmu")
+    assert Path(kept).parent.name == "unpacked" and Path(kept).is_relative_to(cache_root())
 
 
 def _draw_with_matplotlib(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
