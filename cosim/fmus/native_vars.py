@@ -77,13 +77,21 @@ def _header_key(c: Any) -> str:
     """A hash over everything :func:`vars_header` reads: the Python sources of the four
     packages the slaves come from (their variables, ranges, wording), this generator and
     the pythonfmu that numbers the variables."""
-    h = hashlib.sha256(f"{c.name}\n{c.slave}\n".encode())
-    h.update(Path(__file__).read_bytes())
-    h.update(_pythonfmu_version().encode())
+    files = [Path(__file__)]
     for pkg in (glider_fmi, glider_plant, glider_observer, glider_controller):
-        for f in sorted(_pkg(pkg).glob("*.py")):
-            h.update(f"{pkg.__name__}/{f.name}\n".encode())
-            h.update(f.read_bytes())
+        files += sorted(_pkg(pkg).glob("*.py"))
+    stamp = tuple((str(f), st.st_mtime_ns, st.st_size) for f in files for st in [f.stat()])
+    return f"{c.name}-{_sources_digest(stamp, c.slave)}"
+
+
+@functools.lru_cache(maxsize=16)
+def _sources_digest(stamp: tuple[tuple[str, int, int], ...], slave: str) -> str:
+    """The hash of the files of ``stamp`` (path, modification time and size: read again
+    when one changes; each run's staleness check asks for it 9 times)."""
+    h = hashlib.sha256(f"{slave}\n{_pythonfmu_version()}\n".encode())
+    for path, _, _ in stamp:
+        h.update(f"{Path(path).parent.name}/{Path(path).name}\n".encode())
+        h.update(Path(path).read_bytes())
     return h.hexdigest()[:32]
 
 
@@ -94,7 +102,7 @@ def vars_header(c: Any) -> str:
     made anew, it imports the slave and pythonfmu and instantiates the slave, 20-60 ms a
     component of every run's staleness check (issue 48)."""
     key = _header_key(c)
-    memo = cache_root() / package_version() / "native-vars" / f"{c.name}-{key}.h"
+    memo = cache_root() / package_version() / "native-vars" / f"{key}.h"
     try:
         return memo.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
