@@ -147,8 +147,7 @@ def _run(args: argparse.Namespace) -> int:
             scenario,
             out,
             fmu_dir=args.fmu_dir,
-            # the cache's set is built and checked by dispatch (prepare_fmus): not twice
-            build=getattr(args, "fmu_dir_given", True) is not None,
+            build=args.fmu_dir_given is not None,  # the cache's: checked once, by dispatch
             coupling=args.coupling,
             step=args.step,
             stop_time=args.stop_time,
@@ -166,8 +165,7 @@ def _run(args: argparse.Namespace) -> int:
         rows = f"{m['rows']} rows to t = {_time(m.get('end_time_s'))} s in " if "rows" in m else ""
         err.kept = f"{rows}{out}; run it again with: {command_line(getattr(args, 'argv', []))}"
         raise
-    m = result.metrics
-    scenario = result.scenario
+    m, scenario = result.metrics, result.scenario
     deg = 57.29577951308232
 
     def fmt(key: str, scale: float = 1.0, unit: str = "") -> str:
