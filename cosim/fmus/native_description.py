@@ -5,7 +5,6 @@ declares besides the variables (C names, the directional derivatives' tables).""
 from __future__ import annotations
 
 import tempfile
-import uuid
 from typing import Any
 from xml.etree import ElementTree as ET
 
@@ -29,6 +28,8 @@ def model_description(c: Any, sources: list[str], digest: str) -> bytes:
                 "canSerializeFMUstate": "true",
             }
         )
+    import uuid  # here: a build's alone, not every run's start
+
     root.set(
         "guid",
         "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"glider-cosim/{c.name}/" + digest)) + "}",

@@ -75,9 +75,10 @@ def _pythonfmu_version() -> str:
 
 def _header_key(c: Any) -> str:
     """A hash over everything :func:`vars_header` reads: the Python sources of the four
-    packages the slaves come from (their variables, ranges, wording), this generator and
-    the pythonfmu that numbers the variables."""
-    files = [Path(__file__)]
+    packages the slaves come from (their variables, ranges, wording), this generator, the
+    names and Jacobian lines it takes from :mod:`.native_description` and the pythonfmu
+    that numbers the variables."""
+    files = [Path(__file__), Path(__file__).with_name("native_description.py")]
     for pkg in (glider_fmi, glider_plant, glider_observer, glider_controller):
         files += sorted(_pkg(pkg).glob("*.py"))
     stamp = tuple((str(f), st.st_mtime_ns, st.st_size) for f in files for st in [f.stat()])

@@ -22,7 +22,6 @@ import logging
 import os
 import re
 import shutil
-import uuid
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -128,6 +127,8 @@ def _object_folder(fallback: Path) -> Path:
 
 
 def _compile(target: Target, cflags: tuple[str, ...], source: Path, obj: Path) -> None:
+    import uuid  # a build's alone, not every run's start
+
     # written in a folder of this call's, under the object's own name (zig's cache keys
     # on the output's name too: a warm zig cache serves an empty FMU cache), then moved
     tmp = obj.parent / f".{os.getpid()}.{uuid.uuid4().hex[:8]}.part"
