@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..fmus.files import file_sha256, package_version
+from ..fmus.quantities import plain, short, with_unit
 from .metrics import speed_stop
 
 #: files a run writes into its folder (removed before a run into the same folder)
@@ -37,7 +38,6 @@ OWNED = (
 FLAVOR_RESOURCES = ("resources/glider_cosim_flavor.txt",)
 #: what a third-party FMU is recorded as
 DEFAULT_FLAVOR = "unknown"
-LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
 
 
 def clear_owned(out: Path) -> list[Path]:
@@ -54,16 +54,6 @@ def clear_owned(out: Path) -> list[Path]:
     return removed
 
 
-def _plain(value: Any) -> Any:
-    """A value for JSON: a ``"X deg"`` angle keeps its text, floats stay floats."""
-    text = getattr(value, "text", None)
-    if isinstance(text, str):
-        return text
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    return value
-
-
 def scenario_sha256(scenario: Any) -> str:
     """The SHA-256 of the scenario file's text, or of the scenario's settings (canonical
     JSON) for one built in code."""
@@ -76,11 +66,11 @@ def scenario_sha256(scenario: Any) -> str:
         "coupling": scenario.coupling,
         "feedback": scenario.feedback,
         "observer": scenario.observer,
-        "parameters": {i: {k: _plain(v) for k, v in p.items()}
+        "parameters": {i: {k: plain(v) for k, v in p.items()}
                        for i, p in scenario.parameters.items()},
         "events": [
             {"when": f"{e.variable} {e.op} {e.threshold}", "delay": e.delay,
-             "set": {k: _plain(v) for k, v in e.actions.items()}}
+             "set": {k: plain(v) for k, v in e.actions.items()}}
             for e in scenario.events
         ],
         "fmus": dict(scenario.fmus),
@@ -160,8 +150,8 @@ def run_record(scenario: Any, sim: Any, options: dict[str, Any] | None = None) -
         "scenario": scenario.name,
         "scenario_source": scenario.source,
         "scenario_sha256": scenario_sha256(scenario),
-        "overrides": {k: _plain(v) for k, v in scenario.overrides.items()},
-        "options": {k: _plain(v) for k, v in (options or {}).items()},
+        "overrides": {k: plain(v) for k, v in scenario.overrides.items()},
+        "options": {k: plain(v) for k, v in (options or {}).items()},
         "package": "glider-cosim",
         "package_version": package_version(),
         "python": platform.python_version(),
@@ -197,7 +187,7 @@ def describe_settings(run: dict[str, Any], sha: bool = False) -> str:
     st = settings_of(run)
     parts = [f"scenario {st['scenario']}"]
     parts += _overrides(st["overrides"]) or ["no overrides"]
-    parts += [k if v is True else f"{k} {_short(v)}" for k, v in st["options"].items()]
+    parts += [k if v is True else f"{k} {short(v)}" for k, v in st["options"].items()]
     parts.append(f"{'/'.join(st['flavors']) or '?'} FMUs, FMI {'/'.join(st['fmi']) or '?'}")
     if sha and st["scenario_sha256"]:
         parts.append(f"scenario sha256 {str(st['scenario_sha256'])[:12]}")
@@ -221,66 +211,20 @@ def replaced_note(out: Path, run: dict[str, Any]) -> str | None:
     )
 
 
-def _short(value: Any) -> str:
-    value = _plain(value)
-    return f"{value:g}" if isinstance(value, float) else str(value)
-
-
-def unit_of_target(target: str) -> str | None:
-    """The unit of ``instance.name`` in our FMUs' variable tables (``"1"``: none), for
-    labels; None for a variable that is not ours."""
-    from ..inputs.check import our_table
-
-    inst, _, name = target.partition(".")
-    try:
-        return our_table(inst)[name].unit or "1"
-    except KeyError:
-        return None
-
-
-def with_unit(target: str, value: Any) -> str:
-    """``value`` as :func:`_short` writes it, a plain number followed by the unit of
-    ``target`` (``0.3 m/s``); a value the user wrote with a unit (``-30 deg``) as given."""
-    plain = _plain(value)
-    unit = unit_of_target(target)
-    number = isinstance(plain, int | float) and not isinstance(plain, bool)
-    return f"{_short(value)} {unit}" if unit not in (None, "1") and number else _short(value)
-
-
 def _overrides(overrides: dict[str, Any], units: bool = False) -> list[str]:
     """``instance.name=value`` of each override; ``units``: each number with its unit."""
 
-    def text(k: str, v: Any) -> str:
-        if k.endswith("controller.law"):
-            return str(LAW_NAMES.get(v, v))
-        return with_unit(k, v) if units else _short(v)
-
-    return [f"{k}={text(k, v)}" for k, v in overrides.items()]
+    if units:
+        return [f"{k}={with_unit(k, v)}" for k, v in overrides.items()]
+    return [
+        f"{k}={with_unit(k, v) if k == 'controller.law' else short(v)}"
+        for k, v in overrides.items()
+    ]
 
 
 def overrides_text(metrics: dict[str, Any]) -> str:
     """``"controller.K_c=6, plant.theta_g_0=-30 deg"``: a run's overrides ("" if none)."""
     return ", ".join(_overrides((metrics.get("run") or {}).get("overrides", {})))
-
-
-def _echo(ref: str, value: Any, md: Any) -> str:
-    """``plant.alpha_0 = 1 rad (57.3 deg)``: one override with its variable's unit."""
-    from ..inputs.values import Degrees, Quantity, has_unit, is_angle, unit_of
-
-    inst, _, name = ref.partition(".")
-    var = None if md is None else next((v for v in md.modelVariables if v.name == name), None)
-    if isinstance(value, Degrees):
-        return f"{ref} = {value.text} ({float(value):.4g} rad)"
-    if isinstance(value, Quantity):
-        return f"{ref} = {value.text}"
-    if name == "law" and inst == "controller" and value in LAW_NAMES:
-        return f"{ref} = {value} ({LAW_NAMES[value]})"
-    shown = _short(value)
-    if var is None or not has_unit(var) or unit_of(var) == "1" or isinstance(value, bool):
-        return f"{ref} = {shown}"
-    if is_angle(md, var) and isinstance(value, int | float):
-        return f"{ref} = {shown} {unit_of(var)} ({math.degrees(value):.4g} deg)"
-    return f"{ref} = {shown} {unit_of(var)}"
 
 
 def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
@@ -294,8 +238,9 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
         ``instance.variable`` -> value as given (a number, or a ``"X deg"`` / ``"0.2 m/s"``
         :class:`~glider_cosim.inputs.values.Quantity`): a scenario's ``overrides``.
     fmus : dict
-        Instance -> its FMU file: the units come from its model description (an FMU that
-        cannot be read gives none).
+        Instance -> its FMU file: the units come from its model description (one that
+        cannot be read: from our FMUs' tables), in words by
+        :func:`~glider_cosim.fmus.quantities.with_unit`.
     """
     from fmpy import read_model_description
 
@@ -306,7 +251,8 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
         except Exception:  # noqa: BLE001 - fmpy raises plain Exception; no unit then
             descriptions[inst] = None
     return ", ".join(
-        _echo(ref, value, descriptions[ref.partition(".")[0]]) for ref, value in overrides.items()
+        f"{ref} = {with_unit(ref, value, descriptions[ref.partition('.')[0]], both=True)}"
+        for ref, value in overrides.items()
     )
 
 
@@ -315,7 +261,7 @@ def settings_text(metrics: dict[str, Any]) -> str:
     plot's subtitle says (each override's number with its unit)."""
     run = metrics.get("run") or {}
     parts = _overrides(run.get("overrides", {}), units=True)
-    parts += [k if v is True else f"{k} {_short(v)}" for k, v in run.get("options", {}).items()]
+    parts += [k if v is True else f"{k} {short(v)}" for k, v in run.get("options", {}).items()]
     text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
     return text + ("; " + ", ".join(parts) if parts else "; no overrides")
 
@@ -337,10 +283,7 @@ def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, An
         if ev.fired_at is None or not any(t.startswith("controller.") for t in ev.actions):
             continue
         t = ev.fired_at + ev.delay
-        sets = ", ".join(
-            f"{k} = {LAW_NAMES.get(v, v) if k == 'controller.law' else with_unit(k, v)}"
-            for k, v in ev.actions.items()
-        )
+        sets = ", ".join(f"{k} = {with_unit(k, v)}" for k, v in ev.actions.items())
         at = with_unit(ev.variable, float(ev.threshold))
         label = f"takeover at {ev.variable} {ev.op} {at} ({sets})"
         out.append({"kind": "takeover", "time_s": float(t), "label": label})
