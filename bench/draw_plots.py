@@ -46,7 +46,8 @@ def _import_s(code: str, repeat: int) -> float:
 def main() -> None:
     args = parse_args(__doc__, ("--repeat", {"type": int, "default": 8}),
                       ("--native-dir", {"default": "fmus/native"}))  # fmt: skip
-    from glider_cosim.runner import plots, raster, simulate
+    from glider_cosim.figures import plots, raster
+    from glider_cosim.runner import simulate
 
     result = simulate("default", out=None, fmu_dir=args.native_dir)
     out: dict[str, object] = {"rows": int(len(result.data))}
@@ -69,7 +70,7 @@ def main() -> None:
             )
         out["five_pngs_ms"] = _best_ms(lambda: plots.write_plots(result, folder), args.repeat)
     out["import_drawing_s"] = _import_s(
-        "from glider_cosim.runner import raster, plots, pages; raster.warm()", args.repeat
+        "from glider_cosim.figures import raster, plots, pages; raster.warm()", args.repeat
     )
     out["import_matplotlib_s"] = _import_s(
         "import matplotlib; matplotlib.use('Agg'); import matplotlib.pyplot", args.repeat

@@ -1,6 +1,6 @@
 """The results pages: bokeh against plotly on the default run's figures.
 
-Both draw the same figure specs (the run's plots, :func:`glider_cosim.runner.plots.build_specs`,
+Both draw the same figure specs (the run's plots, :func:`glider_cosim.figures.plots.build_specs`,
 the PNGs' own), every sample kept, the library's JavaScript inline once per page. Measured:
 the page's size in bytes; its load time in headless Chromium (the wall time of
 ``chromium --headless --dump-dom`` on the page minus that on an empty page, median of
@@ -25,8 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from glider_cosim.runner.pages import run_settings, write_page, write_run_page
-from glider_cosim.runner.plots import write_plots
+from glider_cosim.figures.pages import run_settings, write_page, write_run_page
+from glider_cosim.figures.plots import write_plots
 from glider_cosim.runner.run import simulate
 from glider_cosim.scenarios.scenario import load_scenario
 

@@ -69,7 +69,7 @@ def test_the_run_path_imports_no_plotting_package():
     # a run without plots (``--no-plots``, ``simulate(out=None)``) needs neither matplotlib
     # nor PIL: 0.4-0.5 s; the drawing process imports them, not the run; nor tqdm (50 ms),
     # imported only when a progress bar is drawn
-    code = "import glider_cosim.runner.run, glider_cosim.runner.drawing, glider_cosim.cli.main"
+    code = "import glider_cosim.runner.run, glider_cosim.figures.drawing, glider_cosim.cli.main"
     assert _imported(code) & {"matplotlib", "PIL", "tqdm"} == set()
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from figure_units import axis_label_problem, dimensionless, quantity_problems
 from report_fakes import THETA_E, FakeRun
 
-from glider_cosim.runner import plots as run_plots
+from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53, plot_steps

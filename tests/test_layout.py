@@ -30,7 +30,7 @@ LAYERS = (
     ("fmus",),
     ("master",),
     ("scenarios",),
-    ("interop", "realtime"),
+    ("interop", "realtime", "figures"),
     ("runner",),
     ("sweeps", "verify"),
     ("studies",),

@@ -8,10 +8,11 @@ from types import SimpleNamespace
 
 import pytest
 
+from glider_cosim.figures.plots import settings_text
 from glider_cosim.fmus.quantities import unit_of_target, with_unit
 from glider_cosim.inputs.check import our_table
 from glider_cosim.inputs.values import parse_quantity
-from glider_cosim.runner.provenance import overrides_echo, settings_text
+from glider_cosim.runner.provenance import overrides_echo
 
 
 def _description(inst: str) -> SimpleNamespace:

@@ -1,4 +1,4 @@
-"""The run's PNGs drawn with Pillow (issue 31, ``runner/raster.py``, ``runner/strokes.py``):
+"""The run's PNGs drawn with Pillow (issue 31, ``figures/raster.py``, ``figures/strokes.py``):
 ticks and their labels, dashes, where lines, translucent lines, inverted axes and
 legends land in the pixels, the PNG's size and text chunks, and the errors."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from glider_cosim.runner import plots, raster, strokes
+from glider_cosim.figures import plots, raster, strokes
 
 RED = "#ff0000"
 

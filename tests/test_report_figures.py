@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from report_fakes import THETA_E, FakeRun
 
-from glider_cosim.runner import plots as run_plots
+from glider_cosim.figures import plots as run_plots
 from glider_cosim.studies.figures import FIGURES, Figure, Run
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53
 
@@ -122,7 +122,7 @@ def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tm
 
 
 def test_fig11_20_spec_puts_each_law_over_its_rows_not_in_the_title(kept, tmp_path):
-    from glider_cosim.runner.figure_data import figure_spec
+    from glider_cosim.figures.figure_data import figure_spec
 
     t = np.linspace(0, 10, 501)
     cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,

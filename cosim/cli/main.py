@@ -110,7 +110,7 @@ def _message(err: BaseException, command: str | None) -> str:
 def _main(args: argparse.Namespace) -> int:
     command = getattr(args, "command", None)
     if command == "run" and not args.no_plots:
-        from ..runner.drawing import prestart
+        from ..figures.drawing import prestart
 
         prestart()  # Pillow imported in a child while this process imports the master
     from .commands import dispatch  # after parsing: --help imports none of the commands
@@ -147,7 +147,7 @@ def _main(args: argparse.Namespace) -> int:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
         if command == "run":
-            from ..runner.drawing import discard_prestarted
+            from ..figures.drawing import discard_prestarted
 
             discard_prestarted()
     return code

@@ -14,7 +14,7 @@ from typing import Any
 from ..inputs.check import our_table
 from ..inputs.values import has_unit, is_angle, unit_of
 
-__all__ = ["LAW_NAMES", "plain", "short", "unit_of_target", "with_unit"]
+__all__ = ["LAW_NAMES", "overrides_words", "plain", "short", "unit_of_target", "with_unit"]
 
 #: ``controller.law``'s codes and their names
 LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
@@ -93,3 +93,12 @@ def with_unit(target: str, value: Any, md: Any = None, *, both: bool = False) ->
     if both and angle:
         return f"{text} {unit} ({math.degrees(value):.4g} deg)"
     return f"{text} {unit}"
+
+
+def overrides_words(overrides: dict[str, Any], units: bool = False) -> list[str]:
+    """``instance.name=value`` of each override (``controller.law`` by name); ``units``:
+    each number with its unit (:func:`with_unit`, from our FMUs' tables)."""
+    return [
+        f"{k}={with_unit(k, v) if units or k == 'controller.law' else short(v)}"
+        for k, v in overrides.items()
+    ]

@@ -1,10 +1,11 @@
 """Runs of the glider's closed loop: ``simulate`` (the API behind ``glider-cosim run``),
-its recorders, metrics, outcome, plots and run record.
+its recorders, metrics, outcome and run record (its plots are drawn by
+:mod:`glider_cosim.figures`).
 
 The public API: :func:`simulate`, :class:`RunResult`, :func:`run_ssp`, and the typed
 errors raised before anything is instantiated (all ``ValueError``). Each name is imported
-on first use: ``glider-cosim run`` starts its plots' process (:mod:`.drawing`) before
-the master and fmpy are imported.
+on first use: ``glider-cosim run`` starts its plots' process
+(:mod:`glider_cosim.figures.drawing`) before the master and fmpy are imported.
 """
 
 from __future__ import annotations

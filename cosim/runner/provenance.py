@@ -3,7 +3,7 @@
 ``metrics.json`` gets a ``run`` object (:func:`run_record`): the scenario's name, source
 and SHA-256, every override (``--set`` and the command-line options), the package
 version and, per instance, the FMU's file, SHA-256, GUID, model name, flavor and
-version. Plot titles carry :func:`subtitle`. A run into an existing folder first removes
+version. A run into an existing folder first removes
 what an earlier run wrote there (:func:`clear_owned`), and nothing else.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..fmus.files import file_sha256, package_version
-from ..fmus.quantities import plain, short, with_unit
+from ..fmus.quantities import overrides_words, plain, short, with_unit
 from .metrics import speed_stop
 
 #: files a run writes into its folder (removed before a run into the same folder)
@@ -186,7 +186,7 @@ def describe_settings(run: dict[str, Any], sha: bool = False) -> str:
     (:func:`settings_of`) in one line (``sha``: with the scenario's SHA-256, shortened)."""
     st = settings_of(run)
     parts = [f"scenario {st['scenario']}"]
-    parts += _overrides(st["overrides"]) or ["no overrides"]
+    parts += overrides_words(st["overrides"]) or ["no overrides"]
     parts += [k if v is True else f"{k} {short(v)}" for k, v in st["options"].items()]
     parts.append(f"{'/'.join(st['flavors']) or '?'} FMUs, FMI {'/'.join(st['fmi']) or '?'}")
     if sha and st["scenario_sha256"]:
@@ -211,20 +211,9 @@ def replaced_note(out: Path, run: dict[str, Any]) -> str | None:
     )
 
 
-def _overrides(overrides: dict[str, Any], units: bool = False) -> list[str]:
-    """``instance.name=value`` of each override; ``units``: each number with its unit."""
-
-    if units:
-        return [f"{k}={with_unit(k, v)}" for k, v in overrides.items()]
-    return [
-        f"{k}={with_unit(k, v) if k == 'controller.law' else short(v)}"
-        for k, v in overrides.items()
-    ]
-
-
 def overrides_text(metrics: dict[str, Any]) -> str:
     """``"controller.K_c=6, plant.theta_g_0=-30 deg"``: a run's overrides ("" if none)."""
-    return ", ".join(_overrides((metrics.get("run") or {}).get("overrides", {})))
+    return ", ".join(overrides_words((metrics.get("run") or {}).get("overrides", {})))
 
 
 def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
@@ -254,16 +243,6 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
         f"{ref} = {with_unit(ref, value, descriptions[ref.partition('.')[0]], both=True)}"
         for ref, value in overrides.items()
     )
-
-
-def settings_text(metrics: dict[str, Any]) -> str:
-    """``"scenario default; controller.K_c=6, plant.V_0=0.3 m/s, --step 0.01"``: what a
-    plot's subtitle says (each override's number with its unit)."""
-    run = metrics.get("run") or {}
-    parts = _overrides(run.get("overrides", {}), units=True)
-    parts += [k if v is True else f"{k} {short(v)}" for k, v in run.get("options", {}).items()]
-    text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
-    return text + ("; " + ", ".join(parts) if parts else "; no overrides")
 
 
 def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, Any]]:

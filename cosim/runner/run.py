@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ..figures.drawing import draw_plots, start_drawer
 from ..fmus.folders import build_all, fmu_folder
 from ..inputs.check import check_system_values
 from ..inputs.ssp_files import ssp_name
@@ -31,7 +32,6 @@ from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, swapped, system_for
-from .drawing import draw_plots, start_drawer
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
 from .recorders import ArrayRecorder, CsvRecorder

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..figures.pages import keep_figures, run_settings, write_report_page
 from ..progress import Progress, dask_start, home
 from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
-from ..runner.pages import keep_figures, run_settings, write_report_page
 from ..runner.run import RunResult, simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario

@@ -161,9 +161,9 @@ def draw_readme_picture() -> bytes:
     scenario, Python flavor, in memory), as the run draws it (``runner.plots``)."""
     import tempfile
 
+    from glider_cosim.figures.plots import build_specs
+    from glider_cosim.figures.raster import render_png
     from glider_cosim.runner import simulate
-    from glider_cosim.runner.plots import build_specs
-    from glider_cosim.runner.raster import render_png
 
     result = simulate("default", out=None, plots=False)
     with tempfile.TemporaryDirectory(prefix="glider_docs_") as tmp:

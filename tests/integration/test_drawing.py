@@ -1,4 +1,4 @@
-"""A run's plots drawn off the critical path (issue 31 point 2, ``runner/drawing.py``):
+"""A run's plots drawn off the critical path (issue 31 point 2, ``figures/drawing.py``):
 the forked drawing process writes the same files as drawing in the process, a failure
 there is a one-line ``PlotError`` with the run's results kept, a killed child is named,
 and no child, half-written file or zombie is left behind."""
@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from glider_cosim.runner import drawing, simulate
+from glider_cosim.figures import drawing
+from glider_cosim.runner import simulate
 
 pytestmark = [
     pytest.mark.integration,
@@ -67,7 +68,7 @@ def test_the_child_draws_after_its_warm_up_what_the_process_draws(result, tmp_pa
 _MAPPED = """
 import sys, time
 from pathlib import Path
-from glider_cosim.runner import drawing
+from glider_cosim.figures import drawing
 drawer = drawing.start_drawer()
 child = drawer._process.pid
 deadline = time.monotonic() + 20
@@ -164,7 +165,7 @@ def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
     drawer.draw(result, there)
     assert _files(here) == _files(there)
     assert _dead(partner) and _dead(child)
-    from glider_cosim.runner.plots import PLOTS
+    from glider_cosim.figures.plots import PLOTS
 
     names = [name for name, _, _ in PLOTS]
     mine, theirs = drawing.shares()  # every plot once, the cost evenly split, the page theirs

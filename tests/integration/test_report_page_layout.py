@@ -12,7 +12,7 @@ import pytest
 from chromium_page import chromium, layout
 from report_fakes import THETA_E, FakeRun
 
-from glider_cosim.runner.pages import keep_figures, write_report_page
+from glider_cosim.figures.pages import keep_figures, write_report_page
 from glider_cosim.studies.figures import FIGURES
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, plot_roa

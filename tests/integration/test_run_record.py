@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from glider_cosim.cli import main
+from glider_cosim.figures.plots import read_png_record, write_plots
 from glider_cosim.runner import simulate
-from glider_cosim.runner.plots import read_png_record, write_plots
 from glider_cosim.runner.provenance import OWNED, file_sha256
 from glider_cosim.scenarios.scenario import load_scenario, parse_scenario
 

@@ -12,12 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from .provenance import settings_text
+from ..fmus.quantities import overrides_words, short
 from .spec import COLORS, PAIR_MARGINS, SINGLE_MARGINS, SIZES, figure, line, panel
 
 __all__ = ["COLORS", "EVENT_STYLE", "PAIR_MARGINS", "PLOTS", "SINGLE_MARGINS", "SIZES",
            "build_specs", "event_lines", "figure", "line", "panel", "read_png_record",
-           "write_plots"]  # fmt: skip
+           "settings_text", "write_plots"]  # fmt: skip
 
 _DEG = 180.0 / np.pi
 #: how each marked event is drawn (colour, line style)
@@ -30,6 +30,16 @@ EVENT_STYLE = {
 }
 #: the PNG text chunks that carry what a plot marks and which run it shows
 META_EVENTS, META_SETTINGS = "glider-cosim:events", "glider-cosim:settings"
+
+
+def settings_text(metrics: dict[str, Any]) -> str:
+    """``"scenario default; controller.K_c=6, plant.V_0=0.3 m/s, --step 0.01"``: what a
+    plot's subtitle says (each override's number with its unit)."""
+    run = metrics.get("run") or {}
+    parts = overrides_words(run.get("overrides", {}), units=True)
+    parts += [k if v is True else f"{k} {short(v)}" for k, v in run.get("options", {}).items()]
+    text = f"scenario {metrics.get('scenario', run.get('scenario', '?'))}"
+    return text + ("; " + ", ".join(parts) if parts else "; no overrides")
 
 
 def _run_figure(result: Any, kind: str, panels: Sequence[dict[str, Any]]) -> dict[str, Any]:

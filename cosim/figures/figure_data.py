@@ -1,5 +1,5 @@
 """What a matplotlib figure draws, as plain data (:func:`figure_spec`): the input of the
-results pages (:mod:`glider_cosim.runner.pages`), read back artist by artist so that a
+results pages (:mod:`glider_cosim.figures.pages`), read back artist by artist so that a
 figure's content is defined once, where its PNG is drawn."""
 
 from __future__ import annotations

@@ -270,7 +270,7 @@ def _data(figures: Sequence[dict[str, Any]], label_width: int) -> dict[str, Any]
 
 def page_scripts(figures: Sequence[dict[str, Any]], label_width: int) -> str:
     """The ``<script>`` elements that draw ``figures`` (specs of
-    :func:`~glider_cosim.runner.figure_data.figure_spec`) into the page's
+    :func:`~glider_cosim.figures.figure_data.figure_spec`) into the page's
     ``<div id="glider-figure-N">`` elements, after the page has loaded."""
     data = json.dumps(_data(figures, label_width), allow_nan=True, default=float)
     data = data.replace("</", "<\\/")  # NaN and Infinity are JavaScript, not JSON
