@@ -1,5 +1,5 @@
 """The report says true things (issue 28 point 5): the estimation error wrapped to
-(-180, 180] deg, "stalls" only for a speed that fell to zero, the overshoot quoted as
+[-180, 180) deg, "stalls" only for a speed that fell to zero, the overshoot quoted as
 the swing past the target, and a section on how the report was made."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from glider_cosim.studies.figures import DEG, estimation_error, wrap_angle
+from glider_cosim.runner.outcome import wrap_angle
+from glider_cosim.studies.figures import DEG, estimation_error
 from glider_cosim.studies.kc_map import kc_cell, stop_reason
 from glider_cosim.studies.report_text import _swing, provenance_markdown
 
@@ -26,13 +27,27 @@ class FakeRun:
         return self.data[:, self.columns.index(name)]
 
 
-def test_wrap_angle_is_in_minus_pi_exclusive_to_pi_inclusive():
+def test_wrap_angle_is_in_minus_pi_inclusive_to_pi_exclusive():
     x = np.array([math.pi, -math.pi, 3 * math.pi, 2 * math.pi, 1.5 * math.pi, -0.25, 7.0])
     w = wrap_angle(x)
-    assert w.tolist() == pytest.approx([math.pi, math.pi, math.pi, 0.0, -0.5 * math.pi, -0.25,
-                                        7.0 - 2 * math.pi])  # fmt: skip
-    assert np.all(w > -math.pi) and np.all(w <= math.pi)
-    assert float(wrap_angle(-math.pi)) == math.pi
+    assert w.tolist() == pytest.approx([-math.pi, -math.pi, -math.pi, 0.0, -0.5 * math.pi,
+                                        -0.25, 7.0 - 2 * math.pi])  # fmt: skip
+    assert np.all(w >= -math.pi) and np.all(w < math.pi)
+    assert float(wrap_angle(math.pi)) == float(wrap_angle(-math.pi)) == -math.pi
+    assert float(wrap_angle(180.0, 360.0)) == -180.0 and float(wrap_angle(-190.0, 360.0)) == 170.0
+
+
+def test_one_wrap_gives_the_metrics_and_the_outcome_their_bits():
+    """The metrics' error (compute_metrics) and the outcome's (classify) were wrapped
+    inline as ``mod(e + pi, 2 pi) - pi``, the Sec. 5.2 plots' degrees as
+    ``(a + 180) % 360 - 180``: the one wrap gives the same bits, and small estimation
+    errors the same bits as the former (-pi, pi] wrap ``pi - mod(pi - e, 2 pi)``."""
+    e = np.random.default_rng(1).uniform(-20.0, 20.0, 10_000)
+    assert np.array_equal(wrap_angle(e), np.mod(e + math.pi, 2.0 * math.pi) - math.pi)
+    deg = e * DEG
+    assert np.array_equal(wrap_angle(deg, 360.0), (deg + 180.0) % 360.0 - 180.0)
+    small = e / 400.0  # within 0.05 rad, like an estimation error after the transient
+    assert np.array_equal(wrap_angle(small), math.pi - np.mod(math.pi - small, 2 * math.pi))
 
 
 def test_estimation_error_of_an_estimate_a_turn_away_is_small():

@@ -40,7 +40,7 @@ from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
 from .heldtail import held_glide
-from .outcome import STOPPED, classify
+from .outcome import STOPPED, classify, wrap_angle
 
 BAND_FRACTION = 0.02
 BAND_FLOOR = math.radians(0.1)
@@ -90,7 +90,7 @@ def glide_metrics(
         out["outcome"] = None if completed else STOPPED  # the controller never took over
         return out
     e_turns = theta_g[i0:] - theta_ge  # unwrapped: a tumbling glider adds turns
-    e = np.mod(e_turns + math.pi, 2.0 * math.pi) - math.pi  # the same glide, modulo 360 deg
+    e = wrap_angle(e_turns)  # the same glide, modulo 360 deg
     tt = t[i0:] - t[i0]
     e0 = float(e[0])
     band = max(BAND_FRACTION * abs(e0), BAND_FLOOR)
@@ -146,12 +146,6 @@ def speed_stop(message: str) -> tuple[str, float, str] | None:
     v = float(m.group(2))
     verb = "stalls" if math.isfinite(v) and v > STALL_FLOOR else "diverges"
     return ("V_hat" if m.group(1) == "observer" else "V"), v, verb
-
-
-def wrap_angle(angle: Any) -> Any:
-    """``angle`` [rad] wrapped to (-pi, pi] (an array stays an array): an estimate one
-    turn from the truth is no error."""
-    return math.pi - np.mod(math.pi - np.asarray(angle, dtype=float), 2 * math.pi)
 
 
 def reference_glide_angle(

@@ -6,7 +6,8 @@ The rules (docs/reference/results.md, "Metrics"):
 
 - For an angle error (``period`` given, 2 pi for the glide angle): **tumbling** if the
   angle turns by more than a full turn within the examined window (below); otherwise the
-  error is wrapped to half a turn either side first, and the rules below apply.
+  error is wrapped to half a turn either side first (:func:`wrap_angle`), and the rules
+  below apply.
 - **Settled** if the error enters the band and stays inside it to the end, with enough
   run left to tell: the time in the band must be at least ``max(MIN_HOLD_S,
   HOLD_PERIODS * P)``, where ``P`` is the longest oscillation period seen in the error
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -91,6 +93,26 @@ class Outcome:
     rate_per_s: float | None = None
     window_s: tuple[float, float] | None = None
     in_band_s: float | None = None
+
+
+def wrap_angle(angle: Any, period: float = 2.0 * math.pi) -> Any:
+    """``angle`` wrapped to ``[-period/2, period/2)``: the one wrap of the package (an
+    array stays an array).
+
+    Parameters
+    ----------
+    angle : float or array
+        In rad (or in degrees with ``period=360``).
+    period : float
+        A full turn in the unit of ``angle``: 2 pi [rad] (to ``[-pi, pi)``) or 360 [deg]
+        (to ``[-180, 180)``).
+
+    The boundary: exactly ``+period/2`` maps to ``-period/2``, as ``-period/2`` stays.
+    A glide one turn from another is the same glide, and an estimate one turn from the
+    truth is no error.
+    """
+    half = 0.5 * period
+    return np.mod(np.asarray(angle, dtype=float) + half, period) - half
 
 
 def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf) -> np.ndarray:
@@ -202,7 +224,7 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
             rate = float((e[-1] - e[i0]) / (t[-1] - t[i0]) / period)  # turns per second
             return Outcome(TUMBLING, None, MIN_HOLD_S, 1.0 / abs(rate) if rate else None,
                            None, rate, (float(t[i0]), float(t[-1])))  # fmt: skip
-        e = np.mod(e + 0.5 * period, period) - 0.5 * period
+        e = wrap_angle(e, period)
         jump = 0.5 * period
     p_osc = oscillation_period(t, e, band, jump)
     hold = max(MIN_HOLD_S, HOLD_PERIODS * (p_osc or 0.0))

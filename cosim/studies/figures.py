@@ -8,14 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from ..runner.metrics import wrap_angle
+from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
 
 DEG = 180.0 / math.pi
-__all__ = ["DEG", "FIGURES", "Figure", "Run", "estimation_error", "fmt", "passivity_gain",
-           "wrap_angle"]  # fmt: skip
+__all__ = ["DEG", "FIGURES", "Figure", "Run", "estimation_error", "fmt", "passivity_gain"]
 
 
 @dataclass(frozen=True)
@@ -102,10 +101,10 @@ def fmt(v: Any, scale: float = 1.0, digits: int = 2) -> str:
 
 
 def estimation_error(r: RunResult) -> tuple[float, float, float, float] | None:
-    """RMS and max |theta_g_hat - theta_g| [rad], the difference wrapped to (-pi, pi]
-    (:func:`wrap_angle`), over the second half of the recorded run (after the
-    observer's initial transient), and that window's start and end [s]; None without an
-    observer."""
+    """RMS and max |theta_g_hat - theta_g| [rad], the difference wrapped to [-pi, pi)
+    (:func:`~glider_cosim.runner.outcome.wrap_angle`), over the second half of the
+    recorded run (after the observer's initial transient), and that window's start and
+    end [s]; None without an observer."""
     if "observer.theta_g_hat" not in r.columns or len(r.data) < 2:
         return None
     t = r.data[:, 0]

@@ -12,10 +12,11 @@ import numpy as np
 from glider_observer.filter import butterworth_coefficients
 
 from ..runner.metrics import describe_outcome
+from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
-from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain, wrap_angle
+from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
 from .kc_map import kc_map_markdown, stop_reason
 
 #: the docs folder of the source checkout this package runs from (absent in a wheel)
@@ -68,7 +69,7 @@ def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> s
         "- outcome (limit cycle amplitude and period, growth rate): the last third of the",
         "  run after the takeover, at least 10 s;",
         "- effort (integral of |delta_cmd| dt) and peak tail (max |delta_cmd|): the whole run;",
-        "- estimation error (RMS / max of theta_g_hat - theta_g, wrapped to (-180, 180]",
+        "- estimation error (RMS / max of theta_g_hat - theta_g, wrapped to [-180, 180)",
         "  deg): the second half of the recorded run, after the observer's initial transient.",
         "",
     ]
@@ -359,11 +360,8 @@ def disagreement_comment(run: Run, r: RunResult, an: dict[str, Any] | None) -> s
         sat = np.abs(r.column("controller.delta_cmd")[after]) >= 0.999 * dmax
         where = f"after the takeover at {t0:.1f} s" if t0 > 0 else "from the start"
         tail = float(np.max(np.abs(r.column("controller.delta_cmd")[after]))) * DEG
-        limit = (
-            f", at its +-{dmax * DEG:.0f} deg limit {100 * np.mean(sat):.0f} % of the time"
-            if sat.any()
-            else ""
-        )
+        at = f", at its +-{dmax * DEG:.0f} deg limit {100 * np.mean(sat):.0f} % of the time"
+        limit = at if sat.any() else ""
         parts.append(
             f"{where} the glide angle {_swing(err, m.get('overshoot_rad'))} and the tail "
             f"command reaches {tail:.1f} deg{limit}"

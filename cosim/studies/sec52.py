@@ -23,6 +23,7 @@ from ..runner.heldtail import (
     largest_carried_u,
     release_run,
 )
+from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import load_scenario
 from .report_plots import mark_exits
@@ -110,11 +111,6 @@ def run_sec52(fmu_dir: Path, k_star: float) -> list[Sec52Run]:
     return out
 
 
-def wrap_deg(a: np.ndarray) -> np.ndarray:
-    """Angles in degrees wrapped to [-180, 180)."""
-    return (np.asarray(a) + 180.0) % 360.0 - 180.0
-
-
 def _breaks(y: np.ndarray) -> np.ndarray:
     """A wrapped angle with NaN where it jumps by more than 180 deg (no line across)."""
     y = np.array(y, dtype=float)
@@ -140,9 +136,9 @@ def plot_sec52(runs: list[Sec52Run], out: Path) -> Path:
         ax = axes[i, j]
         r = run.result
         t = r.data[:, 0]
-        meas = wrap_deg(r.column("plant.theta_meas") * DEG)
-        true = wrap_deg(r.column("plant.theta") * DEG)
-        est = wrap_deg(r.column("observer.theta_hat") * DEG)
+        meas = wrap_angle(r.column("plant.theta_meas") * DEG, 360.0)
+        true = wrap_angle(r.column("plant.theta") * DEG, 360.0)
+        est = wrap_angle(r.column("observer.theta_hat") * DEG, 360.0)
         lo, hi = float(np.nanmin(meas)), float(np.nanmax(meas))
         pad = 0.08 * max(hi - lo, 1.0)
         lo, hi = max(lo - pad, -180.0), min(hi + pad, 180.0)
@@ -248,7 +244,7 @@ def sec52_markdown(study: dict[str, Any], runs: list[Sec52Run], png: Path) -> li
     for run in runs:
         r = run.result
         u = run.k_udelta * math.radians(run.tail_deg)
-        final = float(wrap_deg(r.column("plant.theta_g")[-1] * DEG))
+        final = float(wrap_angle(r.column("plant.theta_g")[-1] * DEG, 360.0))
         steady = held_glide(_params(run.k_udelta), u).theta_g * DEG
         lines.append(
             f"| {run.tail_deg:g} | {run.k_udelta:g} | {r.status} | {r.data[-1, 0]:.2f} | "

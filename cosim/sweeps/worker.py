@@ -30,7 +30,8 @@ import numpy as np
 
 from ..master.cosimulation import CoSimulation
 from ..master.errors import FMUCallError, FMUStopped, MasterError
-from ..runner.metrics import compute_metrics, wrap_angle
+from ..runner.metrics import compute_metrics
+from ..runner.outcome import wrap_angle
 from ..runner.recorders import ArrayRecorder, csv_lines
 from ..scenarios.sampling import has_our_observer, with_sampling
 from ..scenarios.scenario import Scenario

@@ -284,7 +284,7 @@ def _task(fmu_dir, order, trajectories=False):
 def _mismatches(fmu_dir, order, rows_) -> list[str]:
     import numpy as np
 
-    from glider_cosim.runner.metrics import wrap_angle
+    from glider_cosim.runner.outcome import wrap_angle
     from glider_cosim.sweeps.worker import METRIC_KEYS
 
     bad = []
