@@ -253,3 +253,50 @@ def test_a_fmu_dir_that_does_not_exist_gets_one_note(capsys, no_fmus, tmp_path):
     main(["run", "--fmu-dir", str(folder), "--set", "controller.K_c=6", "--set",
           "controller.K_c=7"])  # fmt: skip
     assert "note" not in capsys.readouterr().err  # an existing folder: no note
+
+
+def _literals(node) -> str:
+    """The text a string or f-string expression starts with (its constant parts)."""
+    import ast
+
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return node.value
+    if isinstance(node, ast.JoinedStr):
+        return "".join(v.value if isinstance(v, ast.Constant) else "{}" for v in node.values)
+    return ""
+
+
+#: the front door's checks whose second argument says where a message's input came from
+WHERE_FIRST = ("regular_file", "read_fmu", "safe_extract", "confined")
+
+
+def test_one_place_builds_the_prefixes_and_no_message_names_its_command():
+    """Every ``glider-cosim [COMMAND]: error|warning|note: `` comes from
+    ``inputs.text.prefix``; no error message starts with a command's name (the prefix
+    names it)."""
+    import ast
+    from pathlib import Path
+
+    from glider_cosim.cli.parser import build_parser
+    from glider_cosim.inputs.text import prefix
+
+    assert prefix("error", "run") == "glider-cosim run: error: "
+    assert prefix("note") == "glider-cosim: note: "
+    commands = set(build_parser()._subparsers._group_actions[0].choices)  # noqa: SLF001
+    root = Path(__file__).resolve().parents[1] / "cosim"
+    bad = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            text = _literals(node)
+            where = f"{path.relative_to(root)}:{getattr(node, 'lineno', '?')}"
+            for kind in ("error", "warning", "note"):
+                if f": {kind}: " in text and "glider-cosim" in text and path.name != "text.py":
+                    bad.append(f"{where}: {text!r}")
+            if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call) and node.exc.args:
+                head = _literals(node.exc.args[0]).partition(": ")[0]
+                if head in commands:
+                    bad.append(f"{where}: names its command: {head!r}")
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") in WHERE_FIRST:
+                named = [_literals(a) for a in node.args[1:2] if _literals(a) in commands]
+                bad += [f"{where}: where={w!r} names its command" for w in named]
+    assert bad == []

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from ..fmus.folders import default_dir
-from ..inputs.text import command_line, one_line, quote, shown_path
+from ..inputs.text import command_line, one_line, prefix, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
@@ -195,7 +195,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"  {describe(m['real_time'])}")
     print(f"  wrote {', '.join(str(f) for f in result.files.values())}")
     if result.status != "ok":
-        print(f"glider-cosim run: error: run {result.status}: {one_line(result.message)}",
+        print(f"{prefix('error', 'run')}run {result.status}: {one_line(result.message)}",
               file=sys.stderr)  # fmt: skip
         return 1
     return 0

@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Sequence
 from typing import NoReturn
 
-from ..inputs.text import one_line
+from ..inputs.text import one_line, prefix
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
 from .parser import build_parser, overview
@@ -33,7 +33,7 @@ class _NoteHandler(logging.Handler):
     """Warnings of our modules as one-line notes on the current ``sys.stderr``."""
 
     def emit(self, record: logging.LogRecord) -> None:
-        sys.stderr.write(f"glider-cosim: note: {one_line(record.getMessage())}\n")
+        sys.stderr.write(f"{prefix('note')}{one_line(record.getMessage())}\n")
 
 
 def _notes_to_stderr() -> None:
@@ -45,7 +45,7 @@ def _notes_to_stderr() -> None:
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"glider-cosim: warning: {message}", file=sys.stderr if file is None else file)
+    print(f"{prefix('warning')}{message}", file=sys.stderr if file is None else file)
 
 
 def _matplotlib_cache() -> None:
@@ -94,19 +94,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         progress.set_quiet(was_quiet)
 
 
-def error_prefix(command: str | None) -> str:
-    """``"glider-cosim COMMAND: error: "``: the one form of every error line (argparse's
-    too: each subcommand's parser has ``prog`` ``glider-cosim COMMAND``)."""
-    return f"glider-cosim {command}: error: " if command else "glider-cosim: error: "
-
-
-def _message(err: BaseException, command: str | None) -> str:
-    """The error's message on one line, without a leading ``COMMAND: `` (the prefix names
-    the command already, e.g. ``verify: FMU ...`` of the file checks)."""
-    text = one_line(err)
-    return text.removeprefix(f"{command}: ") if command else text
-
-
 def _main(args: argparse.Namespace) -> int:
     command = getattr(args, "command", None)
     if command == "run" and not args.no_plots:
@@ -115,17 +102,17 @@ def _main(args: argparse.Namespace) -> int:
         prestart()  # Pillow imported in a child while this process imports the master
     from .commands import dispatch  # after parsing: --help imports none of the commands
 
-    error = error_prefix(command)
+    error = prefix("error", command)
     old_term = None
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C
     try:
         code = dispatch(args)
     except (ScenarioError, SystemSpecError, ValueError) as err:
-        print(f"{error}{_message(err, command)}", file=sys.stderr)
+        print(f"{error}{one_line(err)}", file=sys.stderr)
         code = 2
     except MasterError as err:
-        print(f"{error}{_message(err, command)}", file=sys.stderr)
+        print(f"{error}{one_line(err)}", file=sys.stderr)
         code = 1
     except KeyboardInterrupt as err:
         kept = getattr(err, "kept", "")  # where the results are, how to go on
@@ -138,7 +125,7 @@ def _main(args: argparse.Namespace) -> int:
             print(f"{error}interrupted; results so far are written{kept}", file=sys.stderr)
             code = 130
     except OSError as err:
-        print(f"{error}{_message(err, command)}", file=sys.stderr)
+        print(f"{error}{one_line(err)}", file=sys.stderr)
         code = 2
     except RecursionError:
         print(f"{error}input nested too deeply", file=sys.stderr)

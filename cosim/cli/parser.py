@@ -10,7 +10,7 @@ import argparse
 import re
 
 from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options, add_overwrite_option
-from ..inputs.text import did_you_mean, one_line, quote
+from ..inputs.text import did_you_mean, one_line, prefix, quote
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 
@@ -57,7 +57,8 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # one line, exit code 2
-        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+        command = self.prog.removeprefix("glider-cosim").strip() or None
+        self.exit(2, f"{prefix('error', command)}{one_line(message)}\n")
 
     def _check_value(self, action: argparse.Action, value: object) -> None:
         """argparse's check of ``choices``, with a "did you mean" for a misspelt choice

@@ -46,7 +46,13 @@ def extract_limit() -> int:
     return _limit["bytes"]
 
 
-def regular_file(path: str | Path, where: str, what: str = "file") -> Path:
+def _at(where: str | None) -> str:
+    """``"WHERE: "``, the start of a message about the input at ``where`` (``""`` for
+    None: the command's own argument, which the console's prefix names)."""
+    return f"{where}: " if where else ""
+
+
+def regular_file(path: str | Path, where: str | None, what: str = "file") -> Path:
     """``path`` if it is an existing regular file, else :class:`InputFileError`.
 
     Devices, FIFOs and folders are refused before anything is read from them.
@@ -55,13 +61,13 @@ def regular_file(path: str | Path, where: str, what: str = "file") -> Path:
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise InputFileError(f"{where}: {what} {shown_path(p)} does not exist") from None
+        raise InputFileError(f"{_at(where)}{what} {shown_path(p)} does not exist") from None
     except (OSError, ValueError) as err:
         reason = getattr(err, "strerror", None) or one_line(err)
-        raise InputFileError(f"{where}: cannot read {what} {shown_path(p)} ({reason})") from None
+        raise InputFileError(f"{_at(where)}cannot read {what} {shown_path(p)} ({reason})") from None
     if not stat.S_ISREG(st.st_mode):
         raise InputFileError(
-            f"{where}: {what} {shown_path(p)} is not a regular file: expected a file on disk"
+            f"{_at(where)}{what} {shown_path(p)} is not a regular file: expected a file on disk"
         )
     return p
 
@@ -89,7 +95,7 @@ def safe_extract(archive: str | Path, dest: Path, where: str, limit: int | None 
     """
     limit = extract_limit() if limit is None else limit
     too_big = (
-        f"{where}: unpacks to more than {limit} bytes (the extraction limit, "
+        f"{_at(where)}unpacks to more than {limit} bytes (the extraction limit, "
         "option --max-extract-mb)"
     )
     dest_r = dest.resolve()
@@ -97,14 +103,14 @@ def safe_extract(archive: str | Path, dest: Path, where: str, limit: int | None 
         with zipfile.ZipFile(archive) as z:
             infos = z.infolist()
             if len(infos) > MAX_MEMBERS:
-                raise InputFileError(f"{where}: {len(infos)} members: more than {MAX_MEMBERS}")
+                raise InputFileError(f"{_at(where)}{len(infos)} members: more than {MAX_MEMBERS}")
             if sum(i.file_size for i in infos) > limit:
                 raise InputFileError(too_big)
             for info in infos:
                 target = (dest / info.filename).resolve()
                 if info.filename.startswith(("/", "\\")) or not target.is_relative_to(dest_r):
                     raise InputFileError(
-                        f"{where}: archive member {quote(info.filename)} points outside it"
+                        f"{_at(where)}archive member {quote(info.filename)} points outside it"
                     )
             written = 0
             for info in infos:
@@ -122,7 +128,7 @@ def safe_extract(archive: str | Path, dest: Path, where: str, limit: int | None 
     except InputFileError:
         raise
     except _ZIP_ERRORS as err:
-        raise InputFileError(f"{where}: not a readable zip archive ({one_line(err)})") from None
+        raise InputFileError(f"{_at(where)}not a readable zip archive ({one_line(err)})") from None
 
 
 def _is_pythonfmu(md: Any, names: set[str]) -> bool:
@@ -141,7 +147,7 @@ def binary_path(md: Any) -> str:
     return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{sharedLibraryExtension}"
 
 
-def read_fmu(path: str | Path, where: str) -> Any:
+def read_fmu(path: str | Path, where: str | None) -> Any:
     """Check that ``path`` is a complete FMI 2.0 or 3.0 co-simulation FMU; return its
     model description (``fmpy.model_description.ModelDescription``).
 
@@ -166,50 +172,50 @@ def read_fmu(path: str | Path, where: str) -> Any:
             infos = {i.filename: i for i in z.infolist()}
             md_info = infos.get("modelDescription.xml")
             if md_info is None:
-                raise InputFileError(f"{where}: FMU {name} has no modelDescription.xml")
+                raise InputFileError(f"{_at(where)}FMU {name} has no modelDescription.xml")
             if md_info.file_size > MAX_MODEL_DESCRIPTION:
-                raise InputFileError(f"{where}: FMU {name}: modelDescription.xml is too large")
+                raise InputFileError(f"{_at(where)}FMU {name}: modelDescription.xml is too large")
             z.read(md_info)  # CRC and deflate data checked
             try:
                 md = read_model_description(str(p))
             except Exception as err:  # fmpy raises plain Exception for bad descriptions
                 raise InputFileError(
-                    f"{where}: FMU {name} has no readable model description ({one_line(err)})"
+                    f"{_at(where)}FMU {name} has no readable model description ({one_line(err)})"
                 ) from None
             if md.fmiVersion not in ("2.0", "3.0") or md.coSimulation is None:
                 raise InputFileError(
-                    f"{where}: FMU {name} is not an FMI 2.0 or 3.0 co-simulation FMU"
+                    f"{_at(where)}FMU {name} is not an FMI 2.0 or 3.0 co-simulation FMU"
                 )
             binary = binary_path(md)
             if binary not in infos:
                 raise InputFileError(
-                    f"{where}: FMU {name} has no binary for this platform ({quote(binary)})"
+                    f"{_at(where)}FMU {name} has no binary for this platform ({quote(binary)})"
                 )
             with z.open(binary) as f:
                 head = f.read(4)
             magics = _MAGIC.get(sys.platform, ())
             if magics and not head.startswith(magics):
                 raise InputFileError(
-                    f"{where}: FMU {name}: {quote(binary)} is not a shared library for this "
+                    f"{_at(where)}FMU {name}: {quote(binary)} is not a shared library for this "
                     "platform"
                 )
             if _is_pythonfmu(md, set(infos)):
                 if "resources/slavemodule.txt" not in infos:
                     raise InputFileError(
-                        f"{where}: FMU {name} (pythonfmu) has no resources/slavemodule.txt"
+                        f"{_at(where)}FMU {name} (pythonfmu) has no resources/slavemodule.txt"
                     )
                 module = z.read("resources/slavemodule.txt")[:1000].decode("utf-8", "replace")
                 module = module.strip()
                 if not {f"resources/{module}.py", f"resources/{module}/__init__.py"} & set(infos):
                     raise InputFileError(
-                        f"{where}: FMU {name} (pythonfmu) has no script "
+                        f"{_at(where)}FMU {name} (pythonfmu) has no script "
                         f"{quote(f'resources/{module}.py')}"
                     )
     except InputFileError:
         raise
     except _ZIP_ERRORS as err:
         reason = one_line(err)
-        raise InputFileError(f"{where}: FMU {name} is not a readable zip ({reason})") from None
+        raise InputFileError(f"{_at(where)}FMU {name} is not a readable zip ({reason})") from None
     return md
 
 
@@ -228,9 +234,9 @@ def confined(folder: Path, ref: str, where: str) -> Path:
         or (":" in rel.split("/", 1)[0])
     ):
         raise InputFileError(
-            f"{where}: source {quote(ref)} is invalid: expected a path relative to the SSP"
+            f"{_at(where)}source {quote(ref)} is invalid: expected a path relative to the SSP"
         )
     target = (folder / rel).resolve()
     if not target.is_relative_to(folder.resolve()):
-        raise InputFileError(f"{where}: source {quote(ref)} points outside the SSP")
+        raise InputFileError(f"{_at(where)}source {quote(ref)} points outside the SSP")
     return target

@@ -45,6 +45,14 @@ def one_line(message: str, limit: int = 4 * QUOTE_LIMIT) -> str:
     return text
 
 
+def prefix(kind: str = "error", command: str | None = None) -> str:
+    """``"glider-cosim COMMAND: KIND: "`` (``"glider-cosim: KIND: "`` without a command):
+    the one form of every error, warning and note line the console prints, argparse's
+    too. ``kind`` is ``error``, ``warning`` or ``note``. A message never names its own
+    command: the prefix does."""
+    return f"glider-cosim {command}: {kind}: " if command else f"glider-cosim: {kind}: "
+
+
 def shown_path(path: Any) -> str:
     """A file name for messages: as is, or quoted and cut if it is long or unprintable."""
     text = str(path)

@@ -39,6 +39,8 @@ from pathlib import Path
 
 from glider_fmi import compile as runtime
 
+from ..inputs.text import one_line, prefix
+
 
 class HostEnvError(OSError):
     """This Python cannot serve a C host (no shared libpython)."""
@@ -137,7 +139,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         env = host_env()
     except HostEnvError as err:
-        print(f"glider-cosim host-env: error: {err}", file=sys.stderr)
+        print(f"{prefix('error', 'host-env')}{one_line(err)}", file=sys.stderr)
         return 2
     for name, value in env.items():
         print(f"export {name}={shlex.quote(value)}")
