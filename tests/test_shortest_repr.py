@@ -332,3 +332,19 @@ def test_a_recorder_dropped_without_close_ends_its_thread_and_file(tmp_path, lib
     # was handed over is written (rows still collected in Python are not: close is needed)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["started.csv"]
     assert (tmp_path / "started.csv").read_text() == "a\n1.5\n"
+
+
+def test_the_started_state_is_kept_once(tmp_path, lib):
+    """Whether the recorder has started (its file stays) is one record, the C writer's,
+    which the finalizer reads too: no flag of the recorder's beside a copy in the
+    finalizer's arguments."""
+    rec = CsvRecorder(tmp_path / "once.csv")
+    native = rec._native
+    assert native is not None and native.started is False
+    _, end, args, _ = rec._closer.peek()
+    assert end.__self__ is native and args == ()  # reads the record when it runs
+    rec.start(["a"])
+    assert native.started is True and rec._closer.peek()[1].__self__ is native
+    assert not hasattr(rec, "_started")
+    rec.close()
+    assert (tmp_path / "once.csv").read_text() == "a\n"

@@ -106,13 +106,23 @@ def csv_lines(data: Any) -> bytes:
     return ctypes.string_at(buf, n)
 
 
-def _end_writer(lib: Any, handle: int, path: Path, started: bool) -> int:
-    """End csvwriter.c's writer ``handle`` (what was handed over written): its errno, or
-    0. One never started leaves no file: the empty one it made is removed."""
-    err = lib.glider_csv_close(handle)
-    if not started:
-        path.unlink(missing_ok=True)
-    return err
+class _NativeWriter:
+    """csvwriter.c's writer thread: its handle, its file, and whether the recorder has
+    started (written the header): the one record of that state, read by
+    :meth:`CsvRecorder.close` and by the finalizer that ends the thread if the recorder
+    is dropped (it holds this, never the recorder)."""
+
+    def __init__(self, lib: Any, handle: int, path: Path) -> None:
+        self.lib, self.handle, self.path = lib, handle, path
+        self.started = False
+
+    def end(self) -> int:
+        """End the thread (what was handed over written): its errno, or 0. One never
+        started leaves no file: the empty one it made is removed."""
+        err = self.lib.glider_csv_close(self.handle)
+        if not self.started:
+            self.path.unlink(missing_ok=True)
+        return err
 
 
 class CsvRecorder:
@@ -152,9 +162,8 @@ class CsvRecorder:
         self._pending = 0
         self._queue: queue.Queue | None = None
         self._writer: threading.Thread | None = None
-        self._native: int | None = None  # csvwriter.c's writer, while it runs
-        self._closer: weakref.finalize | None = None  # closes it if the recorder is dropped
-        self._started = False
+        self._native: _NativeWriter | None = None  # csvwriter.c's writer, while it runs
+        self._closer: weakref.finalize | None = None  # ends it if the recorder is dropped
         self._error: BaseException | None = None  # the writer's, raised once
         self._reported = False
         if self.THREADED and self.C_THREAD:
@@ -169,11 +178,11 @@ class CsvRecorder:
         lib = library(release_gil=True)
         handle = lib.glider_csv_open(os.fsencode(self.path), self.QUEUED) if lib else None
         if handle:
-            self._lib, self._native = lib, handle
-            self._closer = weakref.finalize(self, _end_writer, lib, handle, self.path, False)
+            self._lib, self._native = lib, _NativeWriter(lib, handle, self.path)
+            self._closer = weakref.finalize(self, self._native.end)
 
     def _close_native(self) -> int:
-        """End csvwriter.c's thread (:func:`_end_writer`): its errno, or 0."""
+        """End csvwriter.c's thread (:meth:`_NativeWriter.end`): its errno, or 0."""
         err = self._closer() if self._closer is not None else 0
         self._native = self._closer = None
         return err or 0
@@ -185,14 +194,11 @@ class CsvRecorder:
             self.keep.start(columns)
         header = (",".join(columns) + "\n").encode()
         self._ncol = len(columns)
-        self._started = True
         if self._native is not None and columns:  # the C thread made the file: its header
             self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
-            err = self._lib.glider_csv_start(self._native, header, len(header), self._ncol)
+            err = self._lib.glider_csv_start(self._native.handle, header, len(header), self._ncol)
             if not err:  # started: its file stays, even if the recorder is dropped
-                self._closer.detach()
-                self._closer = weakref.finalize(self, _end_writer, self._lib, self._native,
-                                                self.path, True)  # fmt: skip
+                self._native.started = True
                 return
             self._close_native()
             raise self._os_error(err)
@@ -246,7 +252,7 @@ class CsvRecorder:
             self._write_text(values, nrows)
             return
         if self._native is not None:  # copied by the C thread's glider_csv_put
-            err = self._lib.glider_csv_put(self._native, values, nrows)
+            err = self._lib.glider_csv_put(self._native.handle, values, nrows)
             if err:
                 self._error = self._os_error(err)
                 self._reported = True
@@ -304,8 +310,9 @@ class CsvRecorder:
                 self._flush()
         finally:
             if self._native is not None:
+                started = self._native.started
                 err = self._close_native()  # never started: its empty file removed
-                if err and self._started and self._error is None:
+                if err and started and self._error is None:
                     self._error = self._os_error(err)
             if self._writer is not None:
                 self._queue.put(None)
