@@ -77,11 +77,12 @@ def _time(seconds: float | None) -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ..fmus.variables import overrides_echo
     from ..inputs.archives import set_extract_limit
     from ..inputs.check import check_ranges, our_kinds
     from ..master.spec import count_steps
     from ..runner.metrics import describe_outcome
-    from ..runner.provenance import overrides_echo, overrides_text
+    from ..runner.provenance import overrides_text
     from ..runner.run import origin_of, simulate
     from ..scenarios.overrides import apply_overrides, parse_sets
     from ..scenarios.scenario import load_scenario

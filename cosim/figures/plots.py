@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..fmus.quantities import overrides_words, short
+from ..fmus.variables import overrides_words, short
 from .spec import COLORS, PAIR_MARGINS, SINGLE_MARGINS, SIZES, figure, line, panel
 
 __all__ = ["COLORS", "EVENT_STYLE", "PAIR_MARGINS", "PLOTS", "SINGLE_MARGINS", "SIZES",

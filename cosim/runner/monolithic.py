@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fmpy import read_model_description
 
 import glider_controller
 import glider_fmi
@@ -32,22 +31,11 @@ from glider_observer.model import observer_gain, observer_step
 from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
 from glider_plant.params import GliderParams
 
+from ..fmus.variables import parameter_defaults
 from ..scenarios.fields import ScenarioError
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario
 from ..scenarios.system import FMU_NAMES
-
-
-def fmu_parameter_defaults(fmu: Path) -> dict[str, Any]:
-    """Start values of an FMU's parameters and inputs (its model description is the source)."""
-    conv = {"Real": float, "Integer": int, "Boolean": lambda v: str(v).lower() in ("true", "1")}
-    md = read_model_description(str(fmu))
-    return {
-        v.name: conv[v.type](v.start)
-        for v in md.modelVariables
-        if v.causality in ("parameter", "input") and v.type in conv
-    }
-
 
 #: the contract's columns, in the order the master records them
 COLUMNS = [
@@ -84,7 +72,7 @@ def loop_parameters(
     fmu_dir = _fmus(fmu_dir)
     params = with_sampling(scenario.parameters, step, scenario.source)  # f_sample follows h
     pp, op, cp = (
-        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
+        {**parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
         for inst, name in FMU_NAMES.items()
     )
     return pp, op, cp
@@ -188,7 +176,7 @@ def simulate_continuous(
         raise ScenarioError(f"{scenario.source}: the continuous loop supports no events")
     fmu_dir = _fmus(fmu_dir)
     pp, op, cp = (
-        {**fmu_parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
+        {**parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
         for inst, name in FMU_NAMES.items()
     )
     if cp["law"] != Law.PASSIVITY:

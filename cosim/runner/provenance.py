@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..fmus.files import file_sha256, package_version
-from ..fmus.quantities import overrides_words, plain, short, with_unit
+from ..fmus.variables import overrides_words, plain, short, with_unit
 from .metrics import speed_stop
 
 #: files a run writes into its folder (removed before a run into the same folder)
@@ -214,35 +214,6 @@ def replaced_note(out: Path, run: dict[str, Any]) -> str | None:
 def overrides_text(metrics: dict[str, Any]) -> str:
     """``"controller.K_c=6, plant.theta_g_0=-30 deg"``: a run's overrides ("" if none)."""
     return ", ".join(overrides_words((metrics.get("run") or {}).get("overrides", {})))
-
-
-def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
-    """Every override with the unit of its variable, an angle in rad in degrees too (one
-    given in degrees in rad too): ``"controller.K_c = 6, plant.alpha_0 = 1 rad (57.3
-    deg), plant.V_0 = 0.2 m/s"`` ("" if none).
-
-    Parameters
-    ----------
-    overrides : dict
-        ``instance.variable`` -> value as given (a number, or a ``"X deg"`` / ``"0.2 m/s"``
-        :class:`~glider_cosim.inputs.values.Quantity`): a scenario's ``overrides``.
-    fmus : dict
-        Instance -> its FMU file: the units come from its model description (one that
-        cannot be read: from our FMUs' tables), in words by
-        :func:`~glider_cosim.fmus.quantities.with_unit`.
-    """
-    from fmpy import read_model_description
-
-    descriptions: dict[str, Any] = {}
-    for inst in {ref.partition(".")[0] for ref in overrides}:
-        try:
-            descriptions[inst] = read_model_description(str(fmus[inst]))
-        except Exception:  # noqa: BLE001 - fmpy raises plain Exception; no unit then
-            descriptions[inst] = None
-    return ", ".join(
-        f"{ref} = {with_unit(ref, value, descriptions[ref.partition('.')[0]], both=True)}"
-        for ref, value in overrides.items()
-    )
 
 
 def marked_events(sim: Any, status: str, error: Any = None) -> list[dict[str, Any]]:

@@ -6,7 +6,7 @@ import csv
 import math
 from pathlib import Path
 
-from ..fmus.quantities import unit_of_target, with_unit
+from ..fmus.variables import unit_of_target, with_unit
 
 
 def _short(param: str, params: list[str]) -> str:

@@ -268,7 +268,7 @@ def check_targets(
 
 def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) -> dict[str, float]:
     """Nominal value of each target: the scenario's, else the FMU's default."""
-    from ..runner.monolithic import fmu_parameter_defaults
+    from ..fmus.variables import parameter_defaults
 
     fmus = system_for(scenario, fmu_dir).fmus
     defaults = {}
@@ -279,7 +279,7 @@ def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) ->
             out[t] = float(scenario.parameters[inst][name])
             continue
         if inst not in defaults:
-            defaults[inst] = fmu_parameter_defaults(fmus[inst])
+            defaults[inst] = parameter_defaults(fmus[inst])
         if name not in defaults[inst]:
             raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
         out[t] = float(defaults[inst][name])

@@ -178,7 +178,7 @@ def test_the_units_of_the_echo_are_the_model_descriptions(native_dir, tmp_path):
     names in the code."""
     import zipfile
 
-    from glider_cosim.runner.provenance import overrides_echo
+    from glider_cosim.fmus.variables import overrides_echo
 
     src = native_dir / "GliderPlant.fmu"
     fmu = tmp_path / "GliderPlant.fmu"

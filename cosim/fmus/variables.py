@@ -1,23 +1,41 @@
-"""A value of one of a model's variables in words, with its unit: the one rule behind the
-run's echo of its overrides, the plots' subtitles and event labels, and the sweep's axes.
+"""What a model's variables are, asked of its model description: their start values
+(:func:`parameter_defaults`), their units, and a value in words with its unit
+(:func:`with_unit`: the one rule behind the run's echo of its overrides, the plots'
+subtitles and event labels, and the sweep's axes).
 
-The unit comes from a model description when one is given (the run's own FMUs, which
-may be another tool's), else from our FMUs' variable tables (a figure drawn from a
-results folder, a sweep's axis).
+A unit comes from a model description when one is given (the run's own FMUs, which may
+be another tool's), else from our FMUs' variable tables (a figure drawn from a results
+folder, a sweep's axis).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 from ..inputs.check import our_table
 from ..inputs.values import has_unit, is_angle, unit_of
 
-__all__ = ["LAW_NAMES", "overrides_words", "plain", "short", "unit_of_target", "with_unit"]
+__all__ = ["LAW_NAMES", "overrides_echo", "overrides_words", "parameter_defaults", "plain", "short",
+           "unit_of_target", "with_unit"]  # fmt: skip
 
 #: ``controller.law``'s codes and their names
 LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
+
+
+def parameter_defaults(fmu: str | Path) -> dict[str, Any]:
+    """Start values of an FMU's parameters and inputs, by name, from its model
+    description (Real as float, Integer as int, Boolean as bool)."""
+    from fmpy import read_model_description
+
+    conv = {"Real": float, "Integer": int, "Boolean": lambda v: str(v).lower() in ("true", "1")}
+    md = read_model_description(str(fmu))
+    return {
+        v.name: conv[v.type](v.start)
+        for v in md.modelVariables
+        if v.causality in ("parameter", "input") and v.type in conv
+    }
 
 
 def plain(value: Any) -> Any:
@@ -102,3 +120,32 @@ def overrides_words(overrides: dict[str, Any], units: bool = False) -> list[str]
         f"{k}={with_unit(k, v) if units or k == 'controller.law' else short(v)}"
         for k, v in overrides.items()
     ]
+
+
+def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
+    """Every override with the unit of its variable, an angle in rad in degrees too (one
+    given in degrees in rad too): ``"controller.K_c = 6, plant.alpha_0 = 1 rad (57.3
+    deg), plant.V_0 = 0.2 m/s"`` ("" if none).
+
+    Parameters
+    ----------
+    overrides : dict
+        ``instance.variable`` -> value as given (a number, or a ``"X deg"`` / ``"0.2 m/s"``
+        :class:`~glider_cosim.inputs.values.Quantity`): a scenario's ``overrides``.
+    fmus : dict
+        Instance -> its FMU file: the units come from its model description (one that
+        cannot be read: from our FMUs' tables), in words by
+        :func:`~glider_cosim.fmus.variables.with_unit`.
+    """
+    from fmpy import read_model_description
+
+    descriptions: dict[str, Any] = {}
+    for inst in {ref.partition(".")[0] for ref in overrides}:
+        try:
+            descriptions[inst] = read_model_description(str(fmus[inst]))
+        except Exception:  # noqa: BLE001 - fmpy raises plain Exception: our tables then
+            descriptions[inst] = None
+    return ", ".join(
+        f"{ref} = {with_unit(ref, value, descriptions[ref.partition('.')[0]], both=True)}"
+        for ref, value in overrides.items()
+    )

@@ -1,4 +1,4 @@
-"""One rule for a variable's value in words (glider_cosim.fmus.quantities): the run's echo
+"""One rule for a variable's value in words (glider_cosim.fmus.variables): the run's echo
 of its overrides (units from the FMUs' model descriptions), the plots' subtitles and the
 sweep's axes (units from our FMUs' tables) write a value the same way."""
 
@@ -9,10 +9,9 @@ from types import SimpleNamespace
 import pytest
 
 from glider_cosim.figures.plots import settings_text
-from glider_cosim.fmus.quantities import unit_of_target, with_unit
+from glider_cosim.fmus.variables import overrides_echo, unit_of_target, with_unit
 from glider_cosim.inputs.check import our_table
 from glider_cosim.inputs.values import parse_quantity
-from glider_cosim.runner.provenance import overrides_echo
 
 
 def _description(inst: str) -> SimpleNamespace:
@@ -54,3 +53,17 @@ def test_the_echo_and_the_subtitle_share_the_rule(tmp_path):
     assert echo == f"{rad} = 0.5 rad (28.65 deg), controller.law = 3 (pi), controller.K_c = 6"
     subtitle = settings_text({"scenario": "default", "run": {"overrides": overrides}})
     assert subtitle == f"scenario default; {rad}=0.5 rad, controller.law=pi, controller.K_c=6"
+
+
+def test_model_description_questions_are_asked_of_the_fmus_room():
+    """The sweep's nominal values (an FMU's parameter defaults) and the run's echo come
+    from ``fmus/variables.py``, not from the runner (``runner/monolithic.py``,
+    ``runner/provenance.py``)."""
+    from test_layout import GRAPH
+
+    assert "glider_cosim.fmus.variables" in GRAPH["glider_cosim.sweeps.spec"]
+    assert (
+        not {"glider_cosim.runner.monolithic", "glider_cosim.runner.provenance"}
+        & GRAPH["glider_cosim.sweeps.spec"]
+    )
+    assert "glider_cosim.fmus.variables" in GRAPH["glider_cosim.cli.commands"]
