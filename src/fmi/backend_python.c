@@ -354,9 +354,7 @@ static int py_alive(void) { return g_python_ready && pPy_IsInitialized(); }
 
 /* ------------------------------------------------------------------ call framing */
 static fmi2Status py_enter(Ctx *x) {
-    if (!pPy_IsInitialized())
-        return FAIL(x, "the process's Python is finalizing: the slave cannot be called any "
-                       "more (free instances before the interpreter exits)");
+    if (!py_alive()) return ST_GONE; /* the host's Python finalized: fmi_layer.c's after_exit */
     x->token = (int)glider_gil_ensure(); /* one thread state per host thread, kept */
     x->have_token = 1;
     return fmi2OK;

@@ -240,7 +240,8 @@ static void emit(const HostLogger *logger, const char *name, int status, const c
 }
 
 /* ------------------------------------------------------------------ call framing */
-/* Enter the back end for a call (a back end without enter has nothing to take). */
+/* Enter the back end for a call (a back end without enter has nothing to take):
+ * ST_OK, ST_GONE (it cannot be called any more) or an error the back end logged. */
 static Status enter(Ctx *x) {
     if (!B.enter) {
         x->have_token = 1;
@@ -259,6 +260,23 @@ static int calls_logged(const Instance *inst) {
     return inst->cat_calls >= 0 && inst->logging_on && (inst->cat_on >> inst->cat_calls & 1);
 }
 
+/* What a call does when the back end is gone (enter said ST_GONE: the host's Python
+ * finalized, a tool ending its instances at process exit). The slave cannot be called
+ * and need not be, and nothing is logged (the host's logger may be Python's too):
+ * fmi2Terminate/fmi3Terminate of a stepping instance marks it terminated, OK;
+ * FreeInstance frees the C memory alone (glider_op_free), OK; any other call is refused,
+ * fmi2Error, and the instance's state stays as it was. */
+static Status after_exit(Instance *inst, int call) {
+    if (call == C_TERMINATE && (GLIDER_CALLS[C_TERMINATE].allowed & inst->state)) {
+        inst->state = S_TERMINATED;
+        return ST_OK;
+    }
+    return call == C_FREE ? ST_OK : ST_ERROR;
+}
+
+/* Frame a call: its instance, the back end entered and the state machine's word. Not
+ * ST_OK: the call goes straight to end() with it (ST_GONE too: end() applies the
+ * per-call policy, after_exit). */
 static Status begin(Ctx *x, void *c, int call) {
     Instance *inst;
     Status st;
@@ -266,7 +284,7 @@ static Status begin(Ctx *x, void *c, int call) {
     x->call = call;
     x->inst = inst = lookup(c);
     if (!inst) return ST_ERROR; /* not an instance of this FMU: nobody to log to */
-    if ((st = enter(x)) != ST_OK) return st;
+    if ((st = enter(x)) != ST_OK) return st; /* ST_GONE included */
     if (inst->state == S_FATAL) {
         glider_add_msg(x, ST_FATAL, inst->cat_error, "%s: %s: the instance failed fatally earlier",
                        inst->name, glider_call_name(x));
@@ -287,6 +305,7 @@ static Status end(Ctx *x, Status status) {
     Instance *inst = x->inst;
     size_t i;
     if (!inst) return status;
+    if (status == ST_GONE) return after_exit(inst, x->call); /* nothing entered or said */
     if (status == ST_FATAL) inst->state = S_FATAL;
     else if (status == ST_ERROR && inst->state != S_FATAL) inst->state = S_ERROR;
     for (i = 0; i < x->nmsgs; ++i) {
@@ -494,12 +513,12 @@ void glider_op_free(void *c) {
         }
     }
     UNLOCK();
-    /* at process exit the back end may be gone already (Python finalized): then only the
-     * C memory is freed */
+    /* at process exit the back end may be gone already (Python finalized: after_exit):
+     * then only the C memory is freed */
     memset(&x, 0, sizeof x);
     x.call = C_FREE;
     x.inst = inst;
-    if (B.alive() && enter(&x) == ST_OK) {
+    if (enter(&x) == ST_OK) {
         free_instance(inst, 1);
         x.inst = NULL;
         leave(&x);
@@ -522,21 +541,9 @@ int glider_op_setup(void *c, int call, int tolerance_defined, double tolerance, 
     return end(&x, st);
 }
 
-/* fmi2Terminate/fmi3Terminate after the back end is gone (the host's Python finalized: a
- * tool ending its instances at process exit). The slave cannot be called and need not
- * be: a stepping instance is marked terminated, OK, and nothing is logged (the host's
- * logger may be Python's too); any other state is refused, silently. */
-static Status terminate_after_exit(void *c) {
-    Instance *inst = lookup(c);
-    if (!inst || !(GLIDER_CALLS[C_TERMINATE].allowed & inst->state)) return ST_ERROR;
-    inst->state = S_TERMINATED;
-    return ST_OK;
-}
-
 int glider_op_transition(void *c, int call, unsigned next) {
     Ctx x;
     Status st;
-    if (call == C_TERMINATE && !B.alive()) return terminate_after_exit(c);
     st = begin(&x, c, call);
     if (st == ST_OK && (st = B.transition(&x, call)) == ST_OK) x.inst->state = next;
     return end(&x, st);

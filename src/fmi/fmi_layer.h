@@ -28,7 +28,17 @@
  * fmi2ValueReference (unsigned int) and fmi3ValueReference (uint32_t, the same type on
  * every platform the FMUs are built for). Values: Real/Float64 double, Integer/Int32 int,
  * Boolean int (0 or 1; FMI 3's bool is converted by its front end), String const char *. */
-typedef enum { ST_OK = 0, ST_WARNING = 1, ST_DISCARD = 2, ST_ERROR = 3, ST_FATAL = 4 } Status;
+/* ST_GONE is the layer's own, never returned to a host: a back end's enter says with it
+ * that it cannot be called any more (the host's Python finalized); begin() and end()
+ * turn it into what the call does then (fmi_layer.c, after_exit). */
+typedef enum {
+    ST_GONE = -1,
+    ST_OK = 0,
+    ST_WARNING = 1,
+    ST_DISCARD = 2,
+    ST_ERROR = 3,
+    ST_FATAL = 4
+} Status;
 typedef unsigned int ValueRef;
 
 /* ------------------------------------------------------------------ the state machine */
@@ -236,9 +246,9 @@ typedef struct {
     /* make the back end usable in this process (once; thread-safe); 0 + err on failure,
      * which fmi2Instantiate reports as fmi2Fatal */
     int (*start)(const char *resources, char *err, size_t errsize);
-    /* take and give back what a call needs (the GIL); enter fails with a message when
-     * the back end cannot be called any more (Python finalizing). NULL, both: nothing to
-     * take (the native back end), every call is entered */
+    /* take and give back what a call needs (the GIL); enter returns ST_GONE when the
+     * back end cannot be called any more (Python finalized: nothing taken, nothing
+     * said). NULL, both: nothing to take (the native back end), every call is entered */
     Status (*enter)(Ctx *x);
     void (*leave)(Ctx *x);
     /* instantiate: create the model, fill inst->nvars, var_type, var_names and the
