@@ -95,6 +95,26 @@ class Scenario:
     overrides: dict[str, Any] = field(default_factory=dict)
 
 
+def _tables(
+    data: dict[str, Any], name: str, source: str, keys: tuple[str, ...]
+) -> list[tuple[str, dict[str, Any]]]:
+    """The array of tables ``[[name]]`` of a scenario, each with where it stands
+    (``"SOURCE: key name[i]"``), every key one of ``keys``."""
+    items = data.get(name, [])
+    if not isinstance(items, list):
+        raise ScenarioError(f"{source}: key {quote(name)}: expected an array of tables")
+    out = []
+    for i, item in enumerate(items):
+        where = f"{source}: key {name}[{i}]"
+        table = parse_table(item, where)
+        extra = set(table) - set(keys)
+        if extra:
+            key = sorted(extra)[0]
+            raise ScenarioError(f"{where}: unknown key {quote(key)}" + did_you_mean(key, keys))
+        out.append((where, table))
+    return out
+
+
 def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
     """Check and convert the TOML document ``data`` (from ``source``) to a :class:`Scenario`."""
     for key in data:
@@ -173,17 +193,8 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         sc.external[k] = v
     for k, v in parse_table(data.get("inputs", {}), f"{source}: key 'inputs'").items():
         sc.inputs[k] = parse_float(v, f"{source}: key {quote(f'inputs.{k}')}", angle=True)
-    dist = data.get("disturbance", [])
-    if not isinstance(dist, list):
-        raise ScenarioError(f"{source}: key 'disturbance': expected an array of tables")
-    for i, d in enumerate(dist):
-        where = f"{source}: key disturbance[{i}]"
-        d = parse_table(d, where)
-        keys = ("target", "kind", "time", "value", "duration")
-        extra = set(d) - set(keys)
-        if extra:
-            key = sorted(extra)[0]
-            raise ScenarioError(f"{where}: unknown key {quote(key)}" + did_you_mean(key, keys))
+    for where, d in _tables(data, "disturbance", source, ("target", "kind", "time", "value",
+                                                           "duration")):  # fmt: skip
         kind = d.get("kind", "step")
         if kind not in ("step", "pulse"):
             raise ScenarioError(
@@ -202,18 +213,7 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
                 ),
             )
         )
-    events = data.get("event", [])
-    if not isinstance(events, list):
-        raise ScenarioError(f"{source}: key 'event': expected an array of tables")
-    for i, e in enumerate(events):
-        where = f"{source}: key event[{i}]"
-        e = parse_table(e, where)
-        extra = set(e) - {"when", "delay", "set"}
-        if extra:
-            key = sorted(extra)[0]
-            raise ScenarioError(
-                f"{where}: unknown key {quote(key)}" + did_you_mean(key, ("when", "delay", "set"))
-            )
+    for where, e in _tables(data, "event", source, ("when", "delay", "set")):
         when = e.get("when", "")
         m = _COND.match(when) if isinstance(when, str) and len(when) < 1000 else None
         if not m:

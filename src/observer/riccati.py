@@ -89,47 +89,10 @@ def _maxabs(A: Matrix) -> float:
     return best
 
 
-def _solve(M: Matrix, B: Matrix) -> Matrix | None:
-    """``M X = B`` by Gaussian elimination with partial pivoting; None if singular.
-
-    ``M`` (n x n) and ``B`` (n x m) are overwritten.
-    """
+def _eliminate(M: Matrix, B: Matrix) -> tuple[Matrix, float] | None:
+    """``M X = B`` by Gaussian elimination with partial pivoting: ``X`` and ``log|det
+    M|``; None if singular. ``M`` (n x n) and ``B`` (n x m) are overwritten."""
     n, m = len(M), len(B[0])
-    for k in range(n):
-        p = k
-        best = abs(M[k][k])
-        for i in range(k + 1, n):
-            if abs(M[i][k]) > best:
-                best = abs(M[i][k])
-                p = i
-        if not best > 0.0 or not math.isfinite(best):
-            return None
-        if p != k:
-            M[k], M[p] = M[p], M[k]
-            B[k], B[p] = B[p], B[k]
-        piv = M[k][k]
-        for i in range(k + 1, n):
-            f = M[i][k] / piv
-            if f != 0.0:
-                for j in range(k + 1, n):
-                    M[i][j] -= f * M[k][j]
-                for j in range(m):
-                    B[i][j] -= f * B[k][j]
-    X = _zeros(n, m)
-    for i in range(n - 1, -1, -1):
-        for j in range(m):
-            s = B[i][j]
-            for l in range(i + 1, n):
-                s -= M[i][l] * X[l][j]
-            X[i][j] = s / M[i][i]
-    return X
-
-
-def _inverse_and_logdet(Z: Matrix) -> tuple[Matrix, float] | None:
-    """``Z^-1`` and ``log|det Z|`` (one LU with partial pivoting); None if singular."""
-    n = len(Z)
-    M = [row[:] for row in Z]
-    B = [[1.0 if i == j else 0.0 for j in range(n)] for i in range(n)]
     logdet = 0.0
     for k in range(n):
         p = k
@@ -150,16 +113,30 @@ def _inverse_and_logdet(Z: Matrix) -> tuple[Matrix, float] | None:
             if f != 0.0:
                 for j in range(k + 1, n):
                     M[i][j] -= f * M[k][j]
-                for j in range(n):
+                for j in range(m):
                     B[i][j] -= f * B[k][j]
-    X = _zeros(n, n)
+    X = _zeros(n, m)
     for i in range(n - 1, -1, -1):
-        for j in range(n):
+        for j in range(m):
             s = B[i][j]
             for l in range(i + 1, n):
                 s -= M[i][l] * X[l][j]
             X[i][j] = s / M[i][i]
     return X, logdet
+
+
+def _solve(M: Matrix, B: Matrix) -> Matrix | None:
+    """``M X = B`` (:func:`_eliminate`); None if singular. ``M`` and ``B`` are
+    overwritten."""
+    solved = _eliminate(M, B)
+    return None if solved is None else solved[0]
+
+
+def _inverse_and_logdet(Z: Matrix) -> tuple[Matrix, float] | None:
+    """``Z^-1`` and ``log|det Z|`` (one LU with partial pivoting); None if singular."""
+    n = len(Z)
+    return _eliminate([row[:] for row in Z], [[1.0 if i == j else 0.0 for j in range(n)]
+                                              for i in range(n)])  # fmt: skip
 
 
 def _residual(A: Matrix, P: Matrix, Q: Matrix, G: Matrix) -> Matrix:
