@@ -173,10 +173,9 @@ def _run(args: argparse.Namespace) -> int:
         v = m.get(key)
         return "n/a" if v is None else f"{v * scale:.3f}{unit}"
 
-    overrides = overrides_text(m)
+    overrides = f" with {overrides_text(m)}" if overrides_text(m) else ""
     print(
-        f"scenario {scenario.name} ({scenario.source})"
-        + (f" with {overrides}" if overrides else "")
+        f"scenario {scenario.name} ({scenario.source}){overrides}"
         + f": {m['rows']} rows to t = {_time(m['end_time_s'])} s, coupling {m['coupling']}, "
         f"step {_time(m['step_s'])} s"
     )
