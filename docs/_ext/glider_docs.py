@@ -158,7 +158,7 @@ README_PICTURE = Path("_static") / "default-glide-angle.png"
 
 def draw_readme_picture() -> bytes:
     """The README's picture: the glide-angle PNG of ``glider-cosim run`` (the default
-    scenario, Python flavor, in memory), as the run draws it (``runner.plots``)."""
+    scenario, Python flavor, in memory), as the run draws it (``figures.plots``)."""
     import tempfile
 
     from glider_cosim.figures.plots import build_specs
