@@ -57,8 +57,7 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # one line, exit code 2
-        command = self.prog.removeprefix("glider-cosim").strip() or None
-        self.exit(2, f"{prefix('error', command)}{one_line(message)}\n")
+        self.exit(2, f"{prefix('error', self.prog.partition(' ')[2])}{one_line(message)}\n")
 
     def _check_value(self, action: argparse.Action, value: object) -> None:
         """argparse's check of ``choices``, with a "did you mean" for a misspelt choice
