@@ -71,9 +71,9 @@ def _mpl_labels(fig) -> tuple[list[str], list[str]]:
 
 
 def _spec_labels(spec: dict) -> tuple[list[str], list[str]]:
-    axis, other = [], [spec.get("title", ""), spec.get("suptitle", "")]
+    axis, other = [], [spec.get("title", ""), spec.get("suptitle", ""), spec.get("caption", "")]
     for p in spec["panels"]:
-        axis += [p["xlabel"], p["ylabel"]]
+        axis += [p["xlabel"], p["ylabel"], *([p["colorbar"]] if "colorbar" in p else [])]
         other += [p["title"], *(ln["name"] for ln in p["lines"]), *(t["text"] for t in p["texts"])]
     return axis, [t for t in other if t]
 
@@ -129,8 +129,8 @@ def test_every_run_figure_labels_its_quantities_with_units(tmp_path):
     assert problems == []
 
 
-def test_every_sweep_figure_labels_its_quantities_with_units(kept, tmp_path):
-    from glider_cosim.sweeps.plots import write_plots
+def test_every_sweep_figure_labels_its_quantities_with_units(tmp_path):
+    from glider_cosim.sweeps.plots import sweep_specs, write_plots
 
     path = tmp_path / "sweep.csv"
     fields = ["controller.K_c", "plant.noise_std", "status", "settling_time_s",
@@ -144,5 +144,8 @@ def test_every_sweep_figure_labels_its_quantities_with_units(kept, tmp_path):
                         "settling_time_s": 20 - kc if k > 1 else "", "control_effort": 0.1 * kc,
                         "estimation_rms_rad": 0.01 * k})  # fmt: skip
     assert len(write_plots(path, tmp_path)) == 3
-    problems = [p for f in kept for p in _problems(*_mpl_labels(f))]
+    with open(path, newline="") as f:
+        specs = [spec for _, spec in sweep_specs(list(csv.DictReader(f)))]
+    assert len(specs) == 3 and "controller.K_c [1]" in _spec_labels(specs[0])[0]
+    problems = [p for s in specs for p in _problems(*_spec_labels(s))]
     assert problems == []

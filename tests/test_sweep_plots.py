@@ -34,12 +34,16 @@ def kc_rows() -> list[dict]:
     ]
 
 
-def test_settling_plot_counts_the_runs_that_did_not_settle(tmp_path, monkeypatch):
-    notes = []
-    monkeypatch.setattr(plots, "_note", lambda fig, text: notes.append(text))
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_settling_plot_counts_the_runs_that_did_not_settle(tmp_path):
     files = plots.write_plots(write_csv(tmp_path / "sweep.csv", kc_rows()), tmp_path)
     assert [f.name for f in files] == ["settling_vs_effort.png"]
-    assert notes == ["2 of 5 runs did not settle (K_c = 4, 6)"]
+    [(name, spec)] = plots.sweep_specs(_rows(tmp_path / "sweep.csv"))
+    assert spec["caption"] == "2 of 5 runs did not settle (K_c = 4, 6)"
 
 
 def test_failed_runs_are_counted_apart():
@@ -51,12 +55,29 @@ def test_failed_runs_are_counted_apart():
     )
 
 
-def test_every_run_shown_gives_no_note(tmp_path, monkeypatch):
-    notes = []
-    monkeypatch.setattr(plots, "_note", lambda fig, text: notes.append(text))
+def test_every_run_shown_gives_no_note(tmp_path):
     rows = [r for r in kc_rows() if r["settling_time_s"] != ""]
-    plots.write_plots(write_csv(tmp_path / "sweep.csv", rows), tmp_path)
-    assert notes == [""]
+    write_csv(tmp_path / "sweep.csv", rows)
+    assert [s["caption"] for _, s in plots.sweep_specs(_rows(tmp_path / "sweep.csv"))] == [""]
+
+
+def test_the_png_is_drawn_from_the_spec(tmp_path):
+    """Issue 49, item 2: a sweep figure is built once, as a spec, and its PNG drawn from it
+    (the one the page would draw): the settled runs' points, coloured by K_c."""
+    from glider_cosim.figures.mpl import draw_png
+
+    [png] = plots.write_plots(write_csv(tmp_path / "sweep.csv", kc_rows()), tmp_path)
+    [(name, spec)] = plots.sweep_specs(_rows(tmp_path / "sweep.csv"))
+    [p] = spec["panels"]
+    [dots] = p["lines"]
+    assert (list(dots["x"]), list(dots["y"]), list(dots["values"])) == (
+        [0.1, 0.2, 0.30000000000000004],
+        [20.0, 12.0, 9.0],
+        [1.0, 2.0, 3.0],
+    )
+    assert p["colorbar"] == "controller.K_c [1]"
+    again = draw_png(spec, tmp_path / "again.png")
+    assert name == png.name and png.read_bytes() == again.read_bytes()
 
 
 def test_runs_are_named_by_every_swept_value():

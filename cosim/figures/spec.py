@@ -1,6 +1,8 @@
 """The plain-data spec of a figure: :mod:`.plots` makes a run's, :mod:`.raster` draws
 them as PNGs and :mod:`.pages` as ``plots.html``; :func:`line`, :func:`panel` and
-:func:`figure` build one.
+:func:`figure` build one. A sweep's figures are specs too (:func:`sheet`), drawn by
+:mod:`.mpl` (matplotlib), which also draws a panel's ``grid`` and ``colorbar``, a
+line's ``values`` and ``cmap`` and a figure's ``caption``.
 
 A spec is ``{"title", "suptitle", "notes", "panels", "size_in", "margins",
 "height_ratios"}``, each panel ``{"title", "xlabel", "ylabel", "xlim", "ylim",
@@ -53,12 +55,17 @@ def line(
     span: str = "",
     gid: str = "",
     legend: bool | None = None,
+    values: Any = None,
 ) -> dict[str, Any]:
     """One line of a panel (a spec): ``x``, ``y`` in data units, ``width`` and ``size``
     (markers) in points, ``dash`` one of solid, dashed, dashdot, dotted; ``span``
     ``"x"`` for a vertical line across the panel at ``x[0]`` (``"y"``: horizontal, at
-    ``y[0]``), its other coordinates set to the panel's limits by :func:`panel`."""
+    ``y[0]``), its other coordinates set to the panel's limits by :func:`panel`;
+    ``values`` (one per point, markers only) colour the markers by ``viridis`` instead
+    of ``color`` (drawn by :mod:`.mpl`, with the panel's ``colorbar`` as their key)."""
     rgb = COLORS.get(color, color)
+    mapped = {} if values is None else {"values": np.asarray(values, dtype=float),
+                                        "cmap": "viridis"}  # fmt: skip
     return {
         "x": np.asarray(x, dtype=float),
         "y": np.asarray(y, dtype=float),
@@ -75,6 +82,7 @@ def line(
         "step": step,
         "span": span,
         "gid": gid,
+        **mapped,
     }
 
 
@@ -97,9 +105,14 @@ def panel(
     ylabel: str = "",
     row: int = 0,
     inverted: bool = False,
+    grid: float = 0.0,
+    colorbar: str = "",
+    legend_pt: float = 7.0,
 ) -> dict[str, Any]:
     """A panel of ``lines`` (drawn in this order), its limits autoscaled from them (the
-    span lines count where they stand), then the span lines run across it."""
+    span lines count where they stand), then the span lines run across it. ``grid``
+    (the grid lines' alpha) and ``colorbar`` (the label of the key of ``values``) are
+    drawn by :mod:`.mpl`; the run's plots (:mod:`.raster`) always have a grid."""
     xs = [ln["x"] for ln in lines if ln["span"] != "y"]
     ys = [ln["y"] for ln in lines if ln["span"] != "x"]
     xlim, ylim = _limits(xs), _limits(ys)
@@ -110,7 +123,9 @@ def panel(
             ln["x"], ln["y"] = np.array(xlim), np.repeat(ln["y"][:1], 2)
     return {"title": title, "xlabel": xlabel, "ylabel": ylabel, "xlim": xlim, "ylim": ylim,
             "inverted": inverted, "log": False, "row": row, "col": 0, "lines": list(lines),
-            "images": [], "texts": [], "legend_pt": 7.0}  # fmt: skip
+            "images": [], "texts": [], "legend_pt": legend_pt,
+            **({"grid": grid} if grid else {}),
+            **({"colorbar": colorbar} if colorbar else {})}  # fmt: skip
 
 
 def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:
@@ -124,4 +139,19 @@ def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> d
         "size_in": SIZES[kind],
         "margins": PAIR_MARGINS if kind == "pair" else SINGLE_MARGINS,
         "height_ratios": [2.0, 1.0] if kind == "pair" else [1.0],
+    }
+
+
+def sheet(
+    panels: Sequence[dict[str, Any]], size_in: tuple[float, float], caption: str = ""
+) -> dict[str, Any]:
+    """A figure spec drawn by :mod:`.mpl` (a sweep's, a report's): ``panels`` in the grid
+    of their ``row`` and ``col``, ``size_in`` inches, ``caption`` under them."""
+    return {
+        "title": next((p["title"] for p in panels if p["title"]), ""),
+        "suptitle": "",
+        "notes": [],
+        "caption": caption,
+        "panels": list(panels),
+        "size_in": tuple(size_in),
     }

@@ -1,12 +1,19 @@
-"""Plots of a sweep's results (PNG beside ``sweep.csv``)."""
+"""Plots of a sweep's results (PNG beside ``sweep.csv``): figure specs
+(:mod:`glider_cosim.figures.spec`) drawn by :mod:`glider_cosim.figures.mpl`."""
 
 from __future__ import annotations
 
 import csv
 import math
 from pathlib import Path
+from typing import Any
 
+from ..figures.mpl import draw_png
+from ..figures.spec import line, panel, sheet
 from ..fmus.variables import unit_of_target, with_unit
+
+#: a sweep figure's size, inches
+SIZE_IN = (6.0, 4.0)
 
 
 def _short(param: str, params: list[str]) -> str:
@@ -89,94 +96,75 @@ def missing_runs_note(rows: list[dict], shown: list[bool], params: list[str], wh
     return "; ".join(parts)
 
 
-def _save(fig, path: Path, note: str) -> Path:
-    """Save ``fig`` with ``note`` (wrapped) under the axes, then close it."""
-    import textwrap
-
-    import matplotlib.pyplot as plt
-
-    lines = textwrap.wrap(note, 90)
-    fig.tight_layout(rect=(0, 0.045 * len(lines), 1, 1))
-    _note(fig, "\n".join(lines))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+def _num(r: dict, k: str) -> float:
+    try:
+        return float(r[k])
+    except (KeyError, TypeError, ValueError):
+        return math.nan
 
 
-def _note(fig, text: str) -> None:
-    """``text`` under the axes (nothing when empty)."""
-    if text:
-        fig.text(0.5, 0.01, text, ha="center", va="bottom", fontsize=8, color="tab:red")
+def _scatter(pts: list[tuple[float, float]], **kw: Any) -> dict[str, Any]:
+    """Markers at ``pts`` (a spec line, :func:`~glider_cosim.figures.spec.line`)."""
+    xs, ys = zip(*pts, strict=True) if pts else ((), ())
+    return line(xs, ys, marker="o", **kw)
 
 
-def write_plots(path: Path, out: Path) -> list[Path]:
-    """Plots that apply to the swept parameters (PNG beside the results)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
+def sweep_specs(rows: list[dict]) -> list[tuple[str, dict[str, Any]]]:
+    """The plots that apply to the swept parameters of ``rows`` (``sweep.csv``), as
+    ``(file name, figure spec)``: each figure built once, drawn by :func:`write_plots`."""
     if not rows:
         return []
-
-    def num(r: dict, k: str) -> float:
-        try:
-            return float(r[k])
-        except (KeyError, TypeError, ValueError):
-            return math.nan
-
     params = [k for k in rows[0] if "." in k]
-    files = []
+    specs = []
     if "controller.K_c" in params:
         shown = [
             r["status"] == "ok"
-            and math.isfinite(num(r, "settling_time_s"))
-            and math.isfinite(num(r, "control_effort"))
+            and math.isfinite(_num(r, "settling_time_s"))
+            and math.isfinite(_num(r, "control_effort"))
             for r in rows
         ]
         ok = [r for r, s in zip(rows, shown, strict=True) if s]
-        fig, ax = plt.subplots(figsize=(6, 4))
-        sc = ax.scatter([num(r, "control_effort") for r in ok],
-                        [num(r, "settling_time_s") for r in ok],
-                        c=[num(r, "controller.K_c") for r in ok], cmap="viridis")  # fmt: skip
-        fig.colorbar(sc, label=_axis("controller.K_c"))
-        ax.set(xlabel="control effort [rad s]", ylabel="settling time [s]",
-               title="Settling time against control effort (Sec. 3.3 trade-off)")  # fmt: skip
-        ax.grid(alpha=0.3)
+        pts = [(_num(r, "control_effort"), _num(r, "settling_time_s")) for r in ok]
+        dots = _scatter(pts, values=[_num(r, "controller.K_c") for r in ok], gid="runs")
+        p = panel([dots], xlabel="control effort [rad s]", ylabel="settling time [s]",
+                  title="Settling time against control effort (Sec. 3.3 trade-off)",
+                  grid=0.3, colorbar=_axis("controller.K_c"))  # fmt: skip
         note = missing_runs_note(rows, shown, params, "did not settle")
-        files.append(_save(fig, out / "settling_vs_effort.png", note))
+        specs.append(("settling_vs_effort.png", sheet([p], SIZE_IN, note)))
     if len(params) >= 2:
         a, b = params[:2]
         good = [r["status"] == "ok" and r["settling_time_s"] not in ("", None) for r in rows]
-        fig, ax = plt.subplots(figsize=(6, 4))
+        lines = []
         for flag, colour, label in ((True, "tab:green", "settles"),
                                     (False, "tab:red", "does not settle / fails")):  # fmt: skip
-            pts = [(num(r, a), num(r, b)) for r, g in zip(rows, good, strict=True) if g == flag]
+            pts = [(_num(r, a), _num(r, b)) for r, g in zip(rows, good, strict=True) if g == flag]
             if pts:
-                ax.scatter(*zip(*pts, strict=True), c=colour, s=18,
-                           label=f"{label} ({len(pts)} of {len(rows)})")  # fmt: skip
-        ax.set(xlabel=_axis(a), ylabel=_axis(b), title="Stability boundary")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        files.append(_save(fig, out / "stability_boundary.png", ""))
+                lines.append(_scatter(pts, color=colour, size=math.sqrt(18),
+                                      name=f"{label} ({len(pts)} of {len(rows)})"))  # fmt: skip
+        p = panel(lines, xlabel=_axis(a), ylabel=_axis(b), title="Stability boundary",
+                  grid=0.3, legend_pt=8.0)  # fmt: skip
+        specs.append(("stability_boundary.png", sheet([p], SIZE_IN)))
     if "plant.noise_std" in params:
-        pts = [(num(r, "plant.noise_std"), num(r, "estimation_rms_rad")) for r in rows]
+        pts = [(_num(r, "plant.noise_std"), _num(r, "estimation_rms_rad")) for r in rows]
         shown = [
             r["status"] == "ok" and all(map(math.isfinite, p))
             for r, p in zip(rows, pts, strict=True)
         ]
-        fig, ax = plt.subplots(figsize=(6, 4))
         drawn = [p for p, s in zip(pts, shown, strict=True) if s]
-        if drawn:
-            ax.scatter(*zip(*drawn, strict=True), s=18)
-        ax.set(xlabel="sensor noise std [rad]", ylabel="estimation error RMS [rad]",
-               title="Estimation error against sensor noise")  # fmt: skip
-        ax.grid(alpha=0.3)
+        p = panel([_scatter(drawn, size=math.sqrt(18), gid="runs")] if drawn else [],
+                  xlabel="sensor noise std [rad]", ylabel="estimation error RMS [rad]",
+                  title="Estimation error against sensor noise", grid=0.3)  # fmt: skip
         note = missing_runs_note(rows, shown, params, "have no estimation error")
-        files.append(_save(fig, out / "estimation_vs_noise.png", note))
-    return files
+        specs.append(("estimation_vs_noise.png", sheet([p], SIZE_IN, note)))
+    return specs
 
 
-__all__ = ["missing_runs_note", "runs_named", "write_plots"]
+def write_plots(path: Path, out: Path) -> list[Path]:
+    """Plots that apply to the swept parameters (PNG beside the results), each drawn from
+    its spec (:func:`sweep_specs`) by :func:`~glider_cosim.figures.mpl.draw_png`."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return [draw_png(spec, out / name) for name, spec in sweep_specs(rows)]
+
+
+__all__ = ["missing_runs_note", "runs_named", "sweep_specs", "write_plots"]

@@ -1,0 +1,115 @@
+"""A figure spec (:mod:`.spec`) drawn as a PNG with matplotlib, for the figures off the
+run's critical path (the sweep's; the report's, Sec. 5.2's and the region of attraction's
+are to follow, issue 49 item 2).
+
+The run's plots are drawn by :mod:`.raster` (Pillow): importing matplotlib costs
+0.38-0.48 s, more than the run's whole ``plots`` budget. A sweep or a report draws a
+handful of figures after minutes of runs, where that import does not count, and its
+figure kinds (colour-mapped scatters, grids of panels, image maps, legends under grids)
+are matplotlib's own: drawing the same spec with matplotlib keeps one spec format
+and one place per figure, without a second rasterizer to keep (see the code-layout page).
+
+What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``,
+``xlabel``, ``ylabel``, ``xlim``, ``ylim``, ``inverted``, ``log``, ``grid`` (the grid
+lines' alpha, none if absent), ``colorbar`` (the label of the colour key of the lines
+with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers of
+``size`` points; ``values`` colour its markers by ``cmap``), ``images`` and ``texts``;
+the figure's ``size_in`` and ``caption`` (red, wrapped, under the panels).
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["draw_png"]
+
+#: matplotlib's line styles by the spec's dash names
+_LINESTYLE = {"solid": "-", "dashed": "--", "dashdot": "-.", "dotted": ":"}
+#: the caption's characters per line, and its height per line (figure fraction)
+CAPTION_WIDTH, CAPTION_LINE = 90, 0.045
+
+
+def _line(fig: Any, ax: Any, ln: dict[str, Any], colorbar: str) -> None:
+    label = ln["name"] if ln["legend"] else "_nolegend_"
+    if ln["lines"]:
+        ax.plot(ln["x"], ln["y"], color=ln["color"], alpha=ln["alpha"], lw=ln["width"],
+                ls=_LINESTYLE.get(ln["dash"], "-"), label=label, marker=ln["marker"] or None,
+                ms=ln["size"], drawstyle="steps-post" if ln["step"] else "default",
+                gid=ln["gid"] or None)  # fmt: skip
+        return
+    kw: dict[str, Any] = {"s": ln["size"] ** 2, "marker": ln["marker"], "alpha": ln["alpha"],
+                          "label": label, "gid": ln["gid"] or None}  # fmt: skip
+    if ln.get("values") is None:
+        ax.scatter(ln["x"], ln["y"], c=ln["color"], **kw)
+    else:  # colour-mapped: its key beside the panel
+        sc = ax.scatter(ln["x"], ln["y"], c=ln["values"], cmap=ln.get("cmap", "viridis"), **kw)
+        fig.colorbar(sc, ax=ax, label=colorbar)
+
+
+def _panel(fig: Any, ax: Any, p: dict[str, Any]) -> None:
+    for im in p["images"]:
+        ax.imshow(im["rgba"], origin="lower", aspect="auto", interpolation="nearest",
+                  extent=(im["x"], im["x"] + im["dw"], im["y"], im["y"] + im["dh"]))  # fmt: skip
+    for ln in p["lines"]:
+        _line(fig, ax, ln, p.get("colorbar", ""))
+    for t in p["texts"]:
+        ax.text(t["x"], t["y"], t["text"], fontsize=8)
+    ax.set(title=p["title"], xlabel=p["xlabel"], ylabel=p["ylabel"])
+    if p["log"]:
+        ax.set_yscale("log")
+    ax.set_xlim(*p["xlim"])
+    ax.set_ylim(*(p["ylim"][::-1] if p["inverted"] else p["ylim"]))
+    if any(ln["legend"] for ln in p["lines"]):
+        ax.legend(fontsize=p["legend_pt"])
+    if p.get("grid"):
+        ax.grid(alpha=p["grid"])
+
+
+def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
+    """Draw ``spec`` (:mod:`.spec`) as a PNG at ``path`` with matplotlib (Agg).
+
+    Parameters
+    ----------
+    spec : dict
+        The figure: its panels laid out by their ``row`` and ``col``.
+    path : str or Path
+        The PNG written.
+    dpi : int
+        Pixels per inch; the figure is ``size_in`` inches.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = spec["panels"]
+    nrow = 1 + max(p["row"] for p in panels)
+    ncol = 1 + max(p["col"] for p in panels)
+    fig, axes = plt.subplots(nrow, ncol, figsize=spec["size_in"], squeeze=False)
+    try:
+        used = np.zeros((nrow, ncol), dtype=bool)
+        for p in panels:
+            _panel(fig, axes[p["row"]][p["col"]], p)
+            used[p["row"], p["col"]] = True
+        for ax in axes[~used]:
+            ax.set_visible(False)
+        if spec.get("suptitle"):
+            fig.suptitle(spec["suptitle"])
+        lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
+        fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
+        if lines:
+            fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
+                     color="tab:red")  # fmt: skip
+        fig.savefig(path, dpi=dpi)
+    finally:
+        plt.close(fig)
+    return Path(path)
