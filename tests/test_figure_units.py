@@ -16,7 +16,7 @@ from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53, plot_steps
-from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, plot_roa
+from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52
 
 PLAIN = dimensionless()
@@ -85,7 +85,8 @@ def _problems(axis: list[str], other: list[str]) -> list[str]:
     return out
 
 
-def _report_figures(tmp_path) -> None:
+def _report_figures(tmp_path) -> list[dict]:
+    """Draws the report's matplotlib figures; the specs of the others."""
     by = {f.key: f for f in FIGURES}
     for key in ("fig2", "fig3-4", "fig5-6"):
         plot_figure(by[key], [(run, _run("stopped" if k else "ok")) for k, run in
@@ -99,8 +100,8 @@ def _report_figures(tmp_path) -> None:
                 for k in (1.0, 0.039) for tail in TAILS_DEG], tmp_path)  # fmt: skip
     cells = np.array([[CATEGORIES[(i + j) % len(CATEGORIES)] for j in range(3)]
                       for i in range(3)], dtype=object)  # fmt: skip
-    plot_roa([RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]), cells, 60.0,
-                     1.0) for c in CASES], tmp_path)  # fmt: skip
+    return [roa_spec([RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]),
+                             cells, 60.0, 1.0) for c in CASES])]  # fmt: skip
 
 
 def test_the_rule_flags_a_value_without_its_unit():
@@ -116,9 +117,10 @@ def test_every_report_figure_labels_its_quantities_with_units(kept, tmp_path, mo
     from matplotlib.figure import Figure
 
     monkeypatch.setattr(Figure, "savefig", lambda *a, **k: None)  # the labels, not the PNGs
-    _report_figures(tmp_path)
-    assert len(kept) == 7
+    specs = _report_figures(tmp_path)
+    assert (len(kept), len(specs)) == (6, 1)
     problems = [p for f in kept for p in _problems(*_mpl_labels(f))]
+    problems += [p for s in specs for p in _problems(*_spec_labels(s))]
     assert problems == []
 
 

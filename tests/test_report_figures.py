@@ -150,3 +150,37 @@ def test_fig11_20_tail_axis_is_linear_with_evenly_spaced_ticks(kept, tmp_path):
     ticks = list(tail.get_yticks())
     assert ticks == [-90, -45, 0, 45, 90] and len(set(np.diff(ticks))) == 1
     assert tail.get_ylim() == (-100.0, 100.0)
+
+
+def _roa_maps():
+    from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap
+
+    cells = [[CATEGORIES[(i + j) % len(CATEGORIES)] for j in range(3)] for i in range(2)]
+    cells = np.array([*cells, ["settled", "unknown", "settled"]], dtype=object)
+    return [RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]), cells, 60.0, 1.0)
+            for c in CASES[:2]]  # fmt: skip
+
+
+def test_roa_is_one_spec_drawn_to_png_and_to_the_page(tmp_path):
+    """Issue 49, item 2: the region-of-attraction figure is built once, as a spec; roa.png
+    and report.html are drawn from it (no matplotlib figure read back)."""
+    from glider_cosim.figures.mpl import draw_png
+    from glider_cosim.figures.pages import write_report_page
+    from glider_cosim.studies.roa import plot_roa, roa_spec
+
+    spec = roa_spec(_roa_maps())
+    assert [(p["row"], p["col"]) for p in spec["panels"]] == [(0, 0), (0, 1)]
+    image = spec["panels"][0]["images"][0]
+    assert image["value"].tolist() == [["settled", "not settled", "limit cycle"],
+                                       ["not settled", "limit cycle", "diverging"],
+                                       ["settled", "", "settled"]]  # fmt: skip
+    assert image["rgba"][2, 1].tolist() == [0, 0, 0, 0]  # an unknown outcome: no colour
+    assert image["rgba"][0, 0].tolist() == [0x2C, 0xA0, 0x2C, 255]  # settled: tab:green
+    assert (image["x"], image["dw"]) == pytest.approx((0.05, 0.3))
+    assert [n["text"] for n in spec["notes"]][-1] == "stopped (stall)"
+    png = plot_roa(_roa_maps(), tmp_path)
+    assert png.read_bytes() == draw_png(spec, tmp_path / "again.png").read_bytes()
+    page = write_report_page(tmp_path, [spec], {"made": {"command": "test"}})["page"]
+    text = page.read_text()
+    assert text.count("class='glider-figure'") == 1 and '"limit cycle"' in text
+    assert spec["title"].startswith("Region of attraction") and spec["title"] in text

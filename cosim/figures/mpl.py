@@ -9,12 +9,16 @@ figure kinds (colour-mapped scatters, grids of panels, image maps, legends under
 are matplotlib's own: drawing the same spec with matplotlib keeps one spec format
 and one place per figure, without a second rasterizer to keep (see the code-layout page).
 
-What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``,
+What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``
+(``title_pt``),
 ``xlabel``, ``ylabel``, ``xlim``, ``ylim``, ``inverted``, ``log``, ``grid`` (the grid
 lines' alpha, none if absent), ``colorbar`` (the label of the colour key of the lines
 with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers of
-``size`` points; ``values`` colour its markers by ``cmap``), ``images`` and ``texts``;
-the figure's ``size_in`` and ``caption`` (red, wrapped, under the panels).
+``size`` points, a matplotlib scatter if ``scatter`` or ``values``; ``values`` colour
+its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
+``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
+``layout`` (``"constrained"``; else tight), ``sharey`` and ``caption`` (red, wrapped,
+under the panels).
 """
 
 from __future__ import annotations
@@ -35,10 +39,11 @@ CAPTION_WIDTH, CAPTION_LINE = 90, 0.045
 
 def _line(fig: Any, ax: Any, ln: dict[str, Any], colorbar: str) -> None:
     label = ln["name"] if ln["legend"] else "_nolegend_"
-    if ln["lines"]:
-        ax.plot(ln["x"], ln["y"], color=ln["color"], alpha=ln["alpha"], lw=ln["width"],
-                ls=_LINESTYLE.get(ln["dash"], "-"), label=label, marker=ln["marker"] or None,
-                ms=ln["size"], drawstyle="steps-post" if ln["step"] else "default",
+    if not (ln.get("scatter") or ln.get("values") is not None):
+        ls = _LINESTYLE.get(ln["dash"], "-") if ln["lines"] else "none"
+        ax.plot(ln["x"], ln["y"], color=ln["color"], alpha=ln["alpha"], lw=ln["width"], ls=ls,
+                label=label, marker=ln["marker"] or None, ms=ln["size"], mec=ln["edge"],
+                drawstyle="steps-post" if ln["step"] else "default",
                 gid=ln["gid"] or None)  # fmt: skip
         return
     kw: dict[str, Any] = {"s": ln["size"] ** 2, "marker": ln["marker"], "alpha": ln["alpha"],
@@ -58,7 +63,8 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any]) -> None:
         _line(fig, ax, ln, p.get("colorbar", ""))
     for t in p["texts"]:
         ax.text(t["x"], t["y"], t["text"], fontsize=8)
-    ax.set(title=p["title"], xlabel=p["xlabel"], ylabel=p["ylabel"])
+    ax.set_title(p["title"], fontsize=p.get("title_pt"))
+    ax.set(xlabel=p["xlabel"], ylabel=p["ylabel"])
     if p["log"]:
         ax.set_yscale("log")
     ax.set_xlim(*p["xlim"])
@@ -86,30 +92,31 @@ def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
     Path
         ``path``.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
 
     panels = spec["panels"]
     nrow = 1 + max(p["row"] for p in panels)
     ncol = 1 + max(p["col"] for p in panels)
-    fig, axes = plt.subplots(nrow, ncol, figsize=spec["size_in"], squeeze=False)
-    try:
-        used = np.zeros((nrow, ncol), dtype=bool)
-        for p in panels:
-            _panel(fig, axes[p["row"]][p["col"]], p)
-            used[p["row"], p["col"]] = True
-        for ax in axes[~used]:
-            ax.set_visible(False)
-        if spec.get("suptitle"):
-            fig.suptitle(spec["suptitle"])
-        lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
+    layout = spec.get("layout")  # "constrained", or tight around the caption
+    fig = Figure(figsize=spec["size_in"], layout=layout)  # not pyplot's: nothing to close
+    axes = fig.subplots(nrow, ncol, squeeze=False, sharey=spec.get("sharey", False))
+    used = np.zeros((nrow, ncol), dtype=bool)
+    for p in panels:
+        _panel(fig, axes[p["row"]][p["col"]], p)
+        used[p["row"], p["col"]] = True
+    for ax in axes[~used]:
+        ax.set_visible(False)
+    if spec["notes"]:  # colour keys (an image map's), one row under the panels
+        keys = [Patch(color=n["color"], label=n["text"]) for n in spec["notes"]]
+        fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8)
+    if spec.get("suptitle"):
+        fig.suptitle(spec["suptitle"], fontsize=spec.get("suptitle_pt"))
+    lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
+    if not layout:
         fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
-        if lines:
-            fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
-                     color="tab:red")  # fmt: skip
-        fig.savefig(path, dpi=dpi)
-    finally:
-        plt.close(fig)
+    if lines:
+        fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
+                 color="tab:red")  # fmt: skip
+    fig.savefig(path, dpi=dpi)
     return Path(path)

@@ -191,13 +191,15 @@ class keep_figures:  # noqa: N801 - used as a context manager, like contextlib's
 
 
 def write_report_page(out: Path, figures: Sequence[Any], settings: dict[str, Any]) -> dict:
-    """``report.html`` from the report's PNG figures; a failure is a logged warning
-    (report.md, report.json and the PNGs stay as written)."""
+    """``report.html`` from the report's figures, in this order: specs (a dict, the one
+    its PNG was drawn from: :mod:`.mpl`) or matplotlib figures (read back, until each is a
+    spec: issue 49); a failure is a logged warning (report.md, report.json and the PNGs
+    stay as written)."""
     import logging
 
     path = Path(out) / "report.html"
     try:
-        specs = [figure_spec(f) for f in figures]
+        specs = [f if isinstance(f, dict) else figure_spec(f) for f in figures]
         return {"page": write_page(path, "glider-cosim report", specs, settings)}
     except (PageError, OSError, ValueError, TypeError, ImportError) as err:
         logging.getLogger(__name__).warning("report.html not written (%s); report.md and "

@@ -56,13 +56,15 @@ def line(
     gid: str = "",
     legend: bool | None = None,
     values: Any = None,
+    edge: str = "",
 ) -> dict[str, Any]:
     """One line of a panel (a spec): ``x``, ``y`` in data units, ``width`` and ``size``
     (markers) in points, ``dash`` one of solid, dashed, dashdot, dotted; ``span``
     ``"x"`` for a vertical line across the panel at ``x[0]`` (``"y"``: horizontal, at
     ``y[0]``), its other coordinates set to the panel's limits by :func:`panel`;
     ``values`` (one per point, markers only) colour the markers by ``viridis`` instead
-    of ``color`` (drawn by :mod:`.mpl`, with the panel's ``colorbar`` as their key)."""
+    of ``color`` (drawn by :mod:`.mpl`, with the panel's ``colorbar`` as their key);
+    ``edge`` the markers' edge colour (``color`` if empty)."""
     rgb = COLORS.get(color, color)
     mapped = {} if values is None else {"values": np.asarray(values, dtype=float),
                                         "cmap": "viridis"}  # fmt: skip
@@ -78,7 +80,7 @@ def line(
         "lines": not marker,
         "marker": marker,
         "size": float(size),
-        "edge": rgb,
+        "edge": COLORS.get(edge, edge) if edge else rgb,
         "step": step,
         "span": span,
         "gid": gid,

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..figures.mpl import draw_png
 from ..figures.pages import keep_figures, run_settings, write_report_page
 from ..progress import Progress, dask_start, home
 from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
@@ -188,7 +189,7 @@ def _build(
         bar.step("report: the region-of-attraction map (skipped: --roa-grid none)")
     else:
         from ..sweeps.sweep import make_client
-        from .roa import plot_roa, roa_markdown, run_roa
+        from .roa import roa_markdown, roa_spec, run_roa
 
         bar.step(f"report: {dask_start(workers, scheduler)} for the region-of-attraction map")
         client = make_client(workers, scheduler)
@@ -219,12 +220,14 @@ def _build(
         pngs["fig8"] = plot_sec52(sec52, out)
         if roa_grid is not None:
             bar.step("report: drawing the region-of-attraction map")
+        specs = []  # the figures built as specs: their PNG and the page drawn from them
         if maps:
-            roa_lines = roa_markdown(maps, plot_roa(maps, out), an)
+            specs.append(roa_spec(maps))
+            roa_lines = roa_markdown(maps, draw_png(specs[-1], out / "roa.png"), an)
         if page:
             bar.step("report: writing report.html")
             settings = {"How this report was made": made, **report_settings(results)}
-            html_page = write_report_page(out, figures, settings).get("page")
+            html_page = write_report_page(out, [*figures, *specs], settings).get("page")
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     text += "\n" + "\n".join(provenance_markdown(made))

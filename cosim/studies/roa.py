@@ -21,6 +21,8 @@ import numpy as np
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
+from ..figures.mpl import draw_png
+from ..figures.spec import line, panel, sheet
 from ..runner.outcome import (
     DIVERGING,
     LIMIT_CYCLE,
@@ -180,41 +182,51 @@ def _cell_edges(mp: RoaMap) -> tuple[float, float, float, float]:
     return (*edges(mp.V0), *edges(mp.theta_g0 * DEG))
 
 
-def plot_roa(maps: list[RoaMap], out: Path) -> Path:
-    """One panel per case: the outcome of each start, the equilibrium (star) and the
-    Sec. 3.3 start (circle)."""
-    import matplotlib
+def _image(mp: RoaMap) -> dict[str, Any]:
+    """The outcome map as a spec image: RGBA cells (rows from the lowest theta_g_0), the
+    outcome's name of each (``report.html``'s hover), the extent of :func:`_cell_edges`."""
+    from matplotlib.colors import ListedColormap, Normalize
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Patch
+    code = np.vectorize(lambda o: CATEGORIES.index(o) if o in CATEGORIES else np.nan,
+                        otypes=[float])(mp.outcome)  # fmt: skip
+    norm = Normalize(vmin=-0.5, vmax=len(CATEGORIES) - 0.5)
+    rgba = ListedColormap(COLOURS)(norm(np.ma.masked_invalid(code)), bytes=True)
+    names = np.array([[CATEGORIES[int(v)] if np.isfinite(v) else "" for v in row]
+                      for row in code], dtype=object)  # fmt: skip
+    x0, x1, y0, y1 = _cell_edges(mp)
+    return {"rgba": rgba, "value": names, "x": x0, "y": y0, "dw": x1 - x0, "dh": y1 - y0}
+
+
+def roa_spec(maps: list[RoaMap]) -> dict[str, Any]:
+    """The region-of-attraction figure as a spec (:mod:`glider_cosim.figures.spec`): one
+    panel per case, the outcome of each start, the equilibrium (star) and the Sec. 3.3
+    start (circle); drawn to ``roa.png`` and in ``report.html`` alike."""
+    from matplotlib.colors import to_hex
 
     e = equilibrium(GliderParams())
-    f, axes = plt.subplots(1, len(maps), figsize=(4.3 * len(maps), 4.4), squeeze=False,
-                           sharey=True, layout="constrained")  # fmt: skip
-    cmap = ListedColormap(COLOURS)
-    for ax, mp in zip(axes[0], maps, strict=True):
-        code = np.vectorize(lambda o: CATEGORIES.index(o) if o in CATEGORIES else np.nan)(
-            mp.outcome
-        ).astype(float)
-        im = ax.imshow(code, cmap=cmap, vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="lower",
-                       aspect="auto", interpolation="nearest", extent=_cell_edges(mp))  # fmt: skip
-        im.value_names = CATEGORIES  # report.html's hover names the outcome, not its code
-        ax.plot(e.V, e.theta_g * DEG, marker="*", color="w", mec="k", ms=14, ls="none")
-        ax.plot(0.2, -35.0, marker="o", color="w", mec="k", ms=7, ls="none")
-        ax.set_title(f"{mp.case.label}\n{mp.stop_time:g} s runs", fontsize=9)
-        ax.set_xlabel("initial speed V_0 [m/s]")
-    axes[0, 0].set_ylabel("initial glide angle theta_g_0 [deg]")
-    handles = [Patch(color=c, label=k) for c, k in zip(COLOURS, CATEGORIES, strict=True)]
-    handles[-1].set_label("stopped (stall)")
-    f.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
-    f.suptitle("Region of attraction (full-state feedback, alpha_0 = 1 deg; star: "
-               "equilibrium, circle: the Sec. 3.3 start)", fontsize=10)  # fmt: skip
-    path = out / "roa.png"
-    f.savefig(path, dpi=100)
-    plt.close(f)
-    return path
+    panels = []
+    for k, mp in enumerate(maps):
+        mark = {"color": "#ffffff", "edge": "k", "width": 1.5}  # width: the page's marker edge
+        marks = [line([e.V], [e.theta_g * DEG], marker="*", size=14.0, **mark),
+                 line([0.2], [-35.0], marker="o", size=7.0, **mark)]  # fmt: skip
+        p = panel(marks, title=f"{mp.case.label}\n{mp.stop_time:g} s runs",
+                  xlabel="initial speed V_0 [m/s]",
+                  ylabel="" if k else "initial glide angle theta_g_0 [deg]")  # fmt: skip
+        x0, x1, y0, y1 = _cell_edges(mp)
+        p.update(col=k, images=[_image(mp)], xlim=[x0, x1], ylim=[y0, y1], title_pt=9.0)
+        panels.append(p)
+    labels = [*CATEGORIES[:-1], "stopped (stall)"]
+    title = ("Region of attraction (full-state feedback, alpha_0 = 1 deg; star: "
+             "equilibrium, circle: the Sec. 3.3 start)")  # fmt: skip
+    return {**sheet(panels, (4.3 * len(maps), 4.4)), "title": title, "suptitle": title,
+            "suptitle_pt": 10.0, "layout": "constrained", "sharey": True,
+            "notes": [{"text": t, "color": to_hex(c)} for t, c in
+                      zip(labels, COLOURS, strict=True)]}  # fmt: skip
+
+
+def plot_roa(maps: list[RoaMap], out: Path) -> Path:
+    """``roa.png``: :func:`roa_spec` drawn."""
+    return draw_png(roa_spec(maps), out / "roa.png")
 
 
 def roa_markdown(maps: list[RoaMap], png: Path, an: dict[str, Any] | None) -> list[str]:

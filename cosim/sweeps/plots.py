@@ -106,7 +106,7 @@ def _num(r: dict, k: str) -> float:
 def _scatter(pts: list[tuple[float, float]], **kw: Any) -> dict[str, Any]:
     """Markers at ``pts`` (a spec line, :func:`~glider_cosim.figures.spec.line`)."""
     xs, ys = zip(*pts, strict=True) if pts else ((), ())
-    return line(xs, ys, marker="o", **kw)
+    return {**line(xs, ys, marker="o", **kw), "scatter": True}
 
 
 def sweep_specs(rows: list[dict]) -> list[tuple[str, dict[str, Any]]]:
