@@ -43,3 +43,21 @@ def test_values_colour_the_markers_and_an_image_fills_its_extent(tmp_path):
     x, y = _where(png, (0, 0, 255))
     assert len(x) > 1000 and x.min() > 0.3 and y.max() < 0.6  # the upper right quarter
     assert len(_where(png, (0xFD, 0xE7, 0x25))[0]) > 20  # viridis' yellow: value 1 and its key
+
+
+def test_titles_keep_matplotlibs_sizes_unless_the_spec_sets_them():
+    from matplotlib import rcParams
+    from matplotlib.font_manager import FontProperties
+
+    from glider_cosim.figures.mpl import draw
+
+    p = panel([line([0, 1], [0, 1])], title="plain", xlabel="t [s]", ylabel="z [m]")
+    small = {**p, "title": "small", "title_pt": 9.0, "col": 1}
+    fig = draw({**sheet([p, small], (6.0, 3.0)), "suptitle": "over"})
+    large = FontProperties(size=rcParams["axes.titlesize"]).get_size_in_points()
+    assert [ax.title.get_fontsize() for ax in fig.get_axes()] == [large, 9.0]
+    assert (
+        fig.get_suptitle() == "over"
+        and fig._suptitle.get_fontsize()
+        == FontProperties(size=rcParams["figure.titlesize"]).get_size_in_points()
+    )

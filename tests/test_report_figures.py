@@ -104,16 +104,20 @@ def test_pitch_with_noise_lists_the_measured_samples(tmp_path):
     assert top["lines"][0]["marker"] == "." and not top["lines"][0]["lines"]
 
 
-def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(kept, tmp_path):
-    from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52
+def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(tmp_path):
+    from glider_cosim.figures.mpl import draw
+    from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52, sec52_spec
 
     t = np.linspace(0, 4, 201)
     th = -0.4 + 0.05 * t
     cols = {"plant.theta_meas": th, "plant.theta": th, "observer.theta_hat": th + 0.01}
     runs = [Sec52Run(tail, 1.0, FakeRun(cols, status="stopped" if tail == TAILS_DEG[0] else "ok"),
                      2.0, None, None, None, 0.0) for tail in TAILS_DEG]  # fmt: skip
-    plot_sec52(runs, tmp_path)
-    (f,) = kept
+    spec = sec52_spec(runs)
+    png = plot_sec52(runs, tmp_path)  # fig8.png: the spec drawn
+    f = draw(spec)
+    f.savefig(tmp_path / "again.png", dpi=100)
+    assert png.read_bytes() == (tmp_path / "again.png").read_bytes()
     assert all(ax.get_legend() is None for ax in f.get_axes())
     (legend,) = f.legends
     assert [x.get_text() for x in legend.get_texts()] == [

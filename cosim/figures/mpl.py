@@ -17,6 +17,8 @@ with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers
 ``size`` points, a matplotlib scatter if ``scatter`` or ``values``; ``values`` colour
 its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
 ``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
+``legend_below`` (one legend of the panels' lines under them; a line's ``zorder``,
+``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` count there),
 ``layout`` (``"constrained"``; else tight), ``sharey`` and ``caption`` (red, wrapped,
 under the panels).
 """
@@ -29,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["draw_png"]
+__all__ = ["draw", "draw_png"]
 
 #: matplotlib's line styles by the spec's dash names
 _LINESTYLE = {"solid": "-", "dashed": "--", "dashdot": "-.", "dotted": ":"}
@@ -41,10 +43,11 @@ def _line(fig: Any, ax: Any, ln: dict[str, Any], colorbar: str) -> None:
     label = ln["name"] if ln["legend"] else "_nolegend_"
     if not (ln.get("scatter") or ln.get("values") is not None):
         ls = _LINESTYLE.get(ln["dash"], "-") if ln["lines"] else "none"
+        extra = {k: ln[k] for k in ("zorder", "mew") if k in ln}
         ax.plot(ln["x"], ln["y"], color=ln["color"], alpha=ln["alpha"], lw=ln["width"], ls=ls,
                 label=label, marker=ln["marker"] or None, ms=ln["size"], mec=ln["edge"],
-                drawstyle="steps-post" if ln["step"] else "default",
-                gid=ln["gid"] or None)  # fmt: skip
+                drawstyle="steps-post" if ln["step"] else "default", gid=ln["gid"] or None,
+                clip_on=ln.get("clip", True), **extra)  # fmt: skip
         return
     kw: dict[str, Any] = {"s": ln["size"] ** 2, "marker": ln["marker"], "alpha": ln["alpha"],
                           "label": label, "gid": ln["gid"] or None}  # fmt: skip
@@ -55,7 +58,7 @@ def _line(fig: Any, ax: Any, ln: dict[str, Any], colorbar: str) -> None:
         fig.colorbar(sc, ax=ax, label=colorbar)
 
 
-def _panel(fig: Any, ax: Any, p: dict[str, Any]) -> None:
+def _panel(fig: Any, ax: Any, p: dict[str, Any], below: bool) -> None:
     for im in p["images"]:
         ax.imshow(im["rgba"], origin="lower", aspect="auto", interpolation="nearest",
                   extent=(im["x"], im["x"] + im["dw"], im["y"], im["y"] + im["dh"]))  # fmt: skip
@@ -63,16 +66,71 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any]) -> None:
         _line(fig, ax, ln, p.get("colorbar", ""))
     for t in p["texts"]:
         ax.text(t["x"], t["y"], t["text"], fontsize=8)
-    ax.set_title(p["title"], fontsize=p.get("title_pt"))
+    ax.set_title(p["title"], **({"fontsize": p["title_pt"]} if "title_pt" in p else {}))
     ax.set(xlabel=p["xlabel"], ylabel=p["ylabel"])
     if p["log"]:
         ax.set_yscale("log")
     ax.set_xlim(*p["xlim"])
     ax.set_ylim(*(p["ylim"][::-1] if p["inverted"] else p["ylim"]))
-    if any(ln["legend"] for ln in p["lines"]):
+    if any(ln["legend"] for ln in p["lines"]) and not below:
         ax.legend(fontsize=p["legend_pt"])
     if p.get("grid"):
         ax.grid(alpha=p["grid"])
+
+
+def _legend_below(fig: Any, panels: list[dict[str, Any]]) -> None:
+    """One legend under a grid: each name once, in the order it first appears; a line's
+    ``legend_size`` (markers) is its marker's size in the legend."""
+    from matplotlib.lines import Line2D
+
+    keys: dict[str, Any] = {}
+    for p in panels:
+        for ln in p["lines"]:
+            if ln["legend"] and ln["name"] not in keys:
+                ls = _LINESTYLE.get(ln["dash"], "-") if ln["lines"] else "none"
+                keys[ln["name"]] = Line2D(
+                    [], [], color=ln["color"], ls=ls, lw=ln["width"], marker=ln["marker"] or None,
+                    ms=ln.get("legend_size", ln["size"]), mec=ln["edge"], mew=ln.get("mew"),
+                    alpha=None if "legend_size" in ln else ln["alpha"])  # fmt: skip
+    if keys:
+        fig.legend(list(keys.values()), list(keys), loc="outside lower center",
+                   ncol=len(keys), fontsize=8)  # fmt: skip
+
+
+def draw(spec: dict[str, Any]) -> Any:
+    """``spec`` (:mod:`.spec`) as a matplotlib ``Figure`` (not pyplot's: nothing to close),
+    ready to save; :func:`draw_png` saves it."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    panels = spec["panels"]
+    nrow = 1 + max(p["row"] for p in panels)
+    ncol = 1 + max(p["col"] for p in panels)
+    layout = spec.get("layout")  # "constrained", or tight around the caption
+    fig = Figure(figsize=spec["size_in"], layout=layout)
+    axes = fig.subplots(nrow, ncol, squeeze=False, sharey=spec.get("sharey", False))
+    used = np.zeros((nrow, ncol), dtype=bool)
+    below = bool(spec.get("legend_below"))
+    for p in panels:
+        _panel(fig, axes[p["row"]][p["col"]], p, below)
+        used[p["row"], p["col"]] = True
+    for ax in axes[~used]:
+        ax.set_visible(False)
+    if below:  # one legend of every panel's lines, by name, under the panels
+        _legend_below(fig, panels)
+    if spec["notes"]:  # colour keys (an image map's), one row under the panels
+        keys = [Patch(color=n["color"], label=n["text"]) for n in spec["notes"]]
+        fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8)
+    if spec.get("suptitle"):
+        size = {"fontsize": spec["suptitle_pt"]} if "suptitle_pt" in spec else {}
+        fig.suptitle(spec["suptitle"], **size)
+    lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
+    if not layout:
+        fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
+    if lines:
+        fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
+                 color="tab:red")  # fmt: skip
+    return fig
 
 
 def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
@@ -92,31 +150,5 @@ def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
     Path
         ``path``.
     """
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
-
-    panels = spec["panels"]
-    nrow = 1 + max(p["row"] for p in panels)
-    ncol = 1 + max(p["col"] for p in panels)
-    layout = spec.get("layout")  # "constrained", or tight around the caption
-    fig = Figure(figsize=spec["size_in"], layout=layout)  # not pyplot's: nothing to close
-    axes = fig.subplots(nrow, ncol, squeeze=False, sharey=spec.get("sharey", False))
-    used = np.zeros((nrow, ncol), dtype=bool)
-    for p in panels:
-        _panel(fig, axes[p["row"]][p["col"]], p)
-        used[p["row"], p["col"]] = True
-    for ax in axes[~used]:
-        ax.set_visible(False)
-    if spec["notes"]:  # colour keys (an image map's), one row under the panels
-        keys = [Patch(color=n["color"], label=n["text"]) for n in spec["notes"]]
-        fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8)
-    if spec.get("suptitle"):
-        fig.suptitle(spec["suptitle"], fontsize=spec.get("suptitle_pt"))
-    lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
-    if not layout:
-        fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
-    if lines:
-        fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
-                 color="tab:red")  # fmt: skip
-    fig.savefig(path, dpi=dpi)
+    draw(spec).savefig(path, dpi=dpi)
     return Path(path)

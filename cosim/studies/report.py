@@ -27,7 +27,7 @@ from .figures import FIGURES, Run
 from .kc_map import kc_map
 from .report_plots import plot_figure, plot_sec53, plot_steps
 from .report_text import provenance_markdown, report_markdown
-from .sec52 import held_tail_study, plot_sec52, run_sec52, sec52_markdown
+from .sec52 import held_tail_study, run_sec52, sec52_markdown, sec52_spec
 
 
 def _step_study(fmu_dir: Path) -> dict[str, Any]:
@@ -217,10 +217,10 @@ def _build(
         bar.step("report: drawing the step study")
         pngs["steps"] = plot_steps(study, out)
         bar.step("report: drawing fig8")
-        pngs["fig8"] = plot_sec52(sec52, out)
+        specs = [sec52_spec(sec52)]  # the figures built as specs: PNG and page drawn from them
+        pngs["fig8"] = draw_png(specs[-1], out / "fig8.png")
         if roa_grid is not None:
             bar.step("report: drawing the region-of-attraction map")
-        specs = []  # the figures built as specs: their PNG and the page drawn from them
         if maps:
             specs.append(roa_spec(maps))
             roa_lines = roa_markdown(maps, draw_png(specs[-1], out / "roa.png"), an)

@@ -25,14 +25,19 @@ def mark_exits(
     """A triangle at the axes' edge wherever the curve ``y`` leaves ``[lo, hi]`` (every
     exit, not only the first: at each sample outside whose predecessor is inside or on
     the other side); the number of exits."""
-    side = np.where(y > hi, 1, np.where(y < lo, -1, 0))
-    prev = np.r_[0, side[:-1]]
-    exits = np.nonzero((side != 0) & (side != prev))[0]
-    for k in exits:
-        above = side[k] > 0
+    found = exits(y, lo, hi)
+    for k, above in found:
         ax.plot(t[k], hi if above else lo, marker="^" if above else "v", color=colour, ms=ms,
                 ls="none", clip_on=False, zorder=5, **kw)  # fmt: skip
-    return len(exits)
+    return len(found)
+
+
+def exits(y: np.ndarray, lo: float, hi: float) -> list[tuple[int, bool]]:
+    """Where the curve ``y`` leaves ``[lo, hi]``: (sample, above) of each exit, at each
+    sample outside whose predecessor is inside or on the other side."""
+    side = np.where(y > hi, 1, np.where(y < lo, -1, 0))
+    prev = np.r_[0, side[:-1]]
+    return [(int(k), bool(side[k] > 0)) for k in np.nonzero((side != 0) & (side != prev))[0]]
 
 
 def _keys(clipped: bool, stopped: bool, marked: bool) -> list[Any]:

@@ -16,6 +16,8 @@ import numpy as np
 
 from glider_plant.params import GliderParams
 
+from ..figures.mpl import draw_png
+from ..figures.spec import line, panel, sheet
 from ..runner.heldtail import (
     carried,
     held_glide,
@@ -26,7 +28,7 @@ from ..runner.heldtail import (
 from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import load_scenario
-from .report_plots import mark_exits
+from .report_plots import exits
 
 DEG = 180.0 / math.pi
 TAILS_DEG = (15.0, 30.0, 45.0)
@@ -119,63 +121,65 @@ def _breaks(y: np.ndarray) -> np.ndarray:
     return y
 
 
-def plot_sec52(runs: list[Sec52Run], out: Path) -> Path:
-    """Fig. 8 in simulation: rows K_udelta, columns held tail; measured (samples), true and
-    estimated pitch; observer start dotted; a cross where a run stops."""
-    import matplotlib
+def _panel(run: Sec52Run, row: int, col: int, last_row: bool) -> dict[str, Any]:
+    """One run's panel of Fig. 8: measured (samples), true and estimated pitch, the
+    estimate's exits marked at the axes' edge, the observer's start, the run's stop."""
+    r = run.result
+    t = r.data[:, 0]
+    meas = wrap_angle(r.column("plant.theta_meas") * DEG, 360.0)
+    true = wrap_angle(r.column("plant.theta") * DEG, 360.0)
+    est = wrap_angle(r.column("observer.theta_hat") * DEG, 360.0)
+    lo, hi = float(np.nanmin(meas)), float(np.nanmax(meas))
+    pad = 0.08 * max(hi - lo, 1.0)
+    lo, hi = max(lo - pad, -180.0), min(hi + pad, 180.0)
+    lines = [{**line(t, meas, "measured", marker=".", size=1.2, alpha=0.3, color="tab:gray",
+                   width=1.5),
+              "zorder": 1, "legend_size": 6.0},
+             {**line(t, _breaks(true), "true", width=1.5), "zorder": 3},
+             {**line(t, _breaks(np.clip(est, lo, hi)), "estimated", width=1.0, dash="dashed",
+                     color="tab:orange"), "zorder": 3.5}]  # fmt: skip
+    found = exits(est, lo, hi)
+    for n, (k, above) in enumerate(found, 1):  # every exit; the last one named
+        name = "the estimate leaves the axes (clipped there)" if n == len(found) else ""
+        lines.append({**line([t[k]], [hi if above else lo], name, marker="^" if above else "v",
+                             color="tab:orange", size=7.0, width=1.5, gid="clipped"),
+                      "zorder": 5, "clip": False})  # fmt: skip
+    lines.append(line([run.t_start] * 2, [lo, hi], "observer starts", color="k",
+                      dash="dotted", width=0.8))  # fmt: skip
+    title = f"tail held at {run.tail_deg:g} deg, K_udelta = {run.k_udelta:g}"
+    if r.status != "ok":
+        lines.append({**line([t[-1]], [min(max(float(meas[-1]), lo), hi)], "the run stops",
+                             marker="x", color="k", size=8.0, width=1.5),
+                      "mew": 2.0, "lines": True})  # a one-point line: its key crossed  # fmt: skip
+        title += f": stops at {t[-1]:.2f} s"
+    p = panel(lines, title=title, row=row, grid=0.3, xlabel="time [s]" if last_row else "",
+              ylabel="" if col else "pitch theta [deg], wrapped to +-180")  # fmt: skip
+    p.update(col=col, ylim=[lo, hi], title_pt=9.0)
+    return p
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def sec52_spec(runs: list[Sec52Run]) -> dict[str, Any]:
+    """Fig. 8 in simulation as a spec (:mod:`glider_cosim.figures.spec`): rows K_udelta,
+    columns held tail; one legend under the panels; drawn to ``fig8.png`` and in
+    ``report.html`` alike."""
     ks = list(dict.fromkeys(r.k_udelta for r in runs))
-    f, axes = plt.subplots(len(ks), len(TAILS_DEG), figsize=(12, 3.2 * len(ks) + 0.5),
-                           squeeze=False, layout="constrained")  # fmt: skip
-    legend: dict[str, Any] = {}  # one legend under the panels, out of the data
-    for run in runs:
-        i, j = ks.index(run.k_udelta), TAILS_DEG.index(run.tail_deg)
-        ax = axes[i, j]
-        r = run.result
-        t = r.data[:, 0]
-        meas = wrap_angle(r.column("plant.theta_meas") * DEG, 360.0)
-        true = wrap_angle(r.column("plant.theta") * DEG, 360.0)
-        est = wrap_angle(r.column("observer.theta_hat") * DEG, 360.0)
-        lo, hi = float(np.nanmin(meas)), float(np.nanmax(meas))
-        pad = 0.08 * max(hi - lo, 1.0)
-        lo, hi = max(lo - pad, -180.0), min(hi + pad, 180.0)
-        ax.plot(t, meas, ls="none", marker=".", ms=1.2, alpha=0.3, color="tab:gray", zorder=1,
-                label="measured")  # fmt: skip
-        ax.plot(t, _breaks(true), lw=1.5, color="tab:blue", zorder=3, label="true")
-        ax.plot(t, _breaks(np.clip(est, lo, hi)), lw=1.0, ls="--", color="tab:orange",
-                zorder=3.5, label="estimated")  # fmt: skip
-        if mark_exits(ax, t, est, lo, hi, "tab:orange", 7, gid="clipped"):  # every exit
-            ax.lines[-1].set_label("the estimate leaves the axes (clipped there)")
-        ax.set_ylim(lo, hi)
-        ax.axvline(run.t_start, color="k", ls=":", lw=0.8, label="observer starts")
-        title = f"tail held at {run.tail_deg:g} deg, K_udelta = {run.k_udelta:g}"
-        if r.status != "ok":
-            ax.plot(t[-1], min(max(float(meas[-1]), lo), hi), marker="x", color="k", ms=8, mew=2,
-                    label="the run stops")  # fmt: skip
-            title += f": stops at {t[-1]:.2f} s"
-        ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3)
-        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-            legend.setdefault(lab, h)
-        if j == 0:
-            ax.set_ylabel("pitch theta [deg], wrapped to +-180")
-        if i == len(ks) - 1:
-            ax.set_xlabel("time [s]")
-    from matplotlib.lines import Line2D
+    panels = [_panel(run, ks.index(run.k_udelta), TAILS_DEG.index(run.tail_deg),
+                     ks.index(run.k_udelta) == len(ks) - 1) for run in runs]  # fmt: skip
+    title = ("Sec. 5.2 / Fig. 8 in simulation: open loop with the tail held, observer "
+             "initialised 2 s after release")  # fmt: skip
+    return {
+        **sheet(panels, (12.0, 3.2 * len(ks) + 0.5)),
+        "title": title,
+        "suptitle": title,
+        "suptitle_pt": 10.0,
+        "layout": "constrained",
+        "legend_below": True,
+    }
 
-    if "measured" in legend:  # the samples' dots, large enough to see in the legend
-        legend["measured"] = Line2D([], [], ls="none", marker=".", ms=6, color="tab:gray")
-    f.legend(list(legend.values()), list(legend), loc="outside lower center",
-             ncol=len(legend), fontsize=8)  # fmt: skip
-    f.suptitle("Sec. 5.2 / Fig. 8 in simulation: open loop with the tail held, observer "
-               "initialised 2 s after release", fontsize=10)  # fmt: skip
-    path = out / "fig8.png"
-    f.savefig(path, dpi=100)
-    plt.close(f)
-    return path
+
+def plot_sec52(runs: list[Sec52Run], out: Path) -> Path:
+    """``fig8.png``: :func:`sec52_spec` drawn."""
+    return draw_png(sec52_spec(runs), out / "fig8.png")
 
 
 def _fmt(v: float | None, scale: float = DEG, digits: int = 2) -> str:

@@ -3,7 +3,8 @@ Figs. 11-20, Fig. 8 and the region of attraction every plot keeps a readable wid
 legend stands beside a grid's panel, no two tick labels touch, and each row heading
 (passivity / P / PI law) stands over its own rows. The page is drawn by the report's
 own plotting functions from made-up runs (no FMU run), as ``glider-cosim report``
-draws it (the region of attraction from its spec), and laid out by headless Chromium."""
+draws it (Fig. 8 and the region of attraction from their specs), and laid out by
+headless Chromium."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from glider_cosim.figures.pages import keep_figures, write_report_page
 from glider_cosim.studies.figures import FIGURES
 from glider_cosim.studies.report_plots import plot_figure, plot_sec53
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
-from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, plot_sec52
+from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
 pytestmark = [
     pytest.mark.integration,
@@ -80,10 +81,12 @@ def page(tmp_path_factory):
         plot_figure(_by_key("fig3-4"), _runs_of("fig3-4", ("controller.delta_cmd",
                                                            "plant.theta_g")), out)  # fmt: skip
         plot_sec53(_by_key("fig11-20"), _sec53_runs(), out)
-        plot_sec52(_sec52_runs(), out)
-        roa = roa_spec(_roa_maps())  # a spec: its PNG and the page drawn from it
-        draw_png(roa, out / "roa.png")
-        write_report_page(out, [*figures, roa], {"How this report was made": {"command": "test"}})
+        specs = [sec52_spec(_sec52_runs()), roa_spec(_roa_maps())]  # PNG and page from each
+        for spec, name in zip(specs, ("fig8.png", "roa.png"), strict=True):
+            draw_png(spec, out / name)
+        write_report_page(
+            out, [*figures, *specs], {"How this report was made": {"command": "test"}}
+        )
     return out / "report.html"
 
 
