@@ -15,7 +15,7 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import plot_figure, plot_sec53, plot_steps
+from glider_cosim.studies.report_plots import plot_figure, plot_sec53, steps_spec
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
@@ -94,14 +94,15 @@ def _report_figures(tmp_path) -> list[dict]:
     plot_sec53(by["fig11-20"], [(run, _run()) for run in by["fig11-20"].runs], tmp_path)
     t = np.linspace(0.0, 60.0, 601)
     trace = THETA_E + 0.01 * np.sin(t)
-    plot_steps({"traces": {"t": t, "50 Hz": trace, "200 Hz": trace, "continuous": trace}},
-               tmp_path)  # fmt: skip
+    steps = steps_spec({"traces": {"t": t, "50 Hz": trace, "200 Hz": trace,
+                                   "continuous": trace}})  # fmt: skip
     fig8 = sec52_spec([Sec52Run(tail, k, _run(), 2.0, None, None, None, 0.0)
                        for k in (1.0, 0.039) for tail in TAILS_DEG])  # fmt: skip
     cells = np.array([[CATEGORIES[(i + j) % len(CATEGORIES)] for j in range(3)]
                       for i in range(3)], dtype=object)  # fmt: skip
-    return [fig8, roa_spec([RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]),
-                             cells, 60.0, 1.0) for c in CASES])]  # fmt: skip
+    maps = [RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]), cells, 60.0,
+                   1.0) for c in CASES]  # fmt: skip
+    return [steps, fig8, roa_spec(maps)]
 
 
 def test_the_rule_flags_a_value_without_its_unit():
@@ -118,7 +119,7 @@ def test_every_report_figure_labels_its_quantities_with_units(kept, tmp_path, mo
 
     monkeypatch.setattr(Figure, "savefig", lambda *a, **k: None)  # the labels, not the PNGs
     specs = _report_figures(tmp_path)
-    assert (len(kept), len(specs)) == (5, 2)
+    assert (len(kept), len(specs)) == (4, 3)
     problems = [p for f in kept for p in _problems(*_mpl_labels(f))]
     problems += [p for s in specs for p in _problems(*_spec_labels(s))]
     assert problems == []

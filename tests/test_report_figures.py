@@ -188,3 +188,23 @@ def test_roa_is_one_spec_drawn_to_png_and_to_the_page(tmp_path):
     text = page.read_text()
     assert text.count("class='glider-figure'") == 1 and '"limit cycle"' in text
     assert spec["title"].startswith("Region of attraction") and spec["title"] in text
+
+
+def test_the_step_study_is_one_spec_drawn_to_png_and_to_the_page(tmp_path):
+    """Issue 49, item 2: communication_step.png and its figure in report.html come from one
+    spec: the glide angle at 50 Hz, 200 Hz and in continuous time over the differences."""
+    from glider_cosim.figures.mpl import draw_png
+    from glider_cosim.figures.pages import write_report_page
+    from glider_cosim.studies.report_plots import plot_steps, steps_spec
+
+    t = np.linspace(0.0, 10.0, 101)
+    study = {"traces": {"t": t, "50 Hz": t * 1e-3, "200 Hz": t * 2e-3, "continuous": 0 * t}}
+    spec = steps_spec(study)
+    top, below = spec["panels"]
+    assert [ln["name"] for ln in top["lines"]] == ["50 Hz", "200 Hz", "continuous"]
+    assert [ln["name"] for ln in below["lines"]] == ["50 Hz - continuous", "200 Hz - continuous"]
+    assert below["lines"][1]["y"][-1] == pytest.approx(2e-2 * 180 / np.pi)
+    png = plot_steps(study, tmp_path)
+    assert png.read_bytes() == draw_png(spec, tmp_path / "again.png").read_bytes()
+    page = write_report_page(tmp_path, [spec], {"made": {"command": "test"}})["page"]
+    assert "50 Hz - continuous" in page.read_text()

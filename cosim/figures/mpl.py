@@ -19,7 +19,8 @@ its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
 ``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
 ``legend_below`` (one legend of the panels' lines under them; a line's ``zorder``,
 ``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` count there),
-``layout`` (``"constrained"``; else tight), ``sharey`` and ``caption`` (red, wrapped,
+``layout`` (``"constrained"``; else tight), ``sharex``, ``sharey``, ``height_ratios``
+(of the rows) and ``caption`` (red, wrapped,
 under the panels).
 """
 
@@ -108,7 +109,9 @@ def draw(spec: dict[str, Any]) -> Any:
     ncol = 1 + max(p["col"] for p in panels)
     layout = spec.get("layout")  # "constrained", or tight around the caption
     fig = Figure(figsize=spec["size_in"], layout=layout)
-    axes = fig.subplots(nrow, ncol, squeeze=False, sharey=spec.get("sharey", False))
+    axes = fig.subplots(nrow, ncol, squeeze=False, sharex=spec.get("sharex", False),
+                        sharey=spec.get("sharey", False),
+                        height_ratios=spec.get("height_ratios") or None)  # fmt: skip
     used = np.zeros((nrow, ncol), dtype=bool)
     below = bool(spec.get("legend_below"))
     for p in panels:

@@ -25,7 +25,7 @@ from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
 from .figures import FIGURES, Run
 from .kc_map import kc_map
-from .report_plots import plot_figure, plot_sec53, plot_steps
+from .report_plots import plot_figure, plot_sec53, steps_spec
 from .report_text import provenance_markdown, report_markdown
 from .sec52 import held_tail_study, run_sec52, sec52_markdown, sec52_spec
 
@@ -215,9 +215,10 @@ def _build(
             pngs[fig.key] = (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
                 fig, results[fig.key], out)  # fmt: skip
         bar.step("report: drawing the step study")
-        pngs["steps"] = plot_steps(study, out)
+        specs = [steps_spec(study)]  # the figures built as specs: PNG and page drawn from them
+        pngs["steps"] = draw_png(specs[-1], out / "communication_step.png")
         bar.step("report: drawing fig8")
-        specs = [sec52_spec(sec52)]  # the figures built as specs: PNG and page drawn from them
+        specs.append(sec52_spec(sec52))
         pngs["fig8"] = draw_png(specs[-1], out / "fig8.png")
         if roa_grid is not None:
             bar.step("report: drawing the region-of-attraction map")

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ..figures.mpl import draw_png
+from ..figures.spec import line, panel, sheet
 from ..runner.run import RunResult
 from .figures import DEG, Figure, Run
 from .kc_map import kc_cell
@@ -144,30 +146,26 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
     return path
 
 
-def plot_steps(study: dict[str, Any], out: Path) -> Path:
-    """The accuracy study's figure (50 Hz, 200 Hz and continuous time)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def steps_spec(study: dict[str, Any]) -> dict[str, Any]:
+    """The accuracy study's figure (50 Hz, 200 Hz and continuous time) as a spec
+    (:mod:`glider_cosim.figures.spec`): the glide angle over the differences."""
     tr = study["traces"]
-    f, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 4.8), sharex=True, layout="constrained",
-                                height_ratios=(3, 2))  # fmt: skip
-    for k in ("50 Hz", "200 Hz", "continuous"):
-        ax.plot(tr["t"], tr[k] * DEG, lw=1.0, label=k)
-    for k in ("50 Hz", "200 Hz"):
-        ax2.plot(tr["t"], (tr[k] - tr["continuous"]) * DEG, lw=1.0, label=f"{k} - continuous")
-    ax.set(ylabel="glide angle theta_g [deg]",
-           title="Default scenario: effect of the communication step")  # fmt: skip
-    ax2.set(xlabel="time [s]", ylabel="difference [deg]")
-    for a in (ax, ax2):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=8)
-    path = out / "communication_step.png"
-    f.savefig(path, dpi=100)
-    plt.close(f)
-    return path
+    colours = dict(zip(("50 Hz", "200 Hz", "continuous"), ("tab:blue", "tab:orange",
+                                                           "tab:green"), strict=True))  # fmt: skip
+    top = [line(tr["t"], tr[k] * DEG, k, color=c) for k, c in colours.items()]
+    below = [line(tr["t"], (tr[k] - tr["continuous"]) * DEG, f"{k} - continuous",
+                  color=colours[k]) for k in ("50 Hz", "200 Hz")]  # fmt: skip
+    panels = [panel(top, title="Default scenario: effect of the communication step",
+                    ylabel="glide angle theta_g [deg]", grid=0.3, legend_pt=8.0),
+              panel(below, xlabel="time [s]", ylabel="difference [deg]", row=1, grid=0.3,
+                    legend_pt=8.0)]  # fmt: skip
+    return {**sheet(panels, (8.0, 4.8)), "layout": "constrained", "sharex": True,
+            "height_ratios": [3.0, 2.0]}  # fmt: skip
+
+
+def plot_steps(study: dict[str, Any], out: Path) -> Path:
+    """``communication_step.png``: :func:`steps_spec` drawn."""
+    return draw_png(steps_spec(study), out / "communication_step.png")
 
 
 def _feedback(r: RunResult) -> str:
