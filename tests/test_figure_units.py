@@ -15,7 +15,7 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import plot_figure, plot_sec53, steps_spec
+from glider_cosim.studies.report_plots import figure_spec, plot_sec53, steps_spec
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
@@ -88,9 +88,9 @@ def _problems(axis: list[str], other: list[str]) -> list[str]:
 def _report_figures(tmp_path) -> list[dict]:
     """Draws the report's matplotlib figures; the specs of the others."""
     by = {f.key: f for f in FIGURES}
-    for key in ("fig2", "fig3-4", "fig5-6"):
-        plot_figure(by[key], [(run, _run("stopped" if k else "ok")) for k, run in
-                              enumerate(by[key].runs)], tmp_path)  # fmt: skip
+    figs = [figure_spec(by[key], [(run, _run("stopped" if k else "ok"))
+                                  for k, run in enumerate(by[key].runs)])
+            for key in ("fig2", "fig3-4", "fig5-6")]  # fmt: skip
     plot_sec53(by["fig11-20"], [(run, _run()) for run in by["fig11-20"].runs], tmp_path)
     t = np.linspace(0.0, 60.0, 601)
     trace = THETA_E + 0.01 * np.sin(t)
@@ -102,7 +102,7 @@ def _report_figures(tmp_path) -> list[dict]:
                       for i in range(3)], dtype=object)  # fmt: skip
     maps = [RoaMap(c, np.radians([-30.0, 0.0, 30.0]), np.array([0.1, 0.2, 0.3]), cells, 60.0,
                    1.0) for c in CASES]  # fmt: skip
-    return [steps, fig8, roa_spec(maps)]
+    return [*figs, steps, fig8, roa_spec(maps)]
 
 
 def test_the_rule_flags_a_value_without_its_unit():
@@ -119,7 +119,7 @@ def test_every_report_figure_labels_its_quantities_with_units(kept, tmp_path, mo
 
     monkeypatch.setattr(Figure, "savefig", lambda *a, **k: None)  # the labels, not the PNGs
     specs = _report_figures(tmp_path)
-    assert (len(kept), len(specs)) == (4, 3)
+    assert (len(kept), len(specs)) == (1, 6)
     problems = [p for f in kept for p in _problems(*_mpl_labels(f))]
     problems += [p for s in specs for p in _problems(*_spec_labels(s))]
     assert problems == []

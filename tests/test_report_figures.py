@@ -9,15 +9,16 @@ import pytest
 from report_fakes import THETA_E, FakeRun
 
 from glider_cosim.figures import plots as run_plots
+from glider_cosim.figures.mpl import draw
 from glider_cosim.studies.figures import FIGURES, Figure, Run
-from glider_cosim.studies.report_plots import plot_figure, plot_sec53
+from glider_cosim.studies.report_plots import figure_spec, plot_figure, plot_sec53
 
 
 def _clipped(ax):
     return [ln for ln in ax.get_lines() if ln.get_gid() == "clipped"]
 
 
-def test_fig5_6_title_one_line_every_exit_marked_legend_outside(kept, tmp_path):
+def test_fig5_6_title_one_line_every_exit_marked_legend_outside(tmp_path):
     t = np.linspace(0, 10, 501)
     calm = THETA_E + 0.05 * np.exp(-t)  # the bounded run sets the axes
     wild = THETA_E + np.sin(2 * np.pi * 0.3 * t)  # leaves them above and below: 6 exits
@@ -30,8 +31,10 @@ def test_fig5_6_title_one_line_every_exit_marked_legend_outside(kept, tmp_path):
     ]  # fmt: skip
     fig = FIGURES[2]
     assert fig.key == "fig5-6"
-    plot_figure(fig, results, tmp_path)
-    (f,) = kept
+    png = plot_figure(fig, results, tmp_path)  # fig5-6.png: the spec drawn
+    f = draw(figure_spec(fig, results))
+    f.savefig(tmp_path / "again.png", dpi=100)
+    assert png.read_bytes() == (tmp_path / "again.png").read_bytes()
     assert "\n" not in f.get_suptitle()
     panels = [ax for ax in f.get_axes()]
     assert all(ax.get_legend() is None for ax in panels)  # no legend over the curves

@@ -10,14 +10,16 @@ are matplotlib's own: drawing the same spec with matplotlib keeps one spec forma
 and one place per figure, without a second rasterizer to keep (see the code-layout page).
 
 What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``
-(``title_pt``),
+(``title_pt``), ``ylabel_pt``,
 ``xlabel``, ``ylabel``, ``xlim``, ``ylim``, ``inverted``, ``log``, ``grid`` (the grid
 lines' alpha, none if absent), ``colorbar`` (the label of the colour key of the lines
 with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers of
 ``size`` points, a matplotlib scatter if ``scatter`` or ``values``; ``values`` colour
 its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
 ``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
-``legend_below`` (one legend of the panels' lines under them; a line's ``zorder``,
+``legend_below`` (one legend of the panels' lines under them, ``legend_ncol`` columns,
+``legend_pt``; ``legend_columns``: false, of the first column's lines; true, one under
+each column; ``keys``: lines in the legend alone), a line's ``zorder``,
 ``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` count there),
 ``layout`` (``"constrained"``; else tight), ``sharex``, ``sharey``, ``height_ratios``
 (of the rows) and ``caption`` (red, wrapped,
@@ -68,7 +70,8 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any], below: bool) -> None:
     for t in p["texts"]:
         ax.text(t["x"], t["y"], t["text"], fontsize=8)
     ax.set_title(p["title"], **({"fontsize": p["title_pt"]} if "title_pt" in p else {}))
-    ax.set(xlabel=p["xlabel"], ylabel=p["ylabel"])
+    ax.set_xlabel(p["xlabel"])
+    ax.set_ylabel(p["ylabel"], **({"fontsize": p["ylabel_pt"]} if "ylabel_pt" in p else {}))
     if p["log"]:
         ax.set_yscale("log")
     ax.set_xlim(*p["xlim"])
@@ -79,23 +82,42 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any], below: bool) -> None:
         ax.grid(alpha=p["grid"])
 
 
-def _legend_below(fig: Any, panels: list[dict[str, Any]]) -> None:
-    """One legend under a grid: each name once, in the order it first appears; a line's
-    ``legend_size`` (markers) is its marker's size in the legend."""
+def _keys(lines: list[dict[str, Any]]) -> dict[str, Any]:
+    """Legend entries of ``lines``: each name once, in the order it first appears; a
+    line's ``legend_size`` (markers) is its marker's size in the legend."""
     from matplotlib.lines import Line2D
 
     keys: dict[str, Any] = {}
-    for p in panels:
-        for ln in p["lines"]:
-            if ln["legend"] and ln["name"] not in keys:
-                ls = _LINESTYLE.get(ln["dash"], "-") if ln["lines"] else "none"
-                keys[ln["name"]] = Line2D(
-                    [], [], color=ln["color"], ls=ls, lw=ln["width"], marker=ln["marker"] or None,
-                    ms=ln.get("legend_size", ln["size"]), mec=ln["edge"], mew=ln.get("mew"),
-                    alpha=None if "legend_size" in ln else ln["alpha"])  # fmt: skip
+    for ln in lines:
+        if ln["legend"] and ln["name"] not in keys:
+            ls = _LINESTYLE.get(ln["dash"], "-") if ln["lines"] else "none"
+            keys[ln["name"]] = Line2D(
+                [], [], color=ln["color"], ls=ls, lw=ln["width"], marker=ln["marker"] or None,
+                ms=ln.get("legend_size", ln["size"]), mec=ln["edge"], mew=ln.get("mew"),
+                alpha=None if "legend_size" in ln else ln["alpha"])  # fmt: skip
+    return keys
+
+
+def _legend_below(fig: Any, axes: Any, spec: dict[str, Any]) -> None:
+    """One legend under the grid (of the first column's lines, if ``legend_columns``:
+    one under each column, of its first panel's lines), then the spec's ``keys`` (marks
+    that are no line: exits, stops)."""
+    panels, size = spec["panels"], spec.get("legend_pt", 8.0)
+    if spec.get("legend_columns"):
+        for j in range(axes.shape[1]):
+            top = [ln for p in panels if (p["row"], p["col"]) == (0, j) for ln in p["lines"]]
+            keys = _keys(top + spec.get("keys", []))
+            axes[-1, j].legend(list(keys.values()), list(keys), fontsize=size,
+                               loc="upper center", ncol=1,
+                               bbox_to_anchor=(0.5, -0.28))  # fmt: skip
+        return
+    cols = {p["col"] for p in panels} if spec.get("legend_columns") is None else {0}
+    keys = _keys([ln for p in panels if p["col"] in cols for ln in p["lines"]]
+                 + spec.get("keys", []))  # fmt: skip
     if keys:
         fig.legend(list(keys.values()), list(keys), loc="outside lower center",
-                   ncol=len(keys), fontsize=8)  # fmt: skip
+                   ncol=min(spec.get("legend_ncol", len(keys)), len(keys)),
+                   fontsize=size)  # fmt: skip
 
 
 def draw(spec: dict[str, Any]) -> Any:
@@ -119,8 +141,8 @@ def draw(spec: dict[str, Any]) -> Any:
         used[p["row"], p["col"]] = True
     for ax in axes[~used]:
         ax.set_visible(False)
-    if below:  # one legend of every panel's lines, by name, under the panels
-        _legend_below(fig, panels)
+    if below:  # one legend of the panels' lines, by name, under them
+        _legend_below(fig, axes, spec)
     if spec["notes"]:  # colour keys (an image map's), one row under the panels
         keys = [Patch(color=n["color"], label=n["text"]) for n in spec["notes"]]
         fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8)

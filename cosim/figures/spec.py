@@ -118,16 +118,36 @@ def panel(
     xs = [ln["x"] for ln in lines if ln["span"] != "y"]
     ys = [ln["y"] for ln in lines if ln["span"] != "x"]
     xlim, ylim = _limits(xs), _limits(ys)
-    for ln in lines:
-        if ln["span"] == "x":
-            ln["x"], ln["y"] = np.repeat(ln["x"][:1], 2), np.array(ylim)
-        elif ln["span"] == "y":
-            ln["x"], ln["y"] = np.array(xlim), np.repeat(ln["y"][:1], 2)
+    _span(lines, xlim, ylim)
     return {"title": title, "xlabel": xlabel, "ylabel": ylabel, "xlim": xlim, "ylim": ylim,
             "inverted": inverted, "log": False, "row": row, "col": 0, "lines": list(lines),
             "images": [], "texts": [], "legend_pt": legend_pt,
             **({"grid": grid} if grid else {}),
             **({"colorbar": colorbar} if colorbar else {})}  # fmt: skip
+
+
+def _span(lines: Sequence[dict[str, Any]], xlim: Sequence[float], ylim: Sequence[float]) -> None:
+    for ln in lines:
+        if ln["span"] == "x":
+            ln["x"], ln["y"] = np.repeat(ln["x"][:1], 2), np.array(ylim)
+        elif ln["span"] == "y":
+            ln["x"], ln["y"] = np.array(xlim), np.repeat(ln["y"][:1], 2)
+
+
+def set_limits(p: dict[str, Any], xlim: Any = None, ylim: Any = None) -> None:
+    """Set a panel's limits (each left as it is if None); its span lines run across the
+    new ones."""
+    p["xlim"] = p["xlim"] if xlim is None else [float(v) for v in xlim]
+    p["ylim"] = p["ylim"] if ylim is None else [float(v) for v in ylim]
+    _span(p["lines"], p["xlim"], p["ylim"])
+
+
+def share_x(panels: Sequence[dict[str, Any]]) -> None:
+    """One x range for ``panels``, autoscaled from all their lines (the span lines where
+    they stand), as matplotlib's ``sharex``."""
+    xlim = _limits([ln["x"] for p in panels for ln in p["lines"] if ln["span"] != "y"])
+    for p in panels:
+        set_limits(p, xlim=xlim)
 
 
 def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:

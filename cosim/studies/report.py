@@ -25,7 +25,7 @@ from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
 from .figures import FIGURES, Run
 from .kc_map import kc_map
-from .report_plots import plot_figure, plot_sec53, steps_spec
+from .report_plots import figure_spec, plot_sec53, steps_spec
 from .report_text import provenance_markdown, report_markdown
 from .sec52 import held_tail_study, run_sec52, sec52_markdown, sec52_spec
 
@@ -209,13 +209,17 @@ def _build(
     every_run += [study["literal"], *(x.result for x in sec52)]
     made = report_provenance(every_run, options, roa_grid, maps)
     with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
-        pngs = {}
+        pngs, specs = {}, []  # specs: the figures' PNGs and the page are drawn from them
         for fig in FIGURES:
             bar.step(f"report: drawing {fig.key}")
-            pngs[fig.key] = (plot_sec53 if fig.key == "fig11-20" else plot_figure)(
-                fig, results[fig.key], out)  # fmt: skip
+            if fig.key == "fig11-20":  # a matplotlib figure still: the page reads it back
+                pngs[fig.key] = plot_sec53(fig, results[fig.key], out)
+                specs.append(figures[-1])
+            else:
+                specs.append(figure_spec(fig, results[fig.key]))
+                pngs[fig.key] = draw_png(specs[-1], out / f"{fig.key}.png")
         bar.step("report: drawing the step study")
-        specs = [steps_spec(study)]  # the figures built as specs: PNG and page drawn from them
+        specs.append(steps_spec(study))
         pngs["steps"] = draw_png(specs[-1], out / "communication_step.png")
         bar.step("report: drawing fig8")
         specs.append(sec52_spec(sec52))
@@ -228,7 +232,7 @@ def _build(
         if page:
             bar.step("report: writing report.html")
             settings = {"How this report was made": made, **report_settings(results)}
-            html_page = write_report_page(out, [*figures, *specs], settings).get("page")
+            html_page = write_report_page(out, specs, settings).get("page")
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     text += "\n" + "\n".join(provenance_markdown(made))

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..figures.mpl import draw_png
-from ..figures.spec import line, panel, sheet
+from ..figures.spec import line, panel, set_limits, share_x, sheet
 from ..runner.run import RunResult
 from .figures import DEG, Figure, Run
 from .kc_map import kc_cell
@@ -42,47 +42,50 @@ def exits(y: np.ndarray, lo: float, hi: float) -> list[tuple[int, bool]]:
     return [(int(k), bool(side[k] > 0)) for k in np.nonzero((side != 0) & (side != prev))[0]]
 
 
-def _keys(clipped: bool, stopped: bool, marked: bool) -> list[Any]:
-    """Legend entries for the marks a figure uses (proxy artists)."""
-    from matplotlib.lines import Line2D
-
+def _keys(clipped: bool, stopped: bool, marked: bool) -> list[dict[str, Any]]:
+    """Legend entries for the marks a figure uses (spec lines of no data)."""
     keys = []
     if clipped:
-        keys.append(Line2D([], [], marker="^", ls="none", color="0.3", ms=7,
-                           label="leaves the axes (clipped there)"))  # fmt: skip
+        keys.append(line([], [], "leaves the axes (clipped there)", marker="^", color="0.3",
+                         size=7.0, width=1.5))  # fmt: skip
     if stopped:
-        keys.append(Line2D([], [], marker="x", ls="none", color="0.3", ms=7, mew=2,
-                           label="the run stops (V or V_hat stalls or diverges)"))  # fmt: skip
+        keys.append({**line([], [], "the run stops (V or V_hat stalls or diverges)",
+                            marker="x", color="0.3", size=7.0, width=1.5), "mew": 2.0})  # fmt: skip
     if marked:
-        keys.append(Line2D([], [], ls="-.", color="0.3", lw=0.8,
-                           label="the controller takes over"))  # fmt: skip
+        keys.append(line([], [], "the controller takes over", dash="dashdot", color="0.3",
+                         width=0.8))  # fmt: skip
     return keys
 
 
-def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
-    """One panel per (column, group); y-limits of a row from the runs that stay bounded
-    (shared by the row's panels); a run leaving them is clipped and marked (a triangle
-    where it leaves, a cross where a stopped run ends, both in the legend)."""
+def exit_marks(t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str,
+                size: float) -> list[dict[str, Any]]:  # fmt: skip
+    """A triangle at the axes' edge wherever ``y`` leaves ``[lo, hi]`` (:func:`exits`)."""
+    return [{**line([t[k]], [hi if above else lo], marker="^" if above else "v", color=colour,
+                    size=size, width=1.5, gid="clipped"), "zorder": 5, "clip": False}
+            for k, above in exits(y, lo, hi)]  # fmt: skip
+
+
+def figure_spec(fig: Figure, results: Sequence[tuple[Run, RunResult]]) -> dict[str, Any]:
+    """A report figure as a spec (:mod:`glider_cosim.figures.spec`): one panel per
+    (column, group); y-limits of a row from the runs that stay bounded (shared by the
+    row's panels); a run leaving them is clipped and marked (a triangle where it leaves,
+    a cross where a stopped run ends, both in the legend)."""
     import textwrap
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib import rcParams
+    from matplotlib.colors import to_hex
 
     groups = list(dict.fromkeys(run.group for run, _ in results)) if fig.by_group else [""]
     nrow, ncol = len(fig.panels), len(groups)
     width = 8.0 if ncol == 1 else 4.3 * ncol
-    f, axes = plt.subplots(nrow, ncol, figsize=(width, 2.6 * nrow + 0.6), sharex=True,
-                           squeeze=False, layout="constrained")  # fmt: skip
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = [to_hex(c) for c in rcParams["axes.prop_cycle"].by_key()["color"]]
     colour = {run.label: colours[i % len(colours)] for i, (run, _) in enumerate(results)}
     clipped = stopped = marked = False
+    panels = []
     for i, (col, ylabel) in enumerate(fig.panels):
         series = [(run, r, r.data[:, 0], r.column(col) * DEG) for run, r in results
                   if col in r.columns and len(r.data)]  # fmt: skip
         for j, g in enumerate(groups):
-            ax = axes[i, j]
             mine = [y for run, r, _, y in series if _bounded(r)
                     and (fig.share_y or not fig.by_group or run.group == g)]  # fmt: skip
             lim = None
@@ -91,59 +94,58 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
                 hi = max(float(np.max(y)) for y in mine)
                 pad = 0.08 * max(hi - lo, 1.0)
                 lim = (lo - pad, hi + pad)
+            lines = []
             for run, r, t, y in series:
                 if fig.by_group and run.group != g:
                     continue
                 c = colour[run.label]
                 notes = []
                 if lim is not None:
-                    clipped |= mark_exits(ax, t, y, lim[0], lim[1], c, 8, gid="clipped") > 0
+                    marks = exit_marks(t, y, lim[0], lim[1], c, 8.0)
+                    lines += marks
+                    clipped |= len(marks) > 0
                 if r.status != "ok":
                     notes.append(f"stopped at {t[-1]:.1f} s")
                     y_end = y[-1] if lim is None else min(max(y[-1], lim[0]), lim[1])
-                    ax.plot(t[-1], y_end, marker="x", color=c, ms=8, mew=2, clip_on=False,
-                            zorder=5)  # fmt: skip
+                    lines.append({**line([t[-1]], [y_end], marker="x", color=c, size=8.0,
+                                         width=1.5), "lines": True, "mew": 2.0, "clip": False,
+                                  "zorder": 5})  # fmt: skip
                 for ev in r.metrics.get("events") or ():  # the takeover, in the run's colour
                     if ev["kind"] in ("takeover", "enable"):
-                        ax.axvline(ev["time_s"], color=c, ls="-.", lw=0.8, alpha=0.8,
-                                   gid=f"event:{ev['kind']}")  # fmt: skip
+                        lines.append(line([ev["time_s"]], [0.0], color=c, dash="dashdot",
+                                          width=0.8, alpha=0.8, span="x",
+                                          gid=f"event:{ev['kind']}"))  # fmt: skip
                         marked = True
                 label = run.label + (f" ({'; '.join(notes)})" if notes else "")
-                ax.plot(t, y, lw=1.0, color=c, label=label if i == 0 else None)
+                lines.append(line(t, y, label if i == 0 else "", color=c))
                 stopped |= r.status != "ok"
-            if lim is not None:
-                ax.set_ylim(*lim)
             if col in ("plant.theta_g", "observer.theta_g_hat"):
                 th = next((r.metrics.get("theta_ge_rad") for _, r in results), None)
                 if th is not None:
-                    ax.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
-            ax.grid(alpha=0.3)
-            if j == 0:
-                ax.set_ylabel(ylabel, fontsize=8)
-            if i == 0 and fig.by_group:
-                ax.set_title(g, fontsize=9)
-            if i == nrow - 1:
-                ax.set_xlabel("time [s]")
-    keys = _keys(clipped, stopped, marked)
-    if fig.by_group:  # legends under each column, out of the curves' way
-        for j in range(ncol):
-            h, lab = axes[0, j].get_legend_handles_labels()
-            h += keys
-            lab += [k.get_label() for k in keys]
-            axes[-1, j].legend(h, lab, fontsize=7, loc="upper center", ncol=1,
-                               bbox_to_anchor=(0.5, -0.28))  # fmt: skip
-    else:  # one legend under the panels: the runs, the equilibrium and the marks
-        found = {}
-        for ax in axes[:, 0]:
-            found.update(zip(*reversed(ax.get_legend_handles_labels()), strict=True))
-        found.update({k.get_label(): k for k in keys})
-        f.legend(list(found.values()), list(found), loc="outside lower center",
-                 ncol=min(len(found), 3), fontsize=7)  # fmt: skip
-    f.suptitle("\n".join(textwrap.wrap(fig.title, int(width * 13))), fontsize=10)
-    path = out / f"{fig.key}.png"
-    f.savefig(path, dpi=100)
-    plt.close(f)
-    return path
+                    lines.append(line([0.0], [th * DEG], "equilibrium", color="k",
+                                      dash="dotted", width=0.8, span="y"))  # fmt: skip
+            p = panel(lines, title=g if i == 0 and fig.by_group else "", row=i, grid=0.3,
+                      xlabel="time [s]" if i == nrow - 1 else "",
+                      ylabel=ylabel if j == 0 else "")  # fmt: skip
+            if lim is not None:  # the equilibrium, drawn after them, does not widen them
+                set_limits(p, ylim=lim)
+            p.update(
+                col=j,
+                **({"ylabel_pt": 8.0} if j == 0 else {}),
+                **({"title_pt": 9.0} if p["title"] else {}),
+            )
+            panels.append(p)
+    share_x(panels)
+    title = "\n".join(textwrap.wrap(fig.title, int(width * 13)))
+    return {**sheet(panels, (width, 2.6 * nrow + 0.6)), "title": title, "suptitle": title,
+            "suptitle_pt": 10.0, "layout": "constrained", "sharex": True,
+            "legend_below": True, "legend_columns": fig.by_group, "legend_pt": 7.0,
+            "legend_ncol": 3, "keys": _keys(clipped, stopped, marked)}  # fmt: skip
+
+
+def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """``<key>.png``: :func:`figure_spec` drawn."""
+    return draw_png(figure_spec(fig, results), out / f"{fig.key}.png")
 
 
 def steps_spec(study: dict[str, Any]) -> dict[str, Any]:

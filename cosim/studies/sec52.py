@@ -28,7 +28,7 @@ from ..runner.heldtail import (
 from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import load_scenario
-from .report_plots import exits
+from .report_plots import exit_marks
 
 DEG = 180.0 / math.pi
 TAILS_DEG = (15.0, 30.0, 45.0)
@@ -138,12 +138,10 @@ def _panel(run: Sec52Run, row: int, col: int, last_row: bool) -> dict[str, Any]:
              {**line(t, _breaks(true), "true", width=1.5), "zorder": 3},
              {**line(t, _breaks(np.clip(est, lo, hi)), "estimated", width=1.0, dash="dashed",
                      color="tab:orange"), "zorder": 3.5}]  # fmt: skip
-    found = exits(est, lo, hi)
-    for n, (k, above) in enumerate(found, 1):  # every exit; the last one named
-        name = "the estimate leaves the axes (clipped there)" if n == len(found) else ""
-        lines.append({**line([t[k]], [hi if above else lo], name, marker="^" if above else "v",
-                             color="tab:orange", size=7.0, width=1.5, gid="clipped"),
-                      "zorder": 5, "clip": False})  # fmt: skip
+    marks = exit_marks(t, est, lo, hi, "tab:orange", 7.0)  # every exit; the last one named
+    if marks:
+        marks[-1].update(name="the estimate leaves the axes (clipped there)", legend=True)
+    lines += marks
     lines.append(line([run.t_start] * 2, [lo, hi], "observer starts", color="k",
                       dash="dotted", width=0.8))  # fmt: skip
     title = f"tail held at {run.tail_deg:g} deg, K_udelta = {run.k_udelta:g}"

@@ -3,7 +3,7 @@ Figs. 11-20, Fig. 8 and the region of attraction every plot keeps a readable wid
 legend stands beside a grid's panel, no two tick labels touch, and each row heading
 (passivity / P / PI law) stands over its own rows. The page is drawn by the report's
 own plotting functions from made-up runs (no FMU run), as ``glider-cosim report``
-draws it (Fig. 8 and the region of attraction from their specs), and laid out by
+draws it (every figure but Figs. 11-20 from its spec), and laid out by
 headless Chromium."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures.mpl import draw_png
 from glider_cosim.figures.pages import keep_figures, write_report_page
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import plot_figure, plot_sec53
+from glider_cosim.studies.report_plots import figure_spec, plot_sec53
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
@@ -77,16 +77,16 @@ def _roa_maps() -> list[RoaMap]:
 def page(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
     with keep_figures() as figures:
-        plot_figure(_by_key("fig2"), _runs_of("fig2", ("plant.theta_g",)), out)
-        plot_figure(_by_key("fig3-4"), _runs_of("fig3-4", ("controller.delta_cmd",
-                                                           "plant.theta_g")), out)  # fmt: skip
+        fig2 = figure_spec(_by_key("fig2"), _runs_of("fig2", ("plant.theta_g",)))
+        fig34 = figure_spec(_by_key("fig3-4"), _runs_of("fig3-4", ("controller.delta_cmd",
+                                                                   "plant.theta_g")))  # fmt: skip
         plot_sec53(_by_key("fig11-20"), _sec53_runs(), out)
-        specs = [sec52_spec(_sec52_runs()), roa_spec(_roa_maps())]  # PNG and page from each
-        for spec, name in zip(specs, ("fig8.png", "roa.png"), strict=True):
-            draw_png(spec, out / name)
-        write_report_page(
-            out, [*figures, *specs], {"How this report was made": {"command": "test"}}
-        )
+        specs = [fig2, fig34, *figures, sec52_spec(_sec52_runs()), roa_spec(_roa_maps())]
+        for spec, name in zip(specs, ("fig2", "fig3-4", "", "fig8", "roa"), strict=True):
+            if name:  # each spec's PNG and its page drawn from it
+                draw_png(spec, out / f"{name}.png")
+        made = {"How this report was made": {"command": "test"}}
+        write_report_page(out, specs, made)
     return out / "report.html"
 
 
