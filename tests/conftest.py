@@ -116,19 +116,6 @@ def test_fmus(tmp_path_factory) -> dict[str, Path]:
         }
 
 
-@pytest.fixture
-def kept(monkeypatch):
-    """The matplotlib figures closed within the test, kept open for it to read (closed
-    after it): the report's plotting functions close each figure once its PNG is saved."""
-    import matplotlib.pyplot as plt
-
-    figs, close = [], plt.close
-    monkeypatch.setattr(plt, "close", figs.append)
-    yield figs
-    for f in figs:
-        close(f)
-
-
 def pytest_sessionfinish(session, exitstatus):
     """Fail the session if it left temporary files (see :func:`pytest_configure`)."""
     leaked = _leaked_temp_files(session.config)

@@ -15,7 +15,7 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import figure_spec, plot_sec53, steps_spec
+from glider_cosim.studies.report_plots import figure_spec, sec53_spec, steps_spec
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
@@ -86,12 +86,12 @@ def _problems(axis: list[str], other: list[str]) -> list[str]:
 
 
 def _report_figures(tmp_path) -> list[dict]:
-    """Draws the report's matplotlib figures; the specs of the others."""
+    """The report's figures' specs."""
     by = {f.key: f for f in FIGURES}
     figs = [figure_spec(by[key], [(run, _run("stopped" if k else "ok"))
                                   for k, run in enumerate(by[key].runs)])
             for key in ("fig2", "fig3-4", "fig5-6")]  # fmt: skip
-    plot_sec53(by["fig11-20"], [(run, _run()) for run in by["fig11-20"].runs], tmp_path)
+    figs.append(sec53_spec(by["fig11-20"], [(run, _run()) for run in by["fig11-20"].runs]))
     t = np.linspace(0.0, 60.0, 601)
     trace = THETA_E + 0.01 * np.sin(t)
     steps = steps_spec({"traces": {"t": t, "50 Hz": trace, "200 Hz": trace,
@@ -114,14 +114,13 @@ def test_the_rule_flags_a_value_without_its_unit():
     assert axis_label_problem("K_c") and not axis_label_problem("K_c [1]")
 
 
-def test_every_report_figure_labels_its_quantities_with_units(kept, tmp_path, monkeypatch):
-    from matplotlib.figure import Figure
+def test_every_report_figure_labels_its_quantities_with_units(tmp_path):
+    from glider_cosim.figures.mpl import draw
 
-    monkeypatch.setattr(Figure, "savefig", lambda *a, **k: None)  # the labels, not the PNGs
     specs = _report_figures(tmp_path)
-    assert (len(kept), len(specs)) == (1, 6)
-    problems = [p for f in kept for p in _problems(*_mpl_labels(f))]
-    problems += [p for s in specs for p in _problems(*_spec_labels(s))]
+    assert len(specs) == 7
+    problems = [p for s in specs for p in _problems(*_spec_labels(s))]
+    problems += [p for s in specs for p in _problems(*_mpl_labels(draw(s)))]  # as drawn
     assert problems == []
 
 

@@ -11,7 +11,7 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures import plots as run_plots
 from glider_cosim.figures.mpl import draw
 from glider_cosim.studies.figures import FIGURES, Figure, Run
-from glider_cosim.studies.report_plots import figure_spec, plot_figure, plot_sec53
+from glider_cosim.studies.report_plots import figure_spec, plot_figure, plot_sec53, sec53_spec
 
 
 def _clipped(ax):
@@ -50,16 +50,19 @@ def test_fig5_6_title_one_line_every_exit_marked_legend_outside(tmp_path):
         assert len(_clipped(ax)) == exits
 
 
-def test_fig11_20_legend_names_the_stop_line_of_the_tail_panel(kept, tmp_path):
+def test_fig11_20_legend_names_the_stop_line_of_the_tail_panel(tmp_path):
     t = np.linspace(0, 10, 501)
     cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
             "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
     stopped = FakeRun(cols, status="stopped", feedback="observer",
                       metrics={"outcome": "stopped"}, message="plant: fmi2Error")  # fmt: skip
     fig = Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True)
-    plot_sec53(fig, [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer")),
-                     (Run("b", "x", group="g"), stopped)], tmp_path)  # fmt: skip
-    (f,) = kept
+    runs = [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer")),
+            (Run("b", "x", group="g"), stopped)]  # fmt: skip
+    png = plot_sec53(fig, runs, tmp_path)  # fig11-20.png: the spec drawn
+    f = draw(sec53_spec(fig, runs))
+    f.savefig(tmp_path / "again.png", dpi=90)
+    assert png.read_bytes() == (tmp_path / "again.png").read_bytes()
     labels = [x.get_text() for x in f.legends[0].get_texts()]
     assert "stop" in labels and "stop (tail panel)" in labels and "tail command" in labels
     assert "cross and red line: the run stops" in f.get_suptitle()
@@ -128,30 +131,27 @@ def test_fig8_has_one_legend_under_the_panels_and_the_stop_in_the_title(tmp_path
     assert f.get_axes()[0].get_title().endswith(": stops at 4.00 s")
 
 
-def test_fig11_20_spec_puts_each_law_over_its_rows_not_in_the_title(kept, tmp_path):
-    from glider_cosim.figures.figure_data import figure_spec
-
+def test_fig11_20_spec_puts_each_law_over_its_rows_not_in_the_title(tmp_path):
     t = np.linspace(0, 10, 501)
     cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
             "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
     runs = [(Run(f"{g} {k}", "x", group=g), FakeRun(cols, feedback="observer"))
             for g in ("passivity law", "P law") for k in (1, 2)]  # fmt: skip
-    plot_sec53(Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True), runs,
-               tmp_path)  # fmt: skip
-    (f,) = kept
-    spec = figure_spec(f)
+    spec = sec53_spec(Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True),
+                      runs)  # fmt: skip
     assert "law" not in spec["title"]
     rows = {p["row"]: p["heading"] for p in spec["panels"]}
     assert rows == {0: "passivity law", 1: "passivity law", 2: "P law", 3: "P law"}
+    f = draw(spec)  # each heading over its rows, in the PNG as on the page
+    assert [sub.get_suptitle() for sub in f.subfigs] == ["passivity law", "P law"]
 
 
-def test_fig11_20_tail_axis_is_linear_with_evenly_spaced_ticks(kept, tmp_path):
+def test_fig11_20_tail_axis_is_linear_with_evenly_spaced_ticks(tmp_path):
     t = np.linspace(0, 10, 501)
     cols = {"plant.theta_g": THETA_E + 0 * t, "plant.theta": THETA_E + 0 * t,
             "controller.delta_cmd": 0.1 * np.sin(t)}  # fmt: skip
     fig = Figure("fig11-20", "Figs. 11-20", (), FIGURES[3].panels, by_group=True)
-    plot_sec53(fig, [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer"))], tmp_path)
-    (f,) = kept
+    f = draw(sec53_spec(fig, [(Run("a", "x", group="g"), FakeRun(cols, feedback="observer"))]))
     (tail,) = [ax for ax in f.get_axes() if ax.get_ylabel() == "tail cmd [deg]"]
     assert tail.get_yscale() == "linear"
     ticks = list(tail.get_yticks())

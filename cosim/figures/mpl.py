@@ -10,7 +10,8 @@ are matplotlib's own: drawing the same spec with matplotlib keeps one spec forma
 and one place per figure, without a second rasterizer to keep (see the code-layout page).
 
 What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``
-(``title_pt``), ``ylabel_pt``,
+(``title_pt``), ``ylabel_pt``, ``yticks`` (fixed), ``heading`` (panels of one heading:
+a subfigure of its rows under it, in bold, ``heading_pt``),
 ``xlabel``, ``ylabel``, ``xlim``, ``ylim``, ``inverted``, ``log``, ``grid`` (the grid
 lines' alpha, none if absent), ``colorbar`` (the label of the colour key of the lines
 with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers of
@@ -18,7 +19,8 @@ with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers
 its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
 ``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
 ``legend_below`` (one legend of the panels' lines under them, ``legend_ncol`` columns,
-``legend_pt``; ``legend_columns``: false, of the first column's lines; true, one under
+``legend_pt``, ``legend_order`` ``"column"``: its names down each column first;
+``legend_columns``: false, of the first column's lines; true, one under
 each column; ``keys``: lines in the legend alone), a line's ``zorder``,
 ``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` count there),
 ``layout`` (``"constrained"``; else tight), ``sharex``, ``sharey``, ``height_ratios``
@@ -80,6 +82,10 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any], below: bool) -> None:
         ax.legend(fontsize=p["legend_pt"])
     if p.get("grid"):
         ax.grid(alpha=p["grid"])
+    if "yticks" in p:  # fixed ticks (a linear axis with its limits marked)
+        from matplotlib.ticker import FixedLocator
+
+        ax.yaxis.set_major_locator(FixedLocator(p["yticks"]))
 
 
 def _keys(lines: list[dict[str, Any]]) -> dict[str, Any]:
@@ -111,6 +117,10 @@ def _legend_below(fig: Any, axes: Any, spec: dict[str, Any]) -> None:
                                loc="upper center", ncol=1,
                                bbox_to_anchor=(0.5, -0.28))  # fmt: skip
         return
+    if spec.get("legend_order") == "column":  # down each column of a heading, then across
+        heads = list(dict.fromkeys(p.get("heading", "") for p in panels))
+        panels = sorted(panels, key=lambda p: (heads.index(p.get("heading", "")), p["col"],
+                                               p["row"]))  # fmt: skip
     cols = {p["col"] for p in panels} if spec.get("legend_columns") is None else {0}
     keys = _keys([ln for p in panels if p["col"] in cols for ln in p["lines"]]
                  + spec.get("keys", []))  # fmt: skip
@@ -131,9 +141,19 @@ def draw(spec: dict[str, Any]) -> Any:
     ncol = 1 + max(p["col"] for p in panels)
     layout = spec.get("layout")  # "constrained", or tight around the caption
     fig = Figure(figsize=spec["size_in"], layout=layout)
-    axes = fig.subplots(nrow, ncol, squeeze=False, sharex=spec.get("sharex", False),
-                        sharey=spec.get("sharey", False),
-                        height_ratios=spec.get("height_ratios") or None)  # fmt: skip
+    share = {"sharex": spec.get("sharex", False), "sharey": spec.get("sharey", False)}
+    headings = [h for h in dict.fromkeys(p.get("heading", "") for p in panels) if h]
+    if headings:  # rows under a heading: a subfigure each, of equal rows, stacked
+        per = nrow // len(headings)
+        subs = fig.subfigures(len(headings), 1, squeeze=False)[:, 0]
+        axes = np.vstack([sub.subplots(per, ncol, squeeze=False, **share,
+                                       height_ratios=spec.get("height_ratios") or None)
+                          for sub in subs])  # fmt: skip
+        for sub, h in zip(subs, headings, strict=True):
+            sub.suptitle(h, fontsize=spec.get("heading_pt", 11.0), fontweight="bold")
+    else:
+        axes = fig.subplots(nrow, ncol, squeeze=False, **share,
+                            height_ratios=spec.get("height_ratios") or None)  # fmt: skip
     used = np.zeros((nrow, ncol), dtype=bool)
     below = bool(spec.get("legend_below"))
     for p in panels:
@@ -168,12 +188,13 @@ def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
     path : str or Path
         The PNG written.
     dpi : int
-        Pixels per inch; the figure is ``size_in`` inches.
+        Pixels per inch (the spec's ``dpi`` if it has one); the figure is ``size_in``
+        inches.
 
     Returns
     -------
     Path
         ``path``.
     """
-    draw(spec).savefig(path, dpi=dpi)
+    draw(spec).savefig(path, dpi=spec.get("dpi", dpi))
     return Path(path)

@@ -23,7 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from .figure_data import PageError
+
+class PageError(ValueError):
+    """A figure that cannot be drawn as a page, or a page that cannot be written."""
+
 
 #: what BokehJS needs: the library and its plotting API, in this order
 BOKEH_FILES = ("bokeh.min.js", "bokeh-api.min.js")
@@ -270,7 +273,7 @@ def _data(figures: Sequence[dict[str, Any]], label_width: int) -> dict[str, Any]
 
 def page_scripts(figures: Sequence[dict[str, Any]], label_width: int) -> str:
     """The ``<script>`` elements that draw ``figures`` (specs of
-    :func:`~glider_cosim.figures.figure_data.figure_spec`) into the page's
+    :mod:`~glider_cosim.figures.spec`) into the page's
     ``<div id="glider-figure-N">`` elements, after the page has loaded."""
     data = json.dumps(_data(figures, label_width), allow_nan=True, default=float)
     data = data.replace("</", "<\\/")  # NaN and Infinity are JavaScript, not JSON

@@ -1,14 +1,12 @@
 """Interactive HTML pages of a run's or a report's figures (``plots.html``, ``report.html``).
 
-A run's figures are its plots' specs (:mod:`.plots`), the ones its PNGs are drawn from;
-a report's are its matplotlib figures, read back artist by artist (:func:`figure_spec`:
-every line with its label, colour and style, the equilibrium and event lines, images,
-the axes' titles, labels and limits). Either way what a figure shows is defined once,
-where the PNG is drawn. :func:`write_page` writes them into one
-self-contained file that BokehJS draws in the browser (:mod:`.page_script`: bokeh's
-JavaScript inline from the installed package, nothing fetched, no bokeh imported in
-Python); each figure zooms (box and wheel), shows values on hover and hides a series
-clicked in its legend. No data are downsampled.
+A run's figures are its plots' specs (:mod:`.plots`), the ones its PNGs are drawn from
+(by :mod:`.raster`); a report's are its figures' specs, the ones its PNGs are drawn from
+(by :mod:`.mpl`). Either way what a figure shows is defined once, in its spec.
+:func:`write_page` writes them into one self-contained file that BokehJS draws in the
+browser (:mod:`.page_script`: bokeh's JavaScript inline from the installed package,
+nothing fetched, no bokeh imported in Python); each figure zooms (box and wheel), shows
+values on hover and hides a series clicked in its legend. No data are downsampled.
 """
 
 from __future__ import annotations
@@ -19,8 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from .figure_data import PageError, figure_spec
-from .page_script import page_scripts
+from .page_script import PageError, page_scripts
 
 #: the ``class`` of each figure's ``<div>`` in a page (a test counts them after load)
 FIGURE_CLASS = "glider-figure"
@@ -79,7 +76,7 @@ def write_page(
     figures: Sequence[dict[str, Any]],
     settings: dict[str, Any],
 ) -> Path:
-    """Write one self-contained HTML page of ``figures`` (from :func:`figure_spec`).
+    """Write one self-contained HTML page of ``figures`` (specs: :mod:`.spec`).
 
     Parameters
     ----------
@@ -166,40 +163,14 @@ def page_not_written(err: BaseException | str) -> None:
                                         "and PNGs are kept", err)  # fmt: skip
 
 
-class keep_figures:  # noqa: N801 - used as a context manager, like contextlib's
-    """Within the block, ``matplotlib.pyplot.close(fig)`` keeps ``fig`` (in the list the
-    block gets) instead of closing it: the report's plotting functions close their
-    figures after saving the PNG, and the page draws them again. Closed on exit."""
-
-    def __enter__(self) -> list[Any]:
-        import matplotlib.pyplot as plt
-
-        self._plt, self._close, self.figures = plt, plt.close, []
-        plt.close = self._keep
-        return self.figures
-
-    def _keep(self, fig: Any = None) -> None:
-        if fig is None or isinstance(fig, str | int):
-            self._close(fig)
-        elif fig not in self.figures:
-            self.figures.append(fig)
-
-    def __exit__(self, *exc: object) -> None:
-        self._plt.close = self._close
-        for f in self.figures:
-            self._close(f)
-
-
-def write_report_page(out: Path, figures: Sequence[Any], settings: dict[str, Any]) -> dict:
-    """``report.html`` from the report's figures, in this order: specs (a dict, the one
-    its PNG was drawn from: :mod:`.mpl`) or matplotlib figures (read back, until each is a
-    spec: issue 49); a failure is a logged warning (report.md, report.json and the PNGs
-    stay as written)."""
+def write_report_page(out: Path, specs: Sequence[dict[str, Any]], settings: dict[str, Any]) -> dict:
+    """``report.html`` from the report's figure specs (the ones its PNGs are drawn from:
+    :mod:`.mpl`), in this order; a failure is a logged warning (report.md, report.json and
+    the PNGs stay as written)."""
     import logging
 
     path = Path(out) / "report.html"
     try:
-        specs = [f if isinstance(f, dict) else figure_spec(f) for f in figures]
         return {"page": write_page(path, "glider-cosim report", specs, settings)}
     except (PageError, OSError, ValueError, TypeError, ImportError) as err:
         logging.getLogger(__name__).warning("report.html not written (%s); report.md and "

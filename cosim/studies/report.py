@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..figures.mpl import draw_png
-from ..figures.pages import keep_figures, run_settings, write_report_page
+from ..figures.pages import run_settings, write_report_page
 from ..progress import Progress, dask_start, home
 from ..runner.monolithic import COLUMNS, simulate_continuous, simulate_monolithic
 from ..runner.run import RunResult, simulate
@@ -25,7 +25,7 @@ from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
 from .figures import FIGURES, Run
 from .kc_map import kc_map
-from .report_plots import figure_spec, plot_sec53, steps_spec
+from .report_plots import figure_spec, sec53_spec, steps_spec
 from .report_text import provenance_markdown, report_markdown
 from .sec52 import held_tail_study, run_sec52, sec52_markdown, sec52_spec
 
@@ -208,31 +208,27 @@ def _build(
     every_run = [r for runs in results.values() for _, r in runs]
     every_run += [study["literal"], *(x.result for x in sec52)]
     made = report_provenance(every_run, options, roa_grid, maps)
-    with keep_figures() as figures:  # the PNGs' figures, drawn again as report.html
-        pngs, specs = {}, []  # specs: the figures' PNGs and the page are drawn from them
-        for fig in FIGURES:
-            bar.step(f"report: drawing {fig.key}")
-            if fig.key == "fig11-20":  # a matplotlib figure still: the page reads it back
-                pngs[fig.key] = plot_sec53(fig, results[fig.key], out)
-                specs.append(figures[-1])
-            else:
-                specs.append(figure_spec(fig, results[fig.key]))
-                pngs[fig.key] = draw_png(specs[-1], out / f"{fig.key}.png")
-        bar.step("report: drawing the step study")
-        specs.append(steps_spec(study))
-        pngs["steps"] = draw_png(specs[-1], out / "communication_step.png")
-        bar.step("report: drawing fig8")
-        specs.append(sec52_spec(sec52))
-        pngs["fig8"] = draw_png(specs[-1], out / "fig8.png")
-        if roa_grid is not None:
-            bar.step("report: drawing the region-of-attraction map")
-        if maps:
-            specs.append(roa_spec(maps))
-            roa_lines = roa_markdown(maps, draw_png(specs[-1], out / "roa.png"), an)
-        if page:
-            bar.step("report: writing report.html")
-            settings = {"How this report was made": made, **report_settings(results)}
-            html_page = write_report_page(out, specs, settings).get("page")
+    pngs, specs = {}, []  # specs: the figures' PNGs and the page are drawn from them
+    for fig in FIGURES:
+        bar.step(f"report: drawing {fig.key}")
+        spec = (sec53_spec if fig.key == "fig11-20" else figure_spec)(fig, results[fig.key])
+        specs.append(spec)
+        pngs[fig.key] = draw_png(spec, out / f"{fig.key}.png")
+    bar.step("report: drawing the step study")
+    specs.append(steps_spec(study))
+    pngs["steps"] = draw_png(specs[-1], out / "communication_step.png")
+    bar.step("report: drawing fig8")
+    specs.append(sec52_spec(sec52))
+    pngs["fig8"] = draw_png(specs[-1], out / "fig8.png")
+    if roa_grid is not None:
+        bar.step("report: drawing the region-of-attraction map")
+    if maps:
+        specs.append(roa_spec(maps))
+        roa_lines = roa_markdown(maps, draw_png(specs[-1], out / "roa.png"), an)
+    if page:
+        bar.step("report: writing report.html")
+        settings = {"How this report was made": made, **report_settings(results)}
+        html_page = write_report_page(out, specs, settings).get("page")
     text = report_markdown(results, an, study, pngs,
                      sec52_markdown(held, sec52, pngs["fig8"]) + roa_lines, kc_rows)  # fmt: skip
     text += "\n" + "\n".join(provenance_markdown(made))

@@ -187,91 +187,78 @@ SEC53_TAIL_TICKS = (-90.0, -45.0, 0.0, 45.0, 90.0)
 SEC53_FROM = 20.0
 
 
-def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
-    """Figs. 11-20 as small multiples: one row per law family, one column per run; per
-    run the glide angle and pitch over the tail command, on the same fixed axes in every
-    panel (angles -70..40 deg, clipped with a triangle where a run leaves them; the tail
-    on a linear scale to +-100 deg, its +-90 deg limit dotted). Each heading names
-    the run, its feedback and how it ends; the takeover (dash-dot) and a stop (cross)
-    are marked."""
-    import matplotlib
+def _sec53_panels(run: Run, r: RunResult, row: int, col: int, xlim: tuple[float, float],
+                  last: bool) -> list[dict[str, Any]]:  # fmt: skip
+    """One run's two panels of Figs. 11-20: the angles over the tail command."""
+    t = r.data[:, 0]
+    lo, hi = SEC53_ANGLES
+    top = []
+    for c, label, lw, colour in (("plant.theta_g", "glide angle", 1.3, "tab:blue"),
+                                 ("plant.theta", "pitch", 0.8, "tab:orange")):  # fmt: skip
+        y = r.column(c) * DEG
+        top.append(line(t, np.clip(y, lo, hi), label, color=colour, width=lw))
+        top += exit_marks(t, y, lo, hi, colour, 7.0)
+    th = r.metrics.get("theta_ge_rad")
+    if th is not None:
+        top.append(line([0.0], [th * DEG], "equilibrium", color="k", dash="dotted",
+                        width=0.8, span="y"))  # fmt: skip
+    bottom = [line(t, r.column("controller.delta_cmd") * DEG, "tail command",
+                   color="tab:green")]  # fmt: skip
+    dmax = float(r.scenario.parameters.get("controller", {}).get("delta_max", math.pi / 2))
+    bottom += [line([0.0], [sign * dmax * DEG], color="#666666", dash="dotted", width=0.8,
+                    span="y") for sign in (1, -1)]  # fmt: skip
+    for ev in r.metrics.get("events") or ():
+        if ev["kind"] == "takeover":
+            for lines, name in ((top, "takeover"), (bottom, "")):
+                lines.append(line([ev["time_s"]], [0.0], name, color="k", dash="dashdot",
+                                  width=0.9, span="x", gid="event:takeover"))  # fmt: skip
+    if r.status != "ok":
+        y_end = float(np.clip(r.column("plant.theta_g")[-1] * DEG, lo, hi))
+        top.append({**line([t[-1]], [y_end], "stop", marker="x", color="#ff0000", size=9.0,
+                           width=1.5, gid="event:stop"),
+                    "lines": True, "mew": 2.0, "clip": False, "zorder": 6})  # fmt: skip
+        bottom.append(line([t[-1]], [0.0], "stop (tail panel)", color="#ff0000", width=0.8,
+                           span="x", gid="event:stop"))  # fmt: skip
+    first = {"ylabel_pt": 8.0} if col == 0 else {}
+    p_top = panel(top, title=f"{run.label}\n{_feedback(r)} feedback: {kc_cell(r)}", row=row,
+                  ylabel="angle [deg]" if col == 0 else "", grid=0.3)  # fmt: skip
+    p_bottom = panel(bottom, row=row + 1, grid=0.3, xlabel="time [s]" if last else "",
+                     ylabel="tail cmd [deg]" if col == 0 else "")  # fmt: skip
+    set_limits(p_top, xlim=xlim, ylim=(lo, hi))
+    set_limits(p_bottom, xlim=xlim, ylim=(-SEC53_TAIL, SEC53_TAIL))
+    p_top.update(col=col, title_pt=8.5, **first)
+    p_bottom.update(col=col, yticks=list(SEC53_TAIL_TICKS), **first)
+    return [p_top, p_bottom]
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import FixedLocator
 
+def sec53_spec(fig: Figure, results: Sequence[tuple[Run, RunResult]]) -> dict[str, Any]:
+    """Figs. 11-20 as small multiples, a spec (:mod:`glider_cosim.figures.spec`): one row
+    per law family, one column per run; per run the glide angle and pitch over the tail
+    command, on the same fixed axes in every panel (angles -70..40 deg, clipped with a
+    triangle where a run leaves them; the tail on a linear scale to +-100 deg, its +-90
+    deg limit dotted). Each heading names the run, its feedback and how it ends; the
+    takeover (dash-dot) and a stop (cross) are marked."""
     groups = list(dict.fromkeys(run.group for run, _ in results))
-    handles: dict[str, Any] = {}
     ncol = max(sum(1 for run, _ in results if run.group == g) for g in groups)
-    f = plt.figure(figsize=(4.6 * ncol, 4.4 * len(groups) + 0.8), layout="constrained")
-    sub = f.subfigures(len(groups), 1, squeeze=False)[:, 0]
     stop = max(float(r.data[-1, 0]) for _, r in results)
     start = SEC53_FROM if stop > SEC53_FROM + 10 else 0.0
-    colours = {"plant.theta_g": "C0", "plant.theta": "C1", "controller.delta_cmd": "C2"}
+    panels = []
     for gi, g in enumerate(groups):
         runs = [(run, r) for run, r in results if run.group == g]
-        axes = sub[gi].subplots(2, ncol, sharex=True, squeeze=False,
-                                gridspec_kw={"height_ratios": [2, 1.3]})  # fmt: skip
-        sub[gi].suptitle(g, fontsize=11, fontweight="bold")
-        for j in range(ncol):
-            top, bottom = axes[0, j], axes[1, j]
-            if j >= len(runs):
-                top.set_visible(False)
-                bottom.set_visible(False)
-                continue
-            run, r = runs[j]
-            t = r.data[:, 0]
-            end = kc_cell(r)
-            top.set_title(f"{run.label}\n{_feedback(r)} feedback: {end}", fontsize=8.5)
-            lo, hi = SEC53_ANGLES
-            for col, label, lw in (("plant.theta_g", "glide angle", 1.3),
-                                   ("plant.theta", "pitch", 0.8)):  # fmt: skip
-                y = r.column(col) * DEG
-                top.plot(t, np.clip(y, lo, hi), color=colours[col], lw=lw, label=label)
-                mark_exits(top, t, y, lo, hi, colours[col], 7, gid="clipped")
-            th = r.metrics.get("theta_ge_rad")
-            if th is not None:
-                top.axhline(th * DEG, color="k", ls=":", lw=0.8, label="equilibrium")
-            d = r.column("controller.delta_cmd") * DEG
-            bottom.plot(t, d, color=colours["controller.delta_cmd"], lw=1.0, label="tail command")
-            dmax = float(r.scenario.parameters.get("controller", {}).get("delta_max", math.pi / 2))
-            for sign in (1, -1):
-                bottom.axhline(sign * dmax * DEG, color="0.4", ls=":", lw=0.8)
-            bottom.set_ylim(-SEC53_TAIL, SEC53_TAIL)
-            bottom.yaxis.set_major_locator(FixedLocator(SEC53_TAIL_TICKS))
-            top.set_ylim(lo, hi)
-            for ax in (top, bottom):
-                ax.set_xlim(start, stop)
-                ax.grid(alpha=0.3)
-                for ev in r.metrics.get("events") or ():
-                    if ev["kind"] == "takeover":
-                        ax.axvline(ev["time_s"], color="k", ls="-.", lw=0.9,
-                                   gid=f"event:{ev['kind']}",
-                                   label="takeover" if ax is top else None)  # fmt: skip
-            if r.status != "ok":
-                y_end = float(np.clip(r.column("plant.theta_g")[-1] * DEG, lo, hi))
-                top.plot(t[-1], y_end, marker="x", color="r", ms=9, mew=2, clip_on=False,
-                         zorder=6, gid="event:stop", label="stop")  # fmt: skip
-                bottom.axvline(t[-1], color="r", lw=0.8, gid="event:stop",
-                               label="stop (tail panel)")  # fmt: skip
-            if j == 0:
-                top.set_ylabel("angle [deg]", fontsize=8)
-                bottom.set_ylabel("tail cmd [deg]", fontsize=8)
-            if gi == len(groups) - 1:
-                bottom.set_xlabel("time [s]")
-            for ax in (top, bottom):  # every label once, the first panel's first
-                for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                    handles.setdefault(lab, h)
-    f.legend(list(handles.values()), list(handles.keys()), loc="outside lower center",
-             ncol=len(handles), fontsize=8)  # fmt: skip
-    f.suptitle(
-        fig.title + f"\nfrom t = {start:g} s (before the takeover every run is the same 2 deg "
-        "hold); dash-dot: the controller takes over at 1 m depth;\ntriangle: the curve leaves "
-        "the axes (clipped there); cross and red line: the run stops (V or V_hat stalls or "
-        "diverges)",
-        fontsize=10,
-    )
-    path = out / f"{fig.key}.png"
-    f.savefig(path, dpi=90)
-    plt.close(f)
-    return path
+        pairs = [_sec53_panels(run, r, 2 * gi, j, (start, stop), gi == len(groups) - 1)
+                 for j, (run, r) in enumerate(runs)]  # fmt: skip
+        for k in (0, 1):  # row by row, as the page reads a grid
+            panels += [{**pair[k], "heading": g} for pair in pairs]
+    title = (fig.title + f"\nfrom t = {start:g} s (before the takeover every run is the same "
+             "2 deg hold); dash-dot: the controller takes over at 1 m depth;\ntriangle: the "
+             "curve leaves the axes (clipped there); cross and red line: the run stops (V or "
+             "V_hat stalls or diverges)")  # fmt: skip
+    return {**sheet(panels, (4.6 * ncol, 4.4 * len(groups) + 0.8)), "title": title,
+            "suptitle": title, "suptitle_pt": 10.0, "layout": "constrained", "sharex": True,
+            "height_ratios": [2.0, 1.3], "legend_below": True, "legend_order": "column",
+            "dpi": 90}  # fmt: skip
+
+
+def plot_sec53(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path) -> Path:
+    """``fig11-20.png``: :func:`sec53_spec` drawn."""
+    return draw_png(sec53_spec(fig, results), out / f"{fig.key}.png")

@@ -147,19 +147,15 @@ def test_disagreement_comments_carry_the_reason_with_numbers(report):
     assert not [x for x in sec.splitlines() if x.startswith("passivity K_c = 10 (ours): ")]
 
 
-def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir, tmp_path, monkeypatch):
-    import matplotlib.pyplot as plt
-
+def test_figs_11_20_panels_name_feedback_and_mark_the_takeover(fmu_dir):
+    from glider_cosim.figures.mpl import draw
     from glider_cosim.runner import simulate
-    from glider_cosim.studies.report_plots import plot_sec53
+    from glider_cosim.studies.report_plots import sec53_spec
 
     fig = FIGURES[3]
     results = [(run, simulate(apply_overrides(load_scenario(run.scenario), run.overrides), None,
                               fmu_dir=fmu_dir, build=False)) for run in fig.runs]  # fmt: skip
-    kept = []
-    monkeypatch.setattr(plt, "close", kept.append)
-    plot_sec53(fig, results, tmp_path)
-    (f,) = kept
+    f = draw(sec53_spec(fig, results))  # what fig11-20.png and report.html draw
     tops = [ax for ax in f.get_axes() if ax.get_title()]
     assert len(tops) == len(fig.runs)  # one panel per run
     groups = list(dict.fromkeys(run.group for run, _ in results))

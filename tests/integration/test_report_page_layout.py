@@ -3,7 +3,7 @@ Figs. 11-20, Fig. 8 and the region of attraction every plot keeps a readable wid
 legend stands beside a grid's panel, no two tick labels touch, and each row heading
 (passivity / P / PI law) stands over its own rows. The page is drawn by the report's
 own plotting functions from made-up runs (no FMU run), as ``glider-cosim report``
-draws it (every figure but Figs. 11-20 from its spec), and laid out by
+draws it (each figure from its spec), and laid out by
 headless Chromium."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from chromium_page import chromium, layout
 from report_fakes import THETA_E, FakeRun
 
 from glider_cosim.figures.mpl import draw_png
-from glider_cosim.figures.pages import keep_figures, write_report_page
+from glider_cosim.figures.pages import write_report_page
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import figure_spec, plot_sec53
+from glider_cosim.studies.report_plots import figure_spec, sec53_spec
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
@@ -76,17 +76,14 @@ def _roa_maps() -> list[RoaMap]:
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    with keep_figures() as figures:
-        fig2 = figure_spec(_by_key("fig2"), _runs_of("fig2", ("plant.theta_g",)))
-        fig34 = figure_spec(_by_key("fig3-4"), _runs_of("fig3-4", ("controller.delta_cmd",
-                                                                   "plant.theta_g")))  # fmt: skip
-        plot_sec53(_by_key("fig11-20"), _sec53_runs(), out)
-        specs = [fig2, fig34, *figures, sec52_spec(_sec52_runs()), roa_spec(_roa_maps())]
-        for spec, name in zip(specs, ("fig2", "fig3-4", "", "fig8", "roa"), strict=True):
-            if name:  # each spec's PNG and its page drawn from it
-                draw_png(spec, out / f"{name}.png")
-        made = {"How this report was made": {"command": "test"}}
-        write_report_page(out, specs, made)
+    specs = [figure_spec(_by_key("fig2"), _runs_of("fig2", ("plant.theta_g",))),
+             figure_spec(_by_key("fig3-4"), _runs_of("fig3-4", ("controller.delta_cmd",
+                                                                "plant.theta_g"))),
+             sec53_spec(_by_key("fig11-20"), _sec53_runs()),
+             sec52_spec(_sec52_runs()), roa_spec(_roa_maps())]  # fmt: skip
+    for spec, name in zip(specs, ("fig2", "fig3-4", "fig11-20", "fig8", "roa"), strict=True):
+        draw_png(spec, out / f"{name}.png")  # each spec's PNG; the page drawn from them
+    write_report_page(out, specs, {"How this report was made": {"command": "test"}})
     return out / "report.html"
 
 
