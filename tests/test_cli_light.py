@@ -125,3 +125,54 @@ def test_export_fmu_help_and_its_page_say_the_one_fmu_runs_jacobi_coupling(capsy
     assert "differ from the default run by up to 0.47 deg in glide angle" in text
     page = " ".join((ROOT / "docs" / "how-to" / "export.md").read_text().split())
     assert "**The one FMU runs Jacobi coupling**" in page and "0.47 deg" in page
+
+
+def _options(parser) -> dict[str, dict[str, list]]:
+    """Each command's options: its parser's actions as (flags, dest, default, choices,
+    help)."""
+    sub = next(a for a in parser._actions if hasattr(a, "_choices_actions"))
+    return {
+        name: [(a.option_strings, a.dest, a.default, a.choices, a.help) for a in p._actions]
+        for name, p in sub.choices.items()
+    }
+
+
+def test_a_command_parser_builds_that_command_alone_and_parses_it_the_same():
+    """Issue 48: `main` builds the options of the command it runs alone (10 ms of every
+    command); the others are named with their help. That command's options, its parse of
+    the same arguments and the list of commands are those of the whole parser."""
+    from glider_cosim.cli import build_parser
+
+    whole = build_parser()
+    argv = ["run", "paper", "--no-plots", "--flavor", "native", "--set", "controller.K_c=6",
+            "--step", "0.01", "-q"]  # fmt: skip
+    for command in ("run", "sweep", "verify", "report"):
+        only = build_parser(command)
+        assert _options(only)[command] == _options(whole)[command]
+        others = {n: o for n, o in _options(only).items() if n != command}
+        assert all(len(o) == 1 for o in others.values()), others  # -h alone
+        assert list(_options(only)) == list(_options(whole))
+    assert vars(build_parser("run").parse_args(argv)) == vars(whole.parse_args(argv))
+
+
+def test_the_version_is_one_value_read_without_importlib_metadata():
+    """Issue 48: the cache folders and --version read glider_cosim.__version__, which the
+    installed metadata is made from (pyproject.toml's dynamic version)."""
+    from importlib.metadata import version
+
+    import glider_cosim
+    from glider_cosim.fmus.files import package_version
+
+    assert glider_cosim.__version__ == version("glider-cosim") == package_version()
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" in pyproject["project"]["dynamic"]
+    assert pyproject["tool"]["setuptools"]["dynamic"]["version"] == {
+        "attr": "glider_cosim.__version__"
+    }
+    code = (
+        "import sys; from glider_cosim.fmus.files import package_version; package_version(); "
+        "assert 'importlib.metadata' not in sys.modules, 'importlib.metadata imported'"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, check=False)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]

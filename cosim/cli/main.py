@@ -22,7 +22,7 @@ from typing import NoReturn
 from ..inputs.text import one_line, prefix
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
-from .parser import build_parser, overview
+from .parser import _plain, _version, build_parser
 
 
 def _terminate(signum: int, frame: object) -> None:
@@ -71,15 +71,36 @@ def _matplotlib_cache() -> None:
     os.environ["MPLCONFIGDIR"] = str(folder)
 
 
+#: the first command to try, named by a bare ``glider-cosim``
+FIRST_COMMAND = "glider-cosim run"
+
+
+def overview(parser: argparse.ArgumentParser) -> str:
+    """What a bare ``glider-cosim`` prints: every command with its one-line help, and the
+    first one to try."""
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    width = max(len(c.dest) for c in sub._choices_actions)
+    lines = [f"usage: glider-cosim COMMAND [options]  (glider-cosim {_version()})", "",
+             "commands:"]  # fmt: skip
+    lines += [f"  {c.dest:{width}s}  {_plain(c.help or '')}" for c in sub._choices_actions]
+    lines += [
+        "",
+        f"First try: {FIRST_COMMAND}   (builds the FMUs once, runs the default scenario,",
+        "writes out/default/). Each command's options: glider-cosim COMMAND --help",
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``glider-cosim`` console script (returns the exit code; notes and
     warnings one line each)."""
-    parser = build_parser()
+    given = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(given[0] if given and not given[0].startswith("-") else None)
     args = parser.parse_args(argv)
     if args.command is None:  # a bare ``glider-cosim``: the commands and the first to try
         sys.stdout.write(overview(parser))
         return 0
-    args.argv = list(sys.argv[1:] if argv is None else argv)  # for "resume with: ..."
+    args.argv = given  # for "resume with: ..."
     from .. import progress
 
     was_quiet = progress.is_quiet()  # --quiet for this command only (main runs in tests too)

@@ -10,9 +10,10 @@ import argparse
 import re
 
 from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options, add_overwrite_option
-from ..inputs.text import did_you_mean, one_line, prefix, quote
+from ..inputs.text import did_you_mean, one_line, prefix
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
+from .argtypes import _count, _non_negative, _positive
 
 
 class UsageError(ValueError):
@@ -71,65 +72,49 @@ class _Parser(argparse.ArgumentParser):
             )  # fmt: skip
 
 
-def _number(text: str, zero: bool) -> float:
-    """A finite number > 0 (``zero``: >= 0) from the command line."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{quote(text)} is not a number") from None
-    if not (v >= 0 if zero else v > 0) or v == float("inf"):
-        raise argparse.ArgumentTypeError(
-            f"{quote(text)} is invalid: expected a finite number {'>=' if zero else '>'} 0"
-        )
-    return v
-
-
-def _positive(text: str) -> float:
-    return _number(text, zero=False)
-
-
-def _non_negative(text: str) -> float:
-    return _number(text, zero=True)
-
-
-def _count(text: str) -> int:
-    if not re.fullmatch(r"\+?\d{1,18}", text.strip()) or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"{quote(text)} is invalid: expected an integer >= 1")
-    return int(text)
-
-
 def _version() -> str:
-    """The installed distribution's version ("unknown" from a checkout not installed)."""
-    from importlib.metadata import PackageNotFoundError, version
+    """glider-cosim's version (the installed distribution's: it is read from the same
+    place, :data:`glider_cosim.__version__`)."""
+    from ..fmus.files import package_version
 
-    try:
-        return version("glider-cosim")
-    except PackageNotFoundError:  # pragma: no cover - not installed
-        return "unknown"
+    return package_version()
 
 
-#: the first command to try, named by a bare ``glider-cosim``
-FIRST_COMMAND = "glider-cosim run"
+class _Commands(argparse._SubParsersAction):
+    """The subcommands; with ``only`` given, the other commands are named (with their help:
+    the usage, the list and "did you mean" are whole) but their options are not made, as
+    parsing one command needs only its own (``main``: 10 ms of every command, issue 48)."""
+
+    def __init__(self, *args, only: str | None = None, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.only = only
+
+    def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
+        parser = super().add_parser(name, **kwargs)
+        if self.only is not None and name != self.only:
+            parser.add_argument = parser.add_argument_group = _UNBUILT  # type: ignore[method-assign]
+            parser.add_mutually_exclusive_group = parser.set_defaults = _UNBUILT  # type: ignore[method-assign]
+        return parser
 
 
-def overview(parser: argparse.ArgumentParser) -> str:
-    """What a bare ``glider-cosim`` prints: every command with its one-line help, and the
-    first one to try."""
-    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-    width = max(len(c.dest) for c in sub._choices_actions)
-    lines = [f"usage: glider-cosim COMMAND [options]  (glider-cosim {_version()})", "",
-             "commands:"]  # fmt: skip
-    lines += [f"  {c.dest:{width}s}  {_plain(c.help or '')}" for c in sub._choices_actions]
-    lines += [
-        "",
-        f"First try: {FIRST_COMMAND}   (builds the FMUs once, runs the default scenario,",
-        "writes out/default/). Each command's options: glider-cosim COMMAND --help",
-    ]
-    return "\n".join(lines) + "\n"
+class _Unbuilt:
+    """An unbuilt command's ``add_argument`` and groups: take any call, make nothing."""
+
+    def __call__(self, *args: object, **kwargs: object) -> _Unbuilt:
+        return self
+
+    def __getattr__(self, name: str) -> _Unbuilt:
+        return self
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``glider-cosim`` parser: every subcommand, its options and their defaults."""
+_UNBUILT = _Unbuilt()
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``glider-cosim`` parser: every subcommand, its options and their defaults.
+
+    ``command``: the options of that command alone (what :func:`~.main.main` parses with;
+    any other command would be refused as having no such option)."""
     p = _Parser(prog="glider-cosim", description=__doc__)
     p.add_argument(
         "--version",
@@ -138,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="print glider-cosim's version and exit",
     )
     # not required: a bare ``glider-cosim`` lists the commands (main.py, :func:`overview`)
-    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", parser_class=_Parser, action=_Commands,
+                           only=command)  # fmt: skip
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
     b.add_argument(
@@ -358,9 +344,6 @@ def build_parser() -> argparse.ArgumentParser:
     from ..sweeps.options import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
-    from ..verify.command import add_arguments as add_verify_arguments
-    from ..verify.command import tolerance_arg
-
     v = sub.add_parser(
         "verify",
         help="run the component verification kit on an FMU",
@@ -369,7 +352,10 @@ def build_parser() -> argparse.ArgumentParser:
         "at least one case ran and every case run passed, 1 if a case\n"
         "failed, 2 on bad input, a missing core interface or no case that can run.",
     )
-    add_verify_arguments(v, tolerance_arg)
+    if command in (None, "verify"):
+        from ..verify.command import add_arguments, tolerance_arg
+
+        add_arguments(v, tolerance_arg)
     sub.add_parser(
         "scenarios",
         help="list the shipped scenarios, one line each",

@@ -4,9 +4,7 @@ first, then renamed into place."""
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
-import importlib.metadata
 import os
 import sys
 import zipfile
@@ -18,14 +16,13 @@ from typing import Any
 FLAVOR_FILE = "resources/glider_cosim_flavor.txt"
 
 
-@functools.cache
 def package_version() -> str:
-    """glider-cosim's installed version ("unknown" from a checkout that is not installed);
-    read once a process (each read of the installed metadata costs 2 ms)."""
-    try:
-        return importlib.metadata.version("glider-cosim")
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - not installed
-        return "unknown"
+    """glider-cosim's version (:data:`glider_cosim.__version__`, which the installed
+    metadata is made from): read without ``importlib.metadata``, whose import and lookup
+    cost a run 10 ms (issue 48)."""
+    from .. import __version__
+
+    return __version__
 
 
 def file_sha256(path: Path) -> str:

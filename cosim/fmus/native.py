@@ -16,6 +16,7 @@ with every C file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import logging
 import tempfile
@@ -122,17 +123,35 @@ def source_files(c: NativeComponent, fmi: int = 2) -> list[Path]:
 def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | None = None) -> str:
     """SHA-256 over the C sources, the generated variables, the flags, the compilers
     (``chain``, default :func:`glider_fmi.toolchain.select`), the version and the code
-    that writes the model description (``slave_base.py``, ``derivatives.py``)."""
-    h = hashlib.sha256(vars_header(c).encode())
-    h.update(b"".join((FMI_DIR / w).read_bytes() for w in ("slave_base.py", "derivatives.py")))
-    h.update(f"fmi{fmi}{wasm.fingerprint() if fmi == 3 else ''}".encode())  # + the component
-    h.update(" ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)).encode())
-    h.update(toolchain.fingerprint(chain).encode())
-    h.update(package_version().encode())
-    h.update(osp.fingerprint().encode())
-    for f in source_files(c, fmi):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
+    that writes the model description (``slave_base.py``, ``derivatives.py``).
+
+    Made once a process for the same files (their paths, modification times and sizes):
+    a run's staleness checks ask for it 9 times (issue 48)."""
+    files = [FMI_DIR / w for w in ("slave_base.py", "derivatives.py")] + source_files(c, fmi)
+    stamp = tuple((str(f), st.st_mtime_ns, st.st_size) for f in files for st in [f.stat()])
+    parts = (
+        vars_header(c),
+        f"fmi{fmi}{wasm.fingerprint() if fmi == 3 else ''}",  # + the component
+        " ".join((*CFLAGS, *LINUX_FLAGS, *WIN64_FLAGS)),
+        toolchain.fingerprint(chain),
+        package_version(),
+        osp.fingerprint(),
+    )
+    return _native_digest(parts, stamp)
+
+
+@functools.lru_cache(maxsize=64)
+def _native_digest(parts: tuple[str, ...], stamp: tuple[tuple[str, int, int], ...]) -> str:
+    """:func:`native_hash` of its ``parts`` and the files of ``stamp`` (the first two, the
+    Python code that writes the model description, hashed after the variables)."""
+    header, *rest = parts
+    h = hashlib.sha256(header.encode())
+    h.update(b"".join(Path(path).read_bytes() for path, _, _ in stamp[:2]))
+    for text in rest:
+        h.update(text.encode())
+    for path, _, _ in stamp[2:]:
+        h.update(Path(path).name.encode())
+        h.update(Path(path).read_bytes())
     return h.hexdigest()
 
 
