@@ -120,8 +120,10 @@ def check_system_values(sim: Any, origin: Origin) -> None:
 
 
 def _table(inst: str) -> dict[str, Any]:
-    module, _, cls = SLAVES[inst].partition(":")
-    return {v.name: v for v in getattr(importlib.import_module(module), cls).VARIABLES}
+    """The slave's ``VARIABLES`` from ``glider_<component>.variables`` (the slave's own
+    table, read without importing pythonfmu and the slave: 25-35 ms of a run, issue 48)."""
+    module = SLAVES[inst].partition(".")[0] + ".variables"
+    return {v.name: v for v in importlib.import_module(module).VARIABLES}
 
 
 def our_table(inst: str) -> dict[str, Any]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable
 from typing import Any
 
@@ -65,6 +64,8 @@ def did_you_mean(word: Any, choices: Iterable[Any]) -> str:
     if not isinstance(word, str) or len(word) > QUOTE_LIMIT:
         return ""
     names = {str(c).lower(): str(c) for c in choices}
+    import difflib  # here: only a misspelt word needs it
+
     close = difflib.get_close_matches(word.lower(), list(names), n=1, cutoff=0.6)
     return f"; did you mean {names[close[0]]!r}?" if close else ""
 

@@ -13,7 +13,6 @@ and starts the libpython recorded by :func:`python_config`.
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import importlib.util
 import logging
 import sys
@@ -213,6 +212,8 @@ def site_dirs() -> list[str]:
     process that ran our FMUs, ``pythonfmu`` comes from an FMU's ``resources/`` (a
     temporary folder), which must not end up in an FMU (nor change its build hash).
     """
+    import importlib.metadata  # here: the run's imports of this module need none
+
     dirs = []
     for name in PYTHON_PACKAGES:
         try:

@@ -19,7 +19,7 @@ import importlib.metadata
 import math
 import operator
 from collections.abc import Sequence
-from typing import Any, NamedTuple, Protocol
+from typing import Any
 from xml.etree.ElementTree import Element, SubElement
 
 from pythonfmu.enums import Fmi2Causality, Fmi2Status, Fmi2Variability
@@ -27,29 +27,9 @@ from pythonfmu.fmi2slave import Fmi2Slave
 from pythonfmu.variables import Boolean, Integer, Real
 
 from . import derivatives, state_codec
+from .variables import ValidRange, Var  # noqa: F401 (re-exported: the slaves' tables)
 
 DEG = 180.0 / math.pi
-
-
-class ValidRange(Protocol):
-    """What a variable's valid range offers (e.g. ``glider_plant.params.Range``)."""
-
-    def contains(self, value: float) -> bool: ...
-
-    def describe(self, integer: bool = False) -> str: ...
-
-
-class Var(NamedTuple):
-    """One FMU variable: name, causality, unit, description, start, type, variability."""
-
-    name: str
-    causality: str  # "input" | "output" | "parameter" | "local" (a state derivative)
-    unit: str
-    description: str
-    start: float = 0.0
-    type: str = "Real"  # "Real" | "Integer" | "Boolean"
-    tunable: bool = False
-    valid: ValidRange | None = None  # checked before the first step (parameters, inputs)
 
 
 class RefusedValueError(ValueError):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from glider_fmi.slave_base import Var
+from glider_fmi.variables import Var
 
 from .params import MODEL_CONSTANTS
 
