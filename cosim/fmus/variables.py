@@ -90,7 +90,7 @@ def with_unit(target: str, value: Any, md: Any = None, *, both: bool = False) ->
         ``instance.name``.
     value : number, str or Quantity
         As given (``6``, ``"-30 deg"`` parsed into a :class:`~glider_cosim.inputs.values.Degrees`).
-    md : fmpy ModelDescription, optional
+    md : ModelDescription, optional
         Where the unit comes from; without it, our FMUs' tables.
     both : bool
         Also the other form in parentheses: an angle in rad in degrees and one given in
@@ -137,13 +137,13 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
         cannot be read: from our FMUs' tables), in words by
         :func:`~glider_cosim.fmus.variables.with_unit`.
     """
-    from fmpy import read_model_description
+    from ..inputs.archives import InputFileError, read_description
 
     descriptions: dict[str, Any] = {}
     for inst in {ref.partition(".")[0] for ref in overrides}:
-        try:
-            descriptions[inst] = read_model_description(str(fmus[inst]))
-        except Exception:  # noqa: BLE001 - fmpy raises plain Exception: our tables then
+        try:  # without fmpy (issue 48)
+            descriptions[inst] = read_description(fmus[inst])
+        except (InputFileError, KeyError, TypeError, AttributeError):  # our tables then
             descriptions[inst] = None
     return ", ".join(
         f"{ref} = {with_unit(ref, value, descriptions[ref.partition('.')[0]], both=True)}"

@@ -137,19 +137,56 @@ def _is_pythonfmu(md: Any, names: set[str]) -> bool:
     )
 
 
+def _platform() -> tuple[str, str, str]:
+    """This host's FMI 2 binaries folder (``linux64``, ``win64``, ``darwin64``), FMI 3
+    platform tuple (``x86_64-linux``) and shared library suffix, as fmpy names them."""
+    if sys.platform.startswith("win"):
+        system, suffix = "windows", ".dll"
+        import platform
+
+        machine = platform.machine().lower()
+    else:
+        system = "darwin" if sys.platform == "darwin" else "linux"
+        suffix = ".dylib" if system == "darwin" else ".so"
+        machine = os.uname().machine.lower()
+    fmi2 = "win" if system == "windows" else system
+    if machine in ("aarch64", "arm64"):
+        return f"{fmi2}64", f"aarch64-{system}", suffix
+    if sys.maxsize > 2**32:
+        return f"{fmi2}64", f"x86_64-{system}", suffix
+    return f"{fmi2}32", f"x86-{system}", suffix
+
+
+#: this host's FMI 2 binaries folder, FMI 3 platform tuple and shared library suffix
+FMI2_PLATFORM, FMI3_PLATFORM, LIBRARY_SUFFIX = _platform()
+
+
 def binary_path(md: Any) -> str:
     """The binary a host on this platform loads from a co-simulation FMU, as fmpy finds
     it: ``binaries/<platform>/<model identifier><ext>`` (FMI 3: the platform tuple, such
     as ``x86_64-linux``; FMI 2: ``linux64``, ``win64``, ``darwin64``)."""
-    from fmpy import platform, platform_tuple, sharedLibraryExtension
-
-    folder = platform_tuple if md.fmiVersion == "3.0" else platform
-    return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{sharedLibraryExtension}"
+    folder = FMI3_PLATFORM if md.fmiVersion == "3.0" else FMI2_PLATFORM
+    return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{LIBRARY_SUFFIX}"
 
 
-def read_fmu(path: str | Path, where: str | None) -> Any:
+class _FmpyError(Exception):
+    """fmpy's plain Exception for a bad description, carried to :func:`read_fmu`."""
+
+
+def _fmpy_checks(p: Path) -> None:
+    """fmpy's reading of the description (schema and model checks); :class:`_FmpyError`."""
+    from fmpy import read_model_description
+
+    try:
+        read_model_description(str(p))
+    except Exception as err:  # noqa: BLE001 - fmpy raises plain Exception for bad descriptions
+        raise _FmpyError(str(err)) from None
+
+
+def read_fmu(path: str | Path, where: str | None, schema: bool = True) -> Any:
     """Check that ``path`` is a complete FMI 2.0 or 3.0 co-simulation FMU; return its
-    model description (``fmpy.model_description.ModelDescription``).
+    model description (:class:`~glider_cosim.inputs.description.ModelDescription`, read
+    without fmpy: fmpy's attribute names).
 
     Checked without loading anything: a regular zip file, ``modelDescription.xml``, FMI
     2.0 or 3.0 co-simulation, the binary for this platform (``binaries/<platform>/<model
@@ -158,12 +195,17 @@ def read_fmu(path: str | Path, where: str | None) -> Any:
     ``resources/slavemodule.txt`` and the script it names (without them pythonfmu's
     binary crashes at instantiation).
 
+    With ``schema`` (the default), the description also passes fmpy's checks (the FMI
+    schema and its model checks) and a failure there is named by fmpy, as before issue 48;
+    the master leaves them out for the FMUs of its own cache (no fmpy, lxml or attrs in a
+    native run).
+
     Raises
     ------
     InputFileError
         What is missing or unreadable, after ``where``.
     """
-    from fmpy import read_model_description
+    from .description import ModelDescriptionError, parse_model_description
 
     p = regular_file(path, where, "FMU")
     name = quote(p.name)
@@ -175,10 +217,12 @@ def read_fmu(path: str | Path, where: str | None) -> Any:
                 raise InputFileError(f"{_at(where)}FMU {name} has no modelDescription.xml")
             if md_info.file_size > MAX_MODEL_DESCRIPTION:
                 raise InputFileError(f"{_at(where)}FMU {name}: modelDescription.xml is too large")
-            z.read(md_info)  # CRC and deflate data checked
+            data = z.read(md_info)  # CRC and deflate data checked
             try:
-                md = read_model_description(str(p))
-            except Exception as err:  # fmpy raises plain Exception for bad descriptions
+                if schema:
+                    _fmpy_checks(p)
+                md = parse_model_description(data)
+            except (ModelDescriptionError, _FmpyError) as err:
                 raise InputFileError(
                     f"{_at(where)}FMU {name} has no readable model description ({one_line(err)})"
                 ) from None
@@ -217,6 +261,30 @@ def read_fmu(path: str | Path, where: str | None) -> Any:
         reason = one_line(err)
         raise InputFileError(f"{_at(where)}FMU {name} is not a readable zip ({reason})") from None
     return md
+
+
+def read_description(path: str | Path) -> Any:
+    """The model description of the FMU file ``path``, read without fmpy (nothing else
+    of the FMU is checked: :func:`read_fmu` checks a whole FMU).
+
+    Raises
+    ------
+    InputFileError
+        Not a readable zip, no ``modelDescription.xml``, or one that cannot be read.
+    """
+    from .description import ModelDescriptionError, parse_model_description
+
+    name = quote(Path(path).name)
+    try:
+        with zipfile.ZipFile(path) as z:
+            info = z.getinfo("modelDescription.xml")
+            if info.file_size > MAX_MODEL_DESCRIPTION:
+                raise InputFileError(f"FMU {name}: modelDescription.xml is too large")
+            return parse_model_description(z.read(info))
+    except ModelDescriptionError as err:
+        raise InputFileError(f"FMU {name} has no readable model description ({err})") from None
+    except _ZIP_ERRORS as err:
+        raise InputFileError(f"FMU {name} is not a readable zip ({one_line(err)})") from None
 
 
 def confined(folder: Path, ref: str, where: str) -> Path:

@@ -225,15 +225,15 @@ def check_ranges(
 def our_kinds(fmus: dict[str, Any]) -> dict[str, str]:
     """Instance -> ``"plant"``/``"observer"``/``"controller"`` for the FMUs that are ours
     (by model name and pythonfmu generation tool), e.g. the components of our SSP."""
-    from fmpy import read_model_description
+    from .archives import InputFileError, read_description
 
     names = {"GliderPlant": "plant", "GliderObserver": "observer",
              "GliderController": "controller"}  # fmt: skip
     kinds = {}
     for inst, path in fmus.items():
         try:
-            md = read_model_description(str(path))
-        except Exception:  # fmpy raises plain Exception; an unreadable FMU is not ours
+            md = read_description(path)
+        except InputFileError:  # an unreadable FMU is not ours
             continue
         if md.modelName in names and str(md.generationTool or "").startswith("PythonFMU"):
             kinds[inst] = names[md.modelName]

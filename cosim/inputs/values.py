@@ -124,7 +124,7 @@ def _check_bounds(value: float, var: Any, where: str, shown: str) -> None:
 
 
 def has_unit(var: Any) -> bool:
-    """True if ``var`` (a ``fmpy`` ScalarVariable) declares a unit (itself or its type)."""
+    """True if ``var`` (a model variable, ours or fmpy's) declares a unit (itself or its type)."""
     return bool(var.unit or (var.declaredType.unit if var.declaredType is not None else None))
 
 
@@ -183,7 +183,7 @@ def check_declared_unit(
 
 
 def check_value(value: Any, md: Any, var: Any, where: str) -> float | int | bool:
-    """``value`` converted for ``var`` (a ``fmpy`` ScalarVariable), or
+    """``value`` converted for ``var`` (a model variable, ours or fmpy's), or
     :class:`ValueCheckError` naming ``where``, the value and what was expected.
 
     Real: a finite int or float (a :class:`Quantity` in the units :func:`check_unit`

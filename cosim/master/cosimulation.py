@@ -1,7 +1,8 @@
 """The co-simulation master's run loop: CoSimulation loads, initialises and steps a System.
 
-It runs FMI 2.0 and FMI 3.0 co-simulation FMUs on fmpy at a fixed step. FMI 2.0 instances
-run on ``fmpy.fmi2``; FMI 3.0 ones on ``fmpy.fmi3.FMU3Slave`` behind the same FMI
+It runs FMI 2.0 and FMI 3.0 co-simulation FMUs at a fixed step. FMI 2.0 instances run
+on our ctypes binding (:mod:`glider_cosim.master.binding`, no fmpy); FMI 3.0 ones on
+``fmpy.fmi3.FMU3Slave`` behind the same FMI
 2.0-named calls (:mod:`glider_cosim.master.fmi3`: Float64, Int32 and Boolean for Real,
 Integer and Boolean; a doStep that sets terminateSimulation is a Discard), so both kinds
 mix in one system and share the C fast loop (:mod:`glider_cosim.master.fastloop`).
@@ -28,8 +29,6 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from fmpy.fmi1 import FMICallException
-
 from .driven import DrivenInputs
 from .errors import (
     FMUCallError,
@@ -38,6 +37,7 @@ from .errors import (
     MasterError,
     SystemSpecError,
     deferred_sigint,
+    fmi_call_errors,
 )
 from .fastloop import FastLoop
 from .fmi3 import fmi3_call_name
@@ -158,7 +158,7 @@ class CoSimulation(DrivenInputs, InitialInputs):
             raise MasterError(f"{inst.name}: {call} on an instance that is not alive")
         try:
             return fn(*args)
-        except FMICallException as err:
+        except fmi_call_errors() as err:
             self._raise(inst, call, int(err.status))
 
     def _set_value(self, inst: Instance, name: str, value: Any) -> None:

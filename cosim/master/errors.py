@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 from collections.abc import Sequence
 
@@ -51,6 +52,28 @@ class FMUCallError(MasterError, RuntimeError):
         super().__init__(
             f"{instance}: {call} at t = {time:.6g} s returned {names.get(status, status)}: {detail}"
         )
+
+
+class FMIStatusError(RuntimeError):
+    """An FMI function returned a status worse than Warning (or fmi2Instantiate NULL), as
+    :class:`~glider_cosim.master.binding.FMU2Binary` and the FMI 3 and wasm adapters raise
+    it; the master turns it into :class:`FMUCallError` or :class:`FMUStopped` with the
+    instance, the time and the FMU's log. Attributes ``call`` (also ``function``, fmpy's
+    name) and ``status``."""
+
+    def __init__(self, call: str, status: int):
+        self.call = self.function = call
+        self.status = int(status)
+        super().__init__(f"{call} returned {STATUS.get(self.status, self.status)}")
+
+
+def fmi_call_errors() -> tuple[type[BaseException], ...]:
+    """What a failed FMI call raises: :class:`FMIStatusError`, and fmpy's
+    ``FMICallException`` when fmpy is imported (an FMI 3 FMU's calls; a host of the user's
+    own). fmpy is never imported here: a native FMI 2 run goes without it (issue 48)."""
+    fmi1 = sys.modules.get("fmpy.fmi1")
+    fmpy_error = getattr(fmi1, "FMICallException", None)
+    return (FMIStatusError,) if fmpy_error is None else (FMIStatusError, fmpy_error)
 
 
 class FMUStopped(FMUCallError):

@@ -1,7 +1,8 @@
 """An FMI 3.0 co-simulation instance behind the FMI 2.0 calls the master makes.
 
-The master (:mod:`glider_cosim.master.cosimulation`) drives its instances with fmpy's ``FMU2Slave``
-methods (instantiate, setupExperiment, enter/exit initialisation, terminate, reset, free,
+The master (:mod:`glider_cosim.master.cosimulation`) drives its instances with the
+methods of fmpy's ``FMU2Slave`` that our binding (:mod:`glider_cosim.master.binding`)
+keeps (instantiate, setupExperiment, enter/exit initialisation, terminate, reset, free,
 set/get Real/Integer/Boolean) and, at every step, raw ctypes calls with FMI 2.0
 signatures (``fmi2GetReal(c, vr, n, values)``, ``fmi2DoStep(c, t, h, noSetPrior)``) made
 from Python or from its C fast loop. :class:`FMU3Adapter` wraps fmpy's ``FMU3Slave`` in
@@ -14,15 +15,14 @@ component: ``glider_shim_get_float64`` calls fmi3GetFloat64 with ``nValues = n``
 ``terminateSimulation`` (a stall), which the master treats as the clean stop an FMI 2.0
 fmi2Discard is. The C fast loop and the block runs therefore serve FMI 3.0 instances
 unchanged, with one more C call per FMI call. Without a C compiler, Python functions of
-the same signatures stand in for the shims.
+the same signatures stand in for the shims. fmpy is imported when an :class:`FMU3Adapter`
+is made, never by importing this module (a native FMI 2 run goes without it).
 """
 
 from __future__ import annotations
 
 import ctypes
 from typing import Any
-
-from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
 
 from ..fmus.fmi3_description import FMI3_TYPES
 from .fastloop import SHIMS, shim_library
@@ -141,6 +141,8 @@ class FMU3Adapter:
     """
 
     def __init__(self, **kwargs: Any):
+        from fmpy.fmi3 import FMU3Slave
+
         self.slave = FMU3Slave(**kwargs)
         self.dll = self.slave.dll
         self._adapter = _Adapter()
@@ -219,4 +221,4 @@ class FMU3Adapter:
         self.slave.setFMUState(state)
 
 
-__all__ = ["FMU3Adapter", "ShimCalls", "TYPE_AS_FMI2", "fmi3_call_name", "fmi3LogMessageCallback"]
+__all__ = ["FMU3Adapter", "ShimCalls", "TYPE_AS_FMI2", "fmi3_call_name"]

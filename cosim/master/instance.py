@@ -11,30 +11,14 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from fmpy import calloc as fmpy_calloc
-from fmpy import free as fmpy_free
-from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
-
 from glider_fmi.compile import PYTHON_CONFIG_FILE
 
 from ..inputs.archives import InputFileError, read_fmu, safe_extract
 from ..inputs.tempdirs import new_temp_dir
 from ..inputs.text import did_you_mean, one_line, quote
-from . import wasm
-from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError
-from .fmi3 import (
-    TYPE_AS_FMI2,
-    FMU3Adapter,
-    fmi3_call_name,
-    fmi3LogMessageCallback,
-)
+from . import binding, wasm
+from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError, fmi_call_errors
+from .fmi3 import TYPE_AS_FMI2, fmi3_call_name
 
 #: the calls made at every step, through :meth:`Instance.call_dll`
 _HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
@@ -71,6 +55,17 @@ def _extracted(fmu: Path) -> str:
 
 #: folders of the FMU cache's own unpacked FMUs (:func:`unpacked_in_cache`): kept at exit
 _KEPT: set[str] = set()
+
+
+def in_cache(fmu: Path) -> bool:
+    """True for an FMU of the per-user FMU cache, which glider-cosim built: its model
+    description is read without fmpy's schema checks (issue 48)."""
+    from ..fmus.files import cache_root
+
+    try:
+        return fmu.resolve().is_relative_to(cache_root().resolve())
+    except OSError:
+        return False
 
 
 def unpacked_in_cache(fmu: Path) -> str | None:
@@ -111,14 +106,17 @@ def _remove_extracted() -> None:
 
 
 class Instance:
-    """One FMU instance under a name (fmpy ``FMU2Slave``, or ``FMU3Slave`` behind
-    :class:`~glider_cosim.master.fmi3.FMU3Adapter`, with batched value access)."""
+    """One FMU instance under a name: an FMI 2.0 one on our binding
+    (:class:`~glider_cosim.master.binding.FMU2Binary`), an FMI 3.0 one on fmpy's
+    ``FMU3Slave`` behind :class:`~glider_cosim.master.fmi3.FMU3Adapter` (or its
+    component, :class:`~glider_cosim.master.wasm.WasmAdapter`), with batched value
+    access. fmpy is imported for an FMI 3.0 FMU only."""
 
     def __init__(self, name: str, fmu: Path):
         self.name = name
         self.fmu = Path(fmu)
         try:  # complete and readable, checked before the binary is loaded
-            self.md = read_fmu(self.fmu, f"instance {name}")
+            self.md = read_fmu(self.fmu, f"instance {name}", schema=not in_cache(self.fmu))
         except InputFileError as err:
             raise SystemSpecError(str(err)) from None
         #: FMI version, 2 or 3
@@ -154,16 +152,20 @@ class Instance:
         except InputFileError as err:
             raise SystemSpecError(f"instance {name}: {err}") from None
         try:
-            adapter = FMU3Adapter if self.fmi == 3 else FMU2Slave
+            adapter: Any = binding.FMU2Binary
             if self.fmi == 3 and wasm.wanted():  # run --flavor wasm: the component
                 adapter = wasm.WasmAdapter
+            elif self.fmi == 3:
+                from .fmi3 import FMU3Adapter  # imports fmpy
+
+                adapter = FMU3Adapter
             self.slave = adapter(
                 guid=self.md.guid,
                 unzipDirectory=self.unzipdir,
                 modelIdentifier=self.md.coSimulation.modelIdentifier,
                 instanceName=name,
             )
-        except Exception as err:  # fmpy and ctypes raise plain Exception/OSError here
+        except Exception as err:  # fmpy raises plain Exception, ctypes OSError here
             raise SystemSpecError(
                 f"instance {name}: the binary of {quote(self.fmu.name)} cannot be loaded "
                 f"({one_line(err)})"
@@ -180,8 +182,8 @@ class Instance:
 
         An FMU on our FMI runtime runs its code under the GIL, which the runtime takes for
         every call: it is called with the GIL held (``ctypes.PyDLL``), saving a release
-        and re-acquisition per call. Any other FMU is called through fmpy's handle, with
-        the GIL released.
+        and re-acquisition per call. Any other FMU is called through the binding's handle
+        (:attr:`~glider_cosim.master.binding.FMU2Binary.dll`), with the GIL released.
         """
         if self._call_dll is None:
             dll = self.slave.dll
@@ -224,13 +226,10 @@ class Instance:
             del self.log[:-50]
 
         if self.fmi == 3:  # fmi3LogMessageCallback(env, status, category, message)
-            return fmi3LogMessageCallback(lambda env, st, cat, msg: logger(env, None, st, cat, msg))
+            from fmpy.fmi3 import fmi3LogMessageCallback
 
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy_calloc)  # void* restype
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy_free)
-        return cb
+            return fmi3LogMessageCallback(lambda env, st, cat, msg: logger(env, None, st, cat, msg))
+        return binding.callbacks(logger)
 
     def instantiate(self, callbacks: Any, t0: float) -> None:
         """fmi2Instantiate (fmi3InstantiateCoSimulation) with :meth:`callbacks`; raises
@@ -242,7 +241,7 @@ class Instance:
                 self.slave.instantiate(log_message=callbacks, loggingOn=True)
             else:
                 self.slave.instantiate(callbacks=callbacks, loggingOn=True)
-        except Exception as err:  # fmpy raises plain Exception here
+        except Exception as err:  # noqa: BLE001 - fmpy (FMI 3) raises plain Exception here
             call = fmi3_call_name("fmi2Instantiate") if self.fmi == 3 else "fmi2Instantiate"
             raise FMUCallError(self.name, call, t0, 3, self.log, self.fmi) from err
         self.alive = True
@@ -253,8 +252,8 @@ class Instance:
             self.alive = False
             slave = self.slave
             if not self.failed:
-                with contextlib.suppress(FMICallException):
+                with contextlib.suppress(*fmi_call_errors()):
                     slave.terminate()
             # free the instance but keep the library loaded (see _extracted)
-            with contextlib.suppress(FMICallException):
+            with contextlib.suppress(*fmi_call_errors()):
                 slave.fmi2FreeInstance(slave.component)

@@ -2,9 +2,10 @@
 
 ``glider-cosim run --flavor wasm`` runs the native FMI 3.0 FMUs' components
 (``binaries/wasm32-wasip2/<id>.wasm``, :mod:`glider_cosim.fmus.wasm`) instead of their
-shared libraries: :class:`WasmAdapter` has the methods the master calls on fmpy's
-``FMU2Slave`` (as :class:`~glider_cosim.master.fmi3.FMU3Adapter` has for an FMI 3.0
-library), each one call of the component's ``co-simulation-instance`` resource through
+shared libraries: :class:`WasmAdapter` has the methods the master calls on an FMI 2.0
+binary (:class:`~glider_cosim.master.binding.FMU2Binary`; as
+:class:`~glider_cosim.master.fmi3.FMU3Adapter` has for an FMI 3.0 library), each one
+call of the component's ``co-simulation-instance`` resource through
 wasmtime's component API (``wasmtime.component``), and per-step calls with the FMI 2.0
 signatures the master's exchange plan makes (Python functions: no C fast loop). The
 component gets one import, ``fmi:fmi3/callbacks@3.0.0#log-message``, which passes each
@@ -25,9 +26,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from fmpy.fmi1 import FMICallException
-
 from ..fmus.wasm import WASM_PLATFORM
+from .errors import FMIStatusError
 
 #: WIT status names -> FMI's numbers
 STATUS = {"ok": 0, "warning": 1, "discard": 2, "error": 3, "fatal": 4}
@@ -234,7 +234,7 @@ class WasmAdapter:
     def _check(self, call: str, result: Any) -> Any:
         st = _status(result)
         if st > 1:
-            raise FMICallException(call, st)
+            raise FMIStatusError(call, st)
         return result
 
     @property
@@ -254,7 +254,7 @@ class WasmAdapter:
         res = self.call(f"[static]{RESOURCE}.instantiate-co-simulation", self.name, self.guid,
                         "", False, bool(loggingOn), False, False, [])  # fmt: skip
         if res is None or isinstance(res, str):
-            raise FMICallException("fmi3InstantiateCoSimulation", 4 if res else 3)
+            raise FMIStatusError("fmi3InstantiateCoSimulation", 4 if res else 3)
         self._resource = res
 
     def setupExperiment(self, tolerance=None, startTime=0.0, stopTime=None) -> None:

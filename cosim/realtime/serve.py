@@ -16,9 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from fmpy.fmi1 import FMICallException
-
-from ..master.errors import SystemSpecError
+from ..master.errors import SystemSpecError, fmi_call_errors
 from ..master.instance import Instance
 from . import protocol as p
 
@@ -57,7 +55,7 @@ class _Session:
                 self._set(v, value)
             self.slave.enterInitializationMode()
             self.slave.exitInitializationMode()
-        except FMICallException:
+        except fmi_call_errors():
             inst.failed = True  # freed, not terminated (FMI allows nothing else)
             self.close()
             raise
@@ -104,8 +102,9 @@ class _Session:
         self.inst.free()
 
 
-def _fmu_error(inst: Instance, err: FMICallException) -> str:
-    """The FMU's own reason for a failed call (its last error message), else fmpy's."""
+def _fmu_error(inst: Instance, err: Exception) -> str:
+    """The FMU's own reason for a failed call (its last error message), else the call's
+    and its status (the binding's or fmpy's words)."""
     errors = [m for m in inst.log if m.startswith(("[fmi2Error]", "[fmi2Discard]", "[fmi3"))]
     text = " ".join((errors[-1] if errors else str(err)).split())
     return text.partition("] ")[2].removeprefix("served: ") if text.startswith("[") else text
@@ -175,7 +174,7 @@ def serve(
             except p.ProtocolError as err:
                 log.warning("serve: %s: %s", addr, err)
                 reply = p.encode_error(msg.seq, msg.time, f"refused: {err}")
-            except FMICallException as err:
+            except fmi_call_errors() as err:
                 text = _fmu_error(inst, err)
                 log.warning("serve: %s", text)
                 reply = p.encode_error(msg.seq, msg.time, f"refused: {text}")

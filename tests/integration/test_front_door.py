@@ -45,10 +45,10 @@ def assert_one_line_error(code: int, err: str, *expected: str, command: str = "r
 @pytest.fixture()
 def no_instantiation(monkeypatch):
     """Fails the test if any FMU gets instantiated."""
-    import fmpy.fmi2
+    from glider_cosim.master.binding import FMU2Binary
 
     calls = []
-    monkeypatch.setattr(fmpy.fmi2.FMU2Slave, "instantiate", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(FMU2Binary, "instantiate", lambda *a, **k: calls.append(a))
     yield
     assert calls == [], "an FMU was instantiated"
 
