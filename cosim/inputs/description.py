@@ -192,8 +192,8 @@ def _types(root: ET.Element, fmi3: bool) -> dict[str | None, SimpleType | None]:
     found: dict[str | None, SimpleType | None] = {None: None}
     for t in root.findall("TypeDefinitions/*"):
         if fmi3:
-            if not t.tag.endswith("Type") or t.tag[:-4] not in _FMI3_TYPES:
-                continue
+            if not t.tag.endswith("Type") or t.tag[:-4] not in _FMI3_TYPES - {"Clock"}:
+                continue  # (fmpy reads no ClockType either)
             first, kind = t, t.tag[:-4]
         else:
             if t.tag != "SimpleType" or len(t) == 0:
@@ -239,7 +239,7 @@ def _variable(el: ET.Element, fmi3: bool, types: dict) -> ModelVariable:
         v.unit, v.displayUnit = value.get("unit"), value.get("displayUnit")
         v.derivative, v.nominal = value.get("derivative"), value.get("nominal")
         v.unbounded = value.get("unbounded") in _TRUE
-    if v.type in ("Real", "Enumeration") or v.type.startswith(("Float", "Int", "UInt")):
+    if v.type in ("Real", "Enumeration") or v.type.startswith(("Float", "Int")):  # as fmpy
         v.quantity, v.min, v.max = value.get("quantity"), value.get("min"), value.get("max")
     declared = value.get("declaredType")
     if declared not in types:
