@@ -47,6 +47,31 @@ def test_a_variable_table_is_made_anew_when_its_sources_change(tmp_path, monkeyp
     assert len(list((tmp_path / package_version() / "native-vars").iterdir())) == 2
 
 
+def test_a_native_hash_is_made_once_within_same_sources_and_on_every_file_change(
+    tmp_path, monkeypatch
+):
+    """Issue 48: a run's preparation asks for each FMU's hash 3 times; within
+    ``same_sources`` it is made once. Outside, an edited source (another modification time
+    or size) gives another hash, the same bytes the same one."""
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
+    made = []
+    real = native._native_digest
+    monkeypatch.setattr(native, "_native_digest", lambda *a: made.append(a) or real(*a))
+    with native.same_sources():
+        hashes = {native.native_hash(PLANT) for _ in range(3)}
+    assert len(hashes) == 1 and len(made) == 1
+    source = tmp_path / "plant_model.c"
+    source.write_text("int x;\n")
+    monkeypatch.setattr(native, "source_files", lambda c, fmi=2: [source])
+    first = native.native_hash(PLANT)
+    source.write_text("int y;\n")  # the same size, another time (or the same time: the bytes)
+    os.utime(source, ns=(1, 1))
+    assert native.native_hash(PLANT) != first
+    source.write_text("int x;\n")
+    os.utime(source, ns=(2, 2))
+    assert native.native_hash(PLANT) == first
+
+
 def test_listing_the_cache_adds_no_table_to_it(tmp_path, monkeypatch, capsys):
     from glider_cosim.cli.main import main
 

@@ -23,7 +23,7 @@ from .files import (  # noqa: F401 (re-exported)
     package_version,
 )
 from .fmi3 import build_fmi3
-from .native import NATIVE_COMPONENTS, build_native, native_hash
+from .native import NATIVE_COMPONENTS, build_native, native_hash, same_sources
 from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
 from .python import (
     COMPONENTS,
@@ -315,10 +315,11 @@ def prepare_fmus(
     FMUs may be handed on), or kept host-only if it holds a host-only set."""
     if fmu_dir is None:
         flavor = flavor or "python"
-        folder = cache_dir(flavor, fmi or 2)
-        if host_only and flavor == "native" and not _current_native(folder, fmi or 2):
-            folder = cache_dir(flavor, fmi or 2, host_only=True)
-        build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2, host_only=host_only)
+        with same_sources():  # each FMU's hash made once
+            folder = cache_dir(flavor, fmi or 2)
+            if host_only and flavor == "native" and not _current_native(folder, fmi or 2):
+                folder = cache_dir(flavor, fmi or 2, host_only=True)
+            build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2, host_only=host_only)
         return folder
     folder = Path(fmu_dir)
     if flavor is not None or fmi is not None or overwrite:  # else kept as it is
