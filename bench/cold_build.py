@@ -10,7 +10,10 @@ one build first): a new FMU cache on a machine that has built before. ``--python
 (repeatable) runs the commands with other interpreters (e.g. a venv of another
 checkout), each command with each in turn: before and after figures in one session.
 
-``--command`` (repeatable) times only those named.
+``--command`` (repeatable) times only those named. Each ``*_s`` figure has a
+``*_cpu_s`` beside it: the CPU time (user + system) of the command and every process it
+waited for (zig's compiles), the median of the same runs; on this shared machine it moves
+less with the load than the wall time.
 
 Usage: python bench/cold_build.py [--repeat 1] [--zig-warm-repeat 0] [--python PY ...]
        [--command NAME ...] [--json]
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -37,9 +41,10 @@ COMMANDS = {
 }
 
 
-def timed(python: str, args: list[str], zig_cold: bool) -> float:
+def timed(python: str, args: list[str], zig_cold: bool) -> tuple[float, float]:
     """Seconds one ``glider-cosim`` command takes in a new process, into a fresh FMU cache
-    (and a fresh zig cache if ``zig_cold``).
+    (and a fresh zig cache if ``zig_cold``): wall time and CPU time (user + system of the
+    process and of every one it waited for).
 
     Raises
     ------
@@ -51,12 +56,15 @@ def timed(python: str, args: list[str], zig_cold: bool) -> float:
         if zig_cold:
             env["ZIG_GLOBAL_CACHE_DIR"] = str(Path(tmp) / "zig")
         cmd = [python, "-m", "glider_cosim.cli", *(a.format(out=Path(tmp) / "out") for a in args)]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t = time.perf_counter()
         p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1800)
         seconds = time.perf_counter() - t
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
         raise RuntimeError(f"{' '.join(args)} failed (exit {p.returncode}): {p.stderr[-500:]}")
-    return seconds
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return seconds, cpu
 
 
 def main() -> None:
@@ -81,15 +89,18 @@ def main() -> None:
             timed(py, COMMANDS["build_native_all"], zig_cold=False)
     for zig_cold, repeat in ((True, args.repeat), (False, args.zig_warm_repeat)):
         for name, cmd in commands.items() if repeat > 0 else ():
-            times: dict[int, list[float]] = {i: [] for i in range(len(pythons))}
+            times: dict[int, list[tuple[float, float]]] = {i: [] for i in range(len(pythons))}
             for _ in range(repeat):
                 for i, py in enumerate(pythons):
                     times[i].append(timed(py, cmd, zig_cold))
             for i in times:
                 prefix = f"{i}_" if len(pythons) > 1 else ""
                 key = f"{prefix}{name}_zig_{'cold' if zig_cold else 'warm'}_s"
-                result[key] = round(statistics.median(times[i]), 2)
-                result[key.removesuffix("_s") + "_runs_s"] = [round(t, 2) for t in times[i]]
+                walls = [t for t, _ in times[i]]
+                cpus = [c for _, c in times[i]]
+                result[key] = round(statistics.median(walls), 2)
+                result[key.removesuffix("_s") + "_runs_s"] = [round(t, 2) for t in walls]
+                result[key.removesuffix("_s") + "_cpu_s"] = round(statistics.median(cpus), 2)
     result["load_after"] = os.getloadavg()[0]
     emit(result, args.json)
 

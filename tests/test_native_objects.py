@@ -5,6 +5,7 @@ compiler."""
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import pytest
@@ -135,3 +136,88 @@ def test_a_host_helper_built_as_the_fmus_gets_their_link_time_optimisation():
     lto = toolchain.PLATFORMS[key].os == "linux"
     assert ("-flto" in toolchain.host_command(chain, lto=True)) is lto
     assert "-flto" not in toolchain.host_command(chain)
+
+
+WINDOWS = objects.Target("x86_64-windows", toolchain.PLATFORMS["x86_64-windows"], ZIG)
+
+
+def test_zigs_windows_runtime_is_built_ahead_by_zig_build_lib_on_every_core(tmp_path):
+    """zig's C runtime for Windows is built ahead with ``zig build-lib`` of an empty
+    library, the link's target and optimisation mode (``-O2``: ReleaseFast) and one job
+    more than the cores; nothing for the other platforms, other compilers or an unknown
+    level."""
+    cmd = objects.RuntimeWarmer.command(WINDOWS, ("-std=c99", "-O2"), tmp_path)
+    assert cmd is not None
+    assert cmd[:8] == ["zig", "build-lib", "-target", "x86_64-windows-gnu", "-O", "ReleaseFast",
+                       "-dynamic", "-lc"]  # fmt: skip
+    assert cmd[8] == f"-j{(os.cpu_count() or 1) + 1}"
+    assert cmd[9:] == [str(tmp_path / "glider_runtime.c"),
+                       f"-femit-bin={tmp_path / 'glider_runtime.dll'}",
+                       "--cache-dir", str(tmp_path / "zig-local")]  # fmt: skip
+    assert objects.RuntimeWarmer.command(WINDOWS, ("-Os",), tmp_path)[5] == "ReleaseSmall"
+    assert objects.RuntimeWarmer.command(WINDOWS, ("-O1",), tmp_path) is None  # unknown
+    assert objects.RuntimeWarmer.command(LINUX, ("-O2",), tmp_path) is None
+    mingw = toolchain.Compiler("x86_64-w64-mingw32-gcc", ("/usr/bin/x86_64-w64-mingw32-gcc",),
+                               frozenset({"x86_64-windows"}), "gcc 13")  # fmt: skip
+    own = objects.Target("x86_64-windows", toolchain.PLATFORMS["x86_64-windows"], mingw)
+    assert objects.RuntimeWarmer.command(own, ("-O2",), tmp_path) is None
+
+
+class FakeWarmer:
+    def __init__(self, events: list[str]):
+        self.events = events
+
+    def wait(self) -> None:
+        self.events.append("wait")
+
+    def stop(self) -> None:
+        self.events.append("stop")
+
+
+def _fake_build(monkeypatch, tmp_path, events, compile_job):
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
+
+    def start(targets, cflags, stage):
+        events.append("start")
+        return {"x86_64-windows": FakeWarmer(events)}
+
+    monkeypatch.setattr(objects, "start_runtimes", start)
+    monkeypatch.setattr(objects, "_compile", compile_job)
+    monkeypatch.setattr(objects, "_link", lambda t, f, objs, out: events.append(f"link {t.key}"))
+    src = tmp_path / "a.c"
+    src.write_text("int a;\n")
+    return lambda: objects.build_binaries({"A": [src], "B": [src]}, [WINDOWS, LINUX], FLAGS,
+                                          tmp_path / "stage", workers=1)  # fmt: skip
+
+
+def test_the_windows_runtime_starts_before_the_compiles_and_its_links_come_last(
+    tmp_path, monkeypatch
+):
+    """The runtime is started before the first compile; the Windows links come after
+    every other link, each once the runtime is built, whatever the order of the targets;
+    the built libraries keep the targets' order."""
+    events: list[str] = []
+    build = _fake_build(monkeypatch, tmp_path, events,
+                        lambda t, f, src, obj: events.append(f"compile {t.key}"))  # fmt: skip
+    built = build()
+    assert events == ["start", "compile x86_64-windows", "compile x86_64-linux",
+                      "link x86_64-linux", "link x86_64-linux",
+                      "wait", "link x86_64-windows", "wait", "link x86_64-windows",
+                      "stop"]  # fmt: skip
+    assert list(built["A"]) == ["x86_64-windows", "x86_64-linux"]
+
+
+def test_a_failed_compile_ends_the_runtime_built_ahead(tmp_path, monkeypatch):
+    """A compile that fails ends the runtime's build (no zig left running for a minute)
+    and links nothing."""
+    events: list[str] = []
+
+    def fail(t, f, src, obj):
+        events.append(f"compile {t.key}")
+        raise toolchain.ToolchainError(f"a.c ({t.key}): not warning-free: x")
+
+    build = _fake_build(monkeypatch, tmp_path, events, fail)
+    with pytest.raises(toolchain.ToolchainError, match="not warning-free"):
+        build()
+    assert events[0] == "start" and events[-1] == "stop"
+    assert not [e for e in events if e.startswith(("link", "wait"))]

@@ -12,7 +12,9 @@ the files it touched. An object is kept only when its compile printed nothing
 The compiles of every platform run in one thread pool sized to the cores, then the links
 (:func:`build_binaries`). zig links with ``-rtlib=none`` except on Windows
 (:meth:`glider_fmi.toolchain.Compiler.link_extra`): no compiler_rt to build first into an
-empty zig cache.
+empty zig cache. Windows' C runtime (mingw-w64), which zig builds once into its cache
+before its first link for Windows, is started before the compiles, on every core
+(:class:`RuntimeWarmer`), and the Windows links come last.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import logging
 import os
 import re
 import shutil
+import subprocess
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -182,6 +185,11 @@ def _link(target: Target, cflags: tuple[str, ...], objects: list[Path], output: 
 #: zig's first build of a target's C runtime into its cache: the time it takes here, by OS
 ZIG_FIRST_BUILD = {"windows": ("its C runtime (mingw-w64)", "about 2 min"),
                    "linux": ("its glibc stubs", "about 5 s")}  # fmt: skip
+#: zig's first build of Windows' C runtime when :class:`RuntimeWarmer` builds it, on every core
+ZIG_WARM_BUILD = "about 40 s"
+#: zig's optimisation mode for each ``-O`` level of ``zig cc`` (its C runtime is cached per mode)
+ZIG_MODES = {"-O0": "Debug", "-O2": "ReleaseFast", "-O3": "ReleaseFast",
+             "-Os": "ReleaseSmall", "-Oz": "ReleaseSmall"}  # fmt: skip
 #: ELF machine numbers of zig's glibc stubs (``libc.so.6`` in its cache), by arch
 _ELF_MACHINE = {"x86_64": 62, "aarch64": 183}
 
@@ -220,9 +228,107 @@ def zig_first_note(target: Target) -> str | None:
     first = ZIG_FIRST_BUILD.get(target.platform.os)
     if first is None or not target.compiler.is_zig or _zig_has(target.platform):
         return None
-    from ..progress import home
+    return f"zig builds {first[0]} for {target.key} once into {_home(zig_cache())} ({first[1]})"
 
-    return f"zig builds {first[0]} for {target.key} once into {home(zig_cache())} ({first[1]})"
+
+def _home(path: Path) -> str:
+    from ..progress import home  # a build's alone
+
+    return home(path)
+
+
+class RuntimeWarmer:
+    """zig's one-time build of Windows' C runtime (mingw-w64, its ``libmingw32.lib`` of
+    some 440 C files, compiler_rt and the import libraries) into its cache, started at
+    once in a process of its own.
+
+    ``zig cc`` builds that runtime at its first link for Windows, compiling the C files
+    one at a time (two workers on two cores, one of them waiting for the runtime): about
+    70 s of one core here. ``zig build-lib -j<cores + 1>`` of an empty library for the
+    same target and optimisation mode builds the same runtime under the same cache keys
+    on every core, and the links find it there: the same objects of our libraries, the
+    same runtime code, the same link command line. Started before the compiles, it runs
+    beside them and the other platforms' links; the Windows links wait for it
+    (:meth:`wait`). Nothing depends on it: when it fails or builds another variant, the
+    links build what they need as before.
+    """
+
+    def __init__(self, target: Target, cflags: tuple[str, ...], folder: Path) -> None:
+        self.target = target
+        self.folder = folder
+        self.process: subprocess.Popen[bytes] | None = None
+        command = self.command(target, cflags, folder)
+        if command is None:
+            return
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "glider_runtime.c").write_text("int glider_runtime(void) { return 0; }\n")
+        try:
+            with (folder / "zig.log").open("wb") as log_file:
+                self.process = subprocess.Popen(command, stdin=subprocess.DEVNULL,
+                                                stdout=log_file, stderr=log_file)  # fmt: skip
+        except OSError as err:  # the link will say what is wrong
+            log.info("zig's C runtime for %s not started ahead: %s", target.key, err)
+
+    @staticmethod
+    def command(target: Target, cflags: tuple[str, ...], folder: Path) -> list[str] | None:
+        """The ``zig build-lib`` building ``target``'s C runtime into zig's cache (its
+        empty library and local cache in ``folder``), or None: not zig's, not Windows, or
+        an ``-O`` level of no known mode (:data:`ZIG_MODES`)."""
+        c = target.compiler
+        level = next((f for f in reversed(cflags) if f.startswith("-O")), "-O0")
+        mode = ZIG_MODES.get(level)
+        if not c.is_zig or target.platform.os != "windows" or mode is None:
+            return None
+        return [
+            *c.command[:-1],  # zig (or python -m ziglang) without "cc"
+            "build-lib",
+            "-target",
+            target.platform.zig_target,
+            "-O",
+            mode,
+            "-dynamic",
+            "-lc",
+            f"-j{(os.cpu_count() or 1) + 1}",  # zig's default leaves a core idle here
+            str(folder / "glider_runtime.c"),
+            f"-femit-bin={folder / 'glider_runtime.dll'}",
+            "--cache-dir",
+            str(folder / "zig-local"),
+        ]
+
+    @property
+    def started(self) -> bool:
+        return self.process is not None
+
+    def wait(self) -> None:
+        """Wait until the runtime is built (or its build ended); a failure is logged, the
+        link then builds what it needs."""
+        if self.process is not None and self.process.wait() != 0:
+            text = (self.folder / "zig.log").read_text(errors="replace")[-300:]
+            log.info("zig's C runtime for %s, built ahead, failed: %s", self.target.key, text)
+
+    def stop(self) -> None:
+        """End the build if it still runs (a failed build of ours), and reap it."""
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+
+def start_runtimes(
+    targets: list[Target], cflags: tuple[str, ...], stage: Path
+) -> dict[str, RuntimeWarmer]:
+    """A :class:`RuntimeWarmer` started for each target whose C runtime zig builds at its
+    first link and its cache does not hold yet (Windows'): platform key -> warmer."""
+    warmers = {}
+    for t in targets:
+        if RuntimeWarmer.command(t, cflags, stage) is not None and not _zig_has(t.platform):
+            warmer = RuntimeWarmer(t, cflags, stage / f"zig-runtime-{t.key}")
+            if warmer.started:
+                warmers[t.key] = warmer
+    return warmers
 
 
 def _run_all(jobs: list[Callable[[], None]], workers: int) -> None:
@@ -243,6 +349,60 @@ def _shown(
         if note:
             progress.note(note)
         progress.step(label)
+        job()
+
+    return run
+
+
+def _compile_and_link(
+    fmus: dict[str, Iterable[Path]],
+    targets: list[Target],
+    cflags: tuple[str, ...],
+    stage: Path,
+    objects: dict[tuple[str, Path], Path],
+    compiles: list[Callable[[], None]],
+    labels: list[str],
+    workers: int,
+    warmers: dict[str, RuntimeWarmer],
+    progress: Progress | None,
+) -> tuple[dict[str, dict[str, Path]], int]:
+    """The compiles in one pool, then the links in another, those of the targets whose C
+    runtime ``warmers`` build last, each after its warmer: the libraries (FMU name ->
+    platform key -> library) and the number of links."""
+    noted = set(warmers)
+    if progress is not None:
+        for key, warmer in warmers.items():
+            first = ZIG_FIRST_BUILD[warmer.target.platform.os][0]
+            progress.note(f"zig builds {first} for {key} once into {_home(zig_cache())}, "
+                          f"beside the compiles ({ZIG_WARM_BUILD})")  # fmt: skip
+        progress.set_total(len(compiles) + len(fmus) * len(targets))
+        compiles = [_shown(job, label, progress) for job, label in zip(compiles, labels)]
+    _run_all(compiles, workers)
+    built: dict[str, dict[str, Path]] = {name: {} for name in fmus}
+    links: list[Callable[[], None]] = []
+    last: list[Callable[[], None]] = []  # the links waiting for a runtime built ahead
+    for name, files in fmus.items():
+        for t in targets:
+            objs = [objects[t.key, p] for p in files if p.suffix == ".c"]
+            out = stage / t.key / f"{name}{t.platform.suffix}"
+            built[name][t.key] = out
+            link = lambda t=t, objs=objs, out=out: _link(t, cflags, objs, out)  # noqa: E731
+            if progress is not None:
+                note = zig_first_note(t) if t.key not in noted else None
+                noted.add(t.key)
+                link = _shown(link, f"building {name}.fmu native {t.key}", progress, note)
+            if t.key in warmers:
+                link = _after(warmers[t.key], link)
+            (last if t.key in warmers else links).append(link)
+    _run_all(links + last, workers)
+    return built, len(links) + len(last)
+
+
+def _after(warmer: RuntimeWarmer, job: Callable[[], None]) -> Callable[[], None]:
+    """``job``, run once ``warmer`` has ended."""
+
+    def run() -> None:
+        warmer.wait()
         job()
 
     return run
@@ -309,27 +469,15 @@ def build_binaries(
                 compiles.append(lambda t=t, src=src, obj=obj: _compile(t, cflags, src, obj))
                 labels.append(f"compiling {src.name} for {t.key}")
     workers = workers or os.cpu_count() or 1
-    if progress is not None:
-        progress.set_total(len(compiles) + len(fmus) * len(targets))
-        compiles = [_shown(job, label, progress) for job, label in zip(compiles, labels)]
-    _run_all(compiles, workers)
-    built: dict[str, dict[str, Path]] = {name: {} for name in fmus}
-    links: list[Callable[[], None]] = []
-    noted: set[str] = set()
-    for name, files in fmus.items():
-        for t in targets:
-            objs = [objects[t.key, p] for p in files if p.suffix == ".c"]
-            out = stage / t.key / f"{name}{t.platform.suffix}"
-            built[name][t.key] = out
-            link = lambda t=t, objs=objs, out=out: _link(t, cflags, objs, out)  # noqa: E731
-            if progress is not None:
-                note = zig_first_note(t) if t.key not in noted else None
-                noted.add(t.key)
-                link = _shown(link, f"building {name}.fmu native {t.key}", progress, note)
-            links.append(link)
-    _run_all(links, workers)
+    warmers = start_runtimes(targets, cflags, stage)  # beside the compiles, on every core
+    try:
+        built, links = _compile_and_link(fmus, targets, cflags, stage, objects, compiles,
+                                         labels, workers, warmers, progress)  # fmt: skip
+    finally:
+        for warmer in warmers.values():
+            warmer.stop()  # ended already, unless a compile or link failed
     LAST.compiled, LAST.reused, LAST.linked = (
-        len(compiles), len(objects) - len(compiles), len(links),
+        len(compiles), len(objects) - len(compiles), links,
     )  # fmt: skip
     log.info(
         "native build: %d object(s) compiled, %d reused from %s, %d librar(ies) linked",

@@ -4,6 +4,7 @@ platform to objects kept in the cache and reused; an edit recompiles what it tou
 
 from __future__ import annotations
 
+import subprocess
 import zipfile
 from pathlib import Path
 
@@ -106,3 +107,41 @@ def test_a_warning_fails_the_build_and_keeps_no_object(tmp_path, monkeypatch):
     with pytest.raises(toolchain.ToolchainError, match=rf"warns.c \({HOST}\): not warning-free: "):
         objects.build_binaries({"W": [src]}, [target], native.CFLAGS, tmp_path / "stage")
     assert not [p for p in (tmp_path / "cache").rglob("*") if p.is_file()]
+
+
+def _runtime_files(log: str, own: str) -> set[str]:
+    """The files of zig's cache in the lld-link line ``log`` shows (ZIG_VERBOSE_LINK) but
+    the object of the source ``own`` compiled: the C runtime the link takes."""
+    line = next(x for x in log.splitlines() if x.startswith("lld-link"))
+    cache = str(objects.zig_cache())
+    return {a for a in line.split() if a.startswith(cache) and Path(a).name != f"{own}.obj"}
+
+
+def test_the_windows_runtime_built_ahead_is_the_one_the_links_use(
+    tmp_path, monkeypatch, native_dir
+):
+    """zig's C runtime for Windows built ahead (``objects.RuntimeWarmer``: ``zig
+    build-lib`` on every core) is cached under the keys of the links' ``zig cc``: in zig's
+    cache, where the session's build linked the Windows DLLs, it finds every piece the
+    links used (dllcrt2.obj, libmingw32.lib, zigc.lib, compiler_rt.lib, the import
+    libraries) and builds none anew."""
+    key = "x86_64-windows"
+    zig = toolchain.select().for_platform(key)
+    assert zig is not None and zig.is_zig
+    target = objects.Target(key, toolchain.PLATFORMS[key], zig)
+    held = sorted(objects.zig_cache().glob("o/*/libmingw32.lib"))
+    assert held  # the session's native build linked for Windows
+    monkeypatch.setenv("ZIG_VERBOSE_LINK", "1")
+    src = tmp_path / "f.c"
+    src.write_text("int f(void) { return 1; }\n")
+    link = [*zig.argv(target.platform), *objects.link_flags(target, native.CFLAGS), str(src),
+            "-o", str(tmp_path / "f.dll")]  # fmt: skip
+    linked = subprocess.run(link, capture_output=True, text=True, timeout=600, check=True)
+    warmer = objects.RuntimeWarmer(target, native.CFLAGS, tmp_path / "warm")
+    assert warmer.started
+    warmer.wait()
+    assert warmer.process.returncode == 0
+    ahead = _runtime_files((tmp_path / "warm" / "zig.log").read_text(), "glider_runtime")
+    assert {Path(f).name for f in ahead} >= {"dllcrt2.obj", "libmingw32.lib", "kernel32.lib"}
+    assert ahead == _runtime_files(linked.stderr, "f")
+    assert sorted(objects.zig_cache().glob("o/*/libmingw32.lib")) == held
