@@ -187,6 +187,10 @@ ZIG_FIRST_BUILD = {"windows": ("its C runtime (mingw-w64)", "about 2 min"),
                    "linux": ("its glibc stubs", "about 5 s")}  # fmt: skip
 #: zig's first build of Windows' C runtime when :class:`RuntimeWarmer` builds it, on every core
 ZIG_WARM_BUILD = "about 40 s"
+#: threads of zig's pool that its C runtime's build holds waiting (its sub-builds): with
+#: ``-j2`` (``zig cc``'s default on two cores) zig compiles the runtime's C files one at a
+#: time, with ``-j3`` at most one, ``-j4`` and ``-j5`` one or two, ``-j6`` two (sampled)
+RUNTIME_JOBS_HELD = 4
 #: zig's optimisation mode for each ``-O`` level of ``zig cc`` (its C runtime is cached per mode)
 ZIG_MODES = {"-O0": "Debug", "-O2": "ReleaseFast", "-O3": "ReleaseFast",
              "-Os": "ReleaseSmall", "-Oz": "ReleaseSmall"}  # fmt: skip
@@ -242,12 +246,13 @@ class RuntimeWarmer:
     some 440 C files, compiler_rt and the import libraries) into its cache, started at
     once in a process of its own.
 
-    ``zig cc`` builds that runtime at its first link for Windows, compiling the C files
-    one at a time (two workers on two cores, one of them waiting for the runtime): about
-    70 s of one core here. ``zig build-lib -j<cores + 1>`` of an empty library for the
-    same target and optimisation mode builds the same runtime under the same cache keys
-    on every core, and the links find it there: the same objects of our libraries, the
-    same runtime code, the same link command line. Started before the compiles, it runs
+    ``zig cc`` builds that runtime at its first link for Windows, compiling its C files
+    one at a time (zig's pool has a thread per core, and the runtime's sub-builds hold
+    them waiting): about 70 s of one core here. ``zig build-lib`` of an empty library
+    for the same target and optimisation mode, with a pool large enough to compile on
+    every core (:data:`RUNTIME_JOBS_HELD`), builds the same runtime under the same cache
+    keys, and the links find it there: the same objects of ours, the same runtime code,
+    the same link command line. Started before the compiles, it runs
     beside them and the other platforms' links; the Windows links wait for it
     (:meth:`wait`). Nothing depends on it: when it fails or builds another variant, the
     links build what they need as before.
@@ -288,7 +293,7 @@ class RuntimeWarmer:
             mode,
             "-dynamic",
             "-lc",
-            f"-j{(os.cpu_count() or 1) + 1}",  # zig's default leaves a core idle here
+            f"-j{(os.cpu_count() or 1) + RUNTIME_JOBS_HELD}",
             str(folder / "glider_runtime.c"),
             f"-femit-bin={folder / 'glider_runtime.dll'}",
             "--cache-dir",
