@@ -186,7 +186,7 @@ def _link(target: Target, cflags: tuple[str, ...], objects: list[Path], output: 
 ZIG_FIRST_BUILD = {"windows": ("its C runtime (mingw-w64)", "about 2 min"),
                    "linux": ("its glibc stubs", "about 5 s")}  # fmt: skip
 #: zig's first build of Windows' C runtime when :class:`RuntimeWarmer` builds it, on every core
-ZIG_WARM_BUILD = "about 40 s"
+ZIG_WARM_BUILD = "about 1 min"
 #: threads of zig's pool that its C runtime's build holds waiting (its sub-builds): with
 #: ``-j2`` (``zig cc``'s default on two cores) zig compiles the runtime's C files one at a
 #: time, with ``-j3`` at most one, ``-j4`` and ``-j5`` one or two, ``-j6`` two (sampled)
