@@ -174,6 +174,10 @@ class FakeWarmer:
         self.events.append("stop")
 
 
+class FakeWindows(FakeWarmer):
+    target = WINDOWS
+
+
 def _fake_build(monkeypatch, tmp_path, events, compile_job):
     monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path / "cache"))
 
@@ -221,3 +225,40 @@ def test_a_failed_compile_ends_the_runtime_built_ahead(tmp_path, monkeypatch):
         build()
     assert events[0] == "start" and events[-1] == "stop"
     assert not [e for e in events if e.startswith(("link", "wait"))]
+
+
+class Lines:
+    """A progress that keeps its notes and steps."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+
+    def note(self, text: str) -> None:
+        self.lines.append(text)
+
+    def step(self, label: str) -> None:
+        self.lines.append(label)
+
+    def set_total(self, total: int) -> None:
+        pass
+
+
+def test_the_runtime_built_ahead_is_named_before_the_first_compile(tmp_path, monkeypatch):
+    """The progress names zig's runtime build as it starts, before the compiles, with its
+    cache and the wait, and not again at the Windows links."""
+    monkeypatch.setenv("ZIG_GLOBAL_CACHE_DIR", str(tmp_path / "zig"))
+    events: list[str] = []
+    _fake_build(monkeypatch, tmp_path, events, lambda t, f, src, obj: None)
+    monkeypatch.setattr(
+        objects, "start_runtimes", lambda *a: {"x86_64-windows": FakeWindows(events)}
+    )
+    progress = Lines()
+    src = tmp_path / "a.c"
+    objects.build_binaries({"A": [src]}, [WINDOWS, LINUX], FLAGS, tmp_path / "stage",
+                           workers=1, progress=progress)  # fmt: skip
+    assert progress.lines[0] == (
+        f"zig builds its C runtime (mingw-w64) for x86_64-windows once into "
+        f"{tmp_path / 'zig'}, beside the compiles (about 1 min)"
+    )
+    assert progress.lines[1] == "compiling a.c for x86_64-windows"
+    assert sum("zig builds" in line for line in progress.lines) == 1 + 1  # + Linux' stubs
