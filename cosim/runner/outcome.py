@@ -33,9 +33,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 MIN_HOLD_S = 10.0
 HOLD_PERIODS = 3.0
@@ -111,6 +112,8 @@ def wrap_angle(angle: Any, period: float = 2.0 * math.pi) -> Any:
     A glide one turn from another is the same glide, and an estimate one turn from the
     truth is no error.
     """
+    import numpy as np
+
     half = 0.5 * period
     return np.mod(np.asarray(angle, dtype=float) + half, period) - half
 
@@ -124,6 +127,8 @@ def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf
     from a non-zero value is the last change (a jump instead forgets the side the
     signal was on and the sample is skipped); a sample beyond ``+-hyst`` on the other
     side than the last one beyond it is a crossing, at the last change."""
+    import numpy as np
+
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
     n = len(e)
@@ -161,6 +166,8 @@ def oscillation_period(
     ``hyst``; sign changes by steps above ``jump`` ignored): twice the longest interval
     between consecutive crossings, ignoring the first one (the transient). None if ``e``
     crosses fewer than three times."""
+    import numpy as np
+
     c = _crossings(t, e, hyst, jump)
     if len(c) < 3:
         return None
@@ -168,6 +175,8 @@ def oscillation_period(
 
 
 def _fit_rate(times: np.ndarray, values: np.ndarray) -> float:
+    import numpy as np
+
     v = np.maximum(np.abs(values), 1e-300)
     if len(times) < 2 or np.ptp(times) == 0.0:
         return 0.0
@@ -202,6 +211,8 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
         If the arrays differ in length, have fewer than 2 samples, ``t`` is not strictly
         increasing, a value is not finite, or ``band`` or ``period`` is not > 0.
     """
+    import numpy as np
+
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
     if t.shape != e.shape or t.ndim != 1 or len(t) < 2:
