@@ -260,3 +260,16 @@ def test_the_runs_recorders_and_metrics_need_no_numpy(tmp_path):
         assert bits(m[k]) == bits(v), (k, m[k], v)
     rms = float(np.sqrt(np.mean(wrap_angle(data[:, 2] - data[:, 1]) ** 2)))
     assert m["estimation_rms_rad"].hex() == rms.hex()
+
+
+@pytest.mark.parametrize("helper", ["1", "0"])
+def test_a_tables_csv_lines_are_the_arrays(helper, monkeypatch):
+    """The sweep's trajectories: a Table's CSV text without numpy, the same bytes."""
+    from glider_cosim.runner.recorders import csv_lines
+
+    monkeypatch.setenv("GLIDER_COSIM_FASTLOOP", helper)
+    rows = np.random.default_rng(3).normal(size=(40, 3)) * 1e3
+    rows[2, 1], rows[5, 0], rows[7, 2] = -0.0, math.inf, 1e-310
+    table = Table(array("d", rows.tobytes()), 40, 3)
+    assert csv_lines(table) == csv_lines(rows)
+    assert csv_lines(table).count(b"\n") == 40

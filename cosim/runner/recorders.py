@@ -121,7 +121,7 @@ def csv_lines(data: Any) -> bytes:
 
     Parameters
     ----------
-    data : array_like
+    data : Table or array_like
         A 2-D table of numbers (one row per line).
 
     Returns
@@ -129,21 +129,29 @@ def csv_lines(data: Any) -> bytes:
     bytes
         The lines, each ending with a newline; empty for no rows.
     """
-    import numpy as np
-
     from ..master.fastloop import library
 
-    table = np.ascontiguousarray(data.array() if isinstance(data, Table) else data, dtype=float)
-    if table.ndim != 2:
-        raise ValueError(f"csv_lines needs a 2-D table of numbers, got {table.ndim} dimension(s)")
-    nrows, ncol = table.shape
+    if isinstance(data, Table):  # its doubles as they are: no numpy
+        nrows, ncol, table = data.nrows, data.ncol, data
+        address = data.address
+    else:
+        import numpy as np
+
+        table = np.ascontiguousarray(data, dtype=float)
+        if table.ndim != 2:
+            raise ValueError(
+                f"csv_lines needs a 2-D table of numbers, got {table.ndim} dimension(s)"
+            )
+        nrows, ncol = table.shape
+        address = lambda: table.ctypes.data  # noqa: E731
     if nrows == 0 or ncol == 0:
         return b"\n" * nrows if ncol == 0 else b""
     lib = library()
     if lib is None:
-        return "".join(repr_row(r) for r in table.tolist()).encode()
+        values = table.values.tolist() if isinstance(table, Table) else table.ravel().tolist()
+        return "".join(repr_row(values[k : k + ncol]) for k in range(0, len(values), ncol)).encode()
     buf = ctypes.create_string_buffer(nrows * ncol * 25 + 64)
-    n = lib.glider_format_rows(ctypes.c_void_p(table.ctypes.data), nrows, ncol, buf, len(buf))
+    n = lib.glider_format_rows(ctypes.c_void_p(address()), nrows, ncol, buf, len(buf))
     return ctypes.string_at(buf, n)
 
 
