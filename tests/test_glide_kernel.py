@@ -273,3 +273,16 @@ def test_a_tables_csv_lines_are_the_arrays(helper, monkeypatch):
     table = Table(array("d", rows.tobytes()), 40, 3)
     assert csv_lines(table) == csv_lines(rows)
     assert csv_lines(table).count(b"\n") == 40
+
+
+def test_a_run_results_data_is_a_numpy_array_made_on_access():
+    from glider_cosim.runner.run import RunResult
+
+    rows = np.arange(12, dtype=float).reshape(4, 3)
+    result = RunResult(None, ["time", "a", "b"], Table(array("d", rows.tobytes()), 4, 3), {})
+    assert isinstance(result.__dict__["_data"], Table)  # kept as the run handed it over
+    assert isinstance(result.data, np.ndarray) and result.data.tobytes() == rows.tobytes()
+    assert result.data is result.data  # made once
+    assert result.column("b").tolist() == [2.0, 5.0, 8.0, 11.0]
+    same = RunResult(None, ["time", "a", "b"], rows, {})
+    assert same.data is rows and same == RunResult(None, ["time", "a", "b"], rows, {})

@@ -73,6 +73,9 @@ class RunResult:
 
     ``status`` is ``"ok"``, ``"stopped"`` (an FMU discarded the step, e.g. a stall) or
     ``"error"`` (an FMU error/fatal); ``message`` says which instance, call and time.
+    ``data`` is a 2-D numpy array (one row per communication point, ``columns`` wide),
+    made on first access from the rows the run kept (the run itself, its metrics and
+    files need no numpy).
     """
 
     scenario: Scenario
