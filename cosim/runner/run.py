@@ -34,32 +34,12 @@ from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, swapped, system_for
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
-from .recorders import ArrayRecorder, CsvRecorder, Table
+from .recorders import ArrayOnAccess, ArrayRecorder, CsvRecorder, Table
 
 if TYPE_CHECKING:
     import numpy as np
 
 log = logging.getLogger(__name__)
-
-
-class _LazyArray:
-    """:attr:`RunResult.data`: set to a :class:`~glider_cosim.runner.recorders.Table` (the
-    run keeps its rows without numpy) or an array; read as a numpy array, made on first
-    access."""
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.slot = "_" + name
-
-    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
-        if obj is None:
-            raise AttributeError("data")  # no default for the dataclass field
-        value = obj.__dict__[self.slot]
-        if isinstance(value, Table):
-            value = obj.__dict__[self.slot] = value.array()
-        return value
-
-    def __set__(self, obj: Any, value: Any) -> None:
-        obj.__dict__[self.slot] = value
 
 
 #: ``simulate``'s FMU folder unless one is given: None, the per-user cache
@@ -80,7 +60,7 @@ class RunResult:
 
     scenario: Scenario
     columns: list[str]
-    data: np.ndarray = _LazyArray()  # type: ignore[assignment]
+    data: np.ndarray = ArrayOnAccess()  # type: ignore[assignment]
     metrics: dict[str, Any]
     status: str = "ok"
     message: str = ""
