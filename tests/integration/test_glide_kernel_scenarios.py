@@ -4,6 +4,12 @@ Python flavor for those the kernel computes itself."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from glider_cosim.runner import metrics as metrics_module
@@ -57,3 +63,50 @@ def test_without_the_kernel_the_run_has_the_same_metrics(native_dir, monkeypatch
     assert [bits(v) for k, v in with_kernel.items() if k != "run"] == [
         bits(v) for k, v in without.items() if k != "run"
     ]
+
+
+KERNEL = Path(metrics_module.__file__).with_name("glidemetrics.c")
+
+UNDER_ASAN = r"""
+import ctypes, sys
+sys.path.insert(0, sys.argv[2])
+from glider_cosim.runner import metrics as M
+lib = ctypes.CDLL(sys.argv[1])
+M._KERNEL[:] = []
+import glider_cosim.master.fastloop as fastloop
+fastloop.library = lambda **kw: lib  # the sanitised build in place of the helper
+import test_glide_kernel as T
+T.test_the_kernel_gives_the_numpy_metrics_bit_for_bit()
+T.test_the_estimation_rms_is_numpys_bit_for_bit()
+T.test_a_fit_or_a_value_not_finite_is_left_to_numpy()
+print("checked", M._KERNEL[0] is lib)
+"""
+
+
+def test_the_kernel_is_warning_free_and_clean_under_asan_and_ubsan(tmp_path):
+    """gcc -Wall -Wextra -Werror; then the bit-for-bit tests with the kernel built with
+    AddressSanitizer and UndefinedBehaviorSanitizer (both runtimes preloaded into Python)."""
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("no gcc")
+    so = tmp_path / "glidemetrics_asan.so"
+    subprocess.run([gcc, "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Werror",
+                    "-ffp-contract=off", "-fsanitize=address,undefined", "-fno-omit-frame-pointer",
+                    "-fPIC", "-shared", str(KERNEL), "-o", str(so), "-lm"],
+                   check=True, capture_output=True, text=True)  # fmt: skip
+    runtimes = [
+        subprocess.run(
+            [gcc, f"-print-file-name={n}"], capture_output=True, text=True
+        ).stdout.strip()
+        for n in ("libasan.so", "libubsan.so")
+    ]
+    if not all(Path(r).is_file() for r in runtimes):
+        pytest.skip("no ASan/UBSan runtime")
+    env = {**os.environ, "LD_PRELOAD": " ".join(runtimes), "ASAN_OPTIONS": "detect_leaks=0",
+           "UBSAN_OPTIONS": "halt_on_error=1:print_stacktrace=1"}  # fmt: skip
+    tests = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, "-c", UNDER_ASAN, str(so), str(tests)],
+                          capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "checked True" in proc.stdout
+    assert "runtime error" not in proc.stderr and "AddressSanitizer" not in proc.stderr
