@@ -115,38 +115,47 @@ def trajectories(rng: np.random.Generator):
 
 def test_the_kernel_gives_the_numpy_metrics_bit_for_bit():
     """Every float of the metrics of every trajectory, and each outcome met: the kernel
-    computes settled, tumbling, stopped and no outcome itself; the others (a fit
-    decides) are numpy's, through compute_metrics."""
+    computes them all, numpy fitting the points it hands back where a fit decides
+    (not settled, limit cycle, diverging)."""
     seen: dict[str, int] = {}
-    by_kernel: dict[str, int] = {}
     for kind, t, theta_g, delta_cmd, t_on, completed in trajectories(np.random.default_rng(48)):
         theta_ge = 0.0 if kind == "pi boundary, held" and theta_g[0] == theta_g[-1] else THETA_GE
         want = glide_metrics(t, theta_g, delta_cmd, theta_ge, t_on, completed=completed)
         seen[str(want["outcome"])] = seen.get(str(want["outcome"]), 0) + 1
         got = _glide_metrics_c(table_of(t, theta_g, delta_cmd), WHICH, theta_ge, t_on, completed)
-        if got is None:
-            assert want["outcome"] in ("not settled", "limit cycle", "diverging"), (kind, want)
-            continue
-        by_kernel[str(want["outcome"])] = by_kernel.get(str(want["outcome"]), 0) + 1
+        assert got is not None, (kind, want)
         same_bits(got, want)
         # a numpy table (what the API may hand over) gives the same
         rows = np.column_stack([t, t, theta_g, t, delta_cmd])
         same_bits(_glide_metrics_c(rows, WHICH, theta_ge, t_on, completed), want)
     assert set(seen) == {*OUTCOMES, "None"}, seen
-    assert set(by_kernel) == {"settled", "tumbling", "stopped", "None"}, by_kernel
-    assert by_kernel["settled"] >= 50, by_kernel
+    assert min(seen.values()) >= 8 and seen["settled"] >= 50, seen
 
 
-def test_a_fit_or_a_value_not_finite_is_left_to_numpy():
+def test_a_value_not_finite_is_left_to_numpy():
     t = np.arange(3001) * 0.02
-    e = 0.2 * np.cos(2 * t)  # a limit cycle: a fit decides
-    assert _glide_metrics_c(table_of(t, THETA_GE + e, e), WHICH, THETA_GE, 0.0, True) is None
-    theta = THETA_GE + 0.2 * np.exp(-t)
+    e = 0.2 * np.exp(-t)
+    theta = THETA_GE + e
     theta[-1] = math.nan
     assert _glide_metrics_c(table_of(t, theta, e), WHICH, THETA_GE, 0.0, False) is None
     t2 = t.copy()
     t2[7] = t2[6]  # time not strictly increasing: numpy raises
     assert _glide_metrics_c(table_of(t2, THETA_GE + e, e), WHICH, THETA_GE, 0.0, True) is None
+
+
+def test_where_a_fit_decides_numpy_fits_the_kernels_points(monkeypatch):
+    """A limit cycle: the fit is numpy's (np.polyfit, called once), on the peaks."""
+    from glider_cosim.runner import outcome
+
+    t = np.arange(3001) * 0.02
+    e = 0.2 * np.cos(2 * t)
+    fits = []
+    real = outcome._fit_rate
+    monkeypatch.setattr(outcome, "_fit_rate", lambda x, y: fits.append(len(x)) or real(x, y))
+    got = _glide_metrics_c(table_of(t, THETA_GE + e, e), WHICH, THETA_GE, 0.0, True)
+    assert got["outcome"] == "limit cycle" and len(fits) == 1 and 10 < fits[0] < 30, fits
+    monkeypatch.undo()
+    same_bits(got, glide_metrics(t, THETA_GE + e, e, THETA_GE, 0.0))
 
 
 def test_the_estimation_rms_is_numpys_bit_for_bit():

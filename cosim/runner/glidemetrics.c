@@ -4,12 +4,13 @@
  * The table is the run's rows of doubles, row-major (time first); the columns are read
  * strided. The same operations as numpy's, in the same order (compiled with
  * -ffp-contract=off): numpy's pairwise summation (np.sum, np.mean), npy_remainder
- * (np.mod, the angle wrap), searchsorted's left side, the zero crossings of
- * outcome._crossings sample by sample. Where the numpy code fits a line (np.polyfit: an
- * error that neither settled nor tumbled), or an input is not finite or the time not
- * strictly increasing (numpy raises or propagates NaN there), the kernel returns
- * GM_NUMPY and the caller runs the numpy code instead. Tested against it bit for bit
- * (tests/test_glide_kernel.py). */
+ * (np.mod, the angle wrap), searchsorted's left side, argmax's first maximum, the zero
+ * crossings of outcome._crossings sample by sample. Where the outcome needs a fit
+ * (np.polyfit: an error that neither settled nor tumbled) the kernel hands the points to
+ * fit back (GM_FIT_PEAKS, GM_FIT_WINDOW) and the caller fits them with numpy and decides;
+ * where an input is not finite or the time not strictly increasing (numpy raises or
+ * propagates NaN there) it returns GM_NUMPY and the caller runs the numpy code instead.
+ * Tested against it bit for bit (tests/test_glide_kernel.py). */
 
 #include <math.h>
 #include <stddef.h>
@@ -22,11 +23,14 @@
 #define GM_STOPPED 1
 #define GM_SETTLED 2
 #define GM_TUMBLING 3
+#define GM_FIT_PEAKS 4  /* fit log(peak) of the half-cycle peaks (fit x, y) over time */
+#define GM_FIT_WINDOW 5 /* fit log|e| over the examined window (fit x, y) */
 
 /* the slots of out[]; a slot that stays None has its bit set in *none */
 enum {
     S_EFFORT, S_MAXABS, S_RISE, S_OVER, S_OVER_PCT, S_BAND, S_FINAL, S_SETTLING, S_PERIOD,
-    S_RATE, S_WIN0, S_WIN1, S_HOLD, S_IN_BAND, S_I0, S_COUNT
+    S_RATE, S_WIN0, S_WIN1, S_HOLD, S_IN_BAND, S_I0, S_AMP, S_MINABS, S_E0, S_NFIT, S_TW0,
+    S_TW1, S_COUNT
 };
 
 #define MIN_HOLD_S 10.0
@@ -103,12 +107,23 @@ static double abs_term(const void *ctx, long k)
     return fabs(AT(c->col, k));
 }
 
+static double array_term(const void *ctx, long k) { return ((const double *)ctx)[k]; }
+
+static double abs_array_term(const void *ctx, long k) { return fabs(((const double *)ctx)[k]); }
+
+static double diff_term(const void *ctx, long k)
+{
+    const double *c = ctx;
+    return c[k + 1] - c[k];
+}
+
 /* the error and its time from the takeover: e(k) and tt(k) of glide_metrics */
 typedef struct {
     const double *data;
     long ncol, ct, cth, i0, n; /* n samples from row i0 */
     double theta_ge, period;
-    double *ew; /* the wrapped error, computed once */
+    double *ew;   /* the wrapped error, computed once */
+    double *cbuf; /* room for n crossing times */
 } error_t;
 
 static double e_turns(const error_t *x, long k)
@@ -127,21 +142,21 @@ static double tt(const error_t *x, long k)
     return AT(x->ct, x->i0 + k) - AT(x->ct, x->i0);
 }
 
-/* outcome.oscillation_period: twice the longest interval between consecutive zero
- * crossings of the wrapped error (hysteresis hyst, sign changes by steps above jump
- * ignored), the first ignored when there are more than three; *found 0 for fewer than
- * three crossings. The rule of outcome._crossings, sample by sample. */
-static double oscillation_period(const error_t *x, double hyst, double jump, int *found)
+/* outcome._crossings of the wrapped error over the samples [lo, n) (times tt): the times
+ * into c[], their count. The vectorised rule, sample by sample: a sign change from a
+ * non-zero value is the last change (one by a step above jump instead forgets the side
+ * the signal was on, and its sample is skipped); a sample beyond +-hyst on the other
+ * side than the last one beyond it is a crossing, at the last change (interpolated). */
+static long crossings(const error_t *x, long lo, double hyst, double jump, double *c)
 {
-    long last = -1;   /* the last sign change (-1: none yet) */
-    int before = 0;   /* the side of the last sample beyond +-hyst; 0 after a jump */
-    long count = 0;   /* crossings so far */
-    double prev_c = 0.0, longest = 0.0, first_gap = 0.0;
+    long last = -1;  /* the last sign change (-1: none yet) */
+    int before = 0;  /* the side of the last sample beyond +-hyst; 0 after a jump */
+    long count = 0;
     double e_prev = 0.0;
-    for (long i = 0; i < x->n; i++) {
-        double e = e_wrapped(x, i);
+    for (long i = lo; i < x->n; i++) {
+        double e = x->ew[i];
         int jumped = 0;
-        if (i > 0) {
+        if (i > lo) {
             int s = (e > 0) - (e < 0), sp = (e_prev > 0) - (e_prev < 0);
             if (s != sp && e_prev != 0.0) {
                 if (fabs(e - e_prev) > jump)
@@ -152,29 +167,35 @@ static double oscillation_period(const error_t *x, double hyst, double jump, int
         }
         int side = jumped ? 0 : (e > hyst ? 1 : (e < -hyst ? -1 : 0));
         if (side != 0 && before != 0 && side != before && last >= 0) {
-            double a = e_wrapped(x, last - 1), b = e_wrapped(x, last);
+            double a = x->ew[last - 1], b = x->ew[last];
             double t0 = tt(x, last - 1), t1 = tt(x, last);
-            double c = a != b ? t0 + (t1 - t0) * a / (a - b) : t1;
-            if (count >= 1) { /* the gap before this crossing */
-                double gap = c - prev_c;
-                if (count == 1)
-                    first_gap = gap;
-                else if (count == 2 || gap > longest)
-                    longest = gap;
-            }
-            prev_c = c;
-            count++;
+            c[count++] = a != b ? t0 + (t1 - t0) * a / (a - b) : t1;
         }
         if (side != 0 || jumped)
             before = side;
         e_prev = e;
     }
-    *found = count >= 3;
-    if (count < 3)
+    return count;
+}
+
+/* outcome.oscillation_period: twice the longest interval between consecutive crossings
+ * (hysteresis hyst), the first ignored when there are more than three; *found 0 for
+ * fewer than three crossings */
+static double oscillation_period(const error_t *x, double hyst, double jump, int *found)
+{
+    long m = crossings(x, 0, hyst, jump, x->cbuf);
+    *found = m >= 3;
+    if (m < 3)
         return 0.0;
     /* np.max(np.diff(c)[1:] if len(c) > 3 else np.diff(c)) */
-    double m = count > 3 || longest > first_gap ? longest : first_gap;
-    return 2.0 * m;
+    long first = m > 3 ? 1 : 0;
+    double best = 0.0;
+    for (long k = first; k < m - 1; k++) {
+        double gap = x->cbuf[k + 1] - x->cbuf[k];
+        if (k == first || gap > best)
+            best = gap;
+    }
+    return 2.0 * best;
 }
 
 /* np.searchsorted(column, v) (side left) over rows [lo, hi) of a sorted column */
@@ -191,7 +212,8 @@ static long searchsorted(const double *data, long ncol, long col, long lo, long 
 }
 
 /* the rest of glider_glide_metrics, from the takeover on (x->n >= 1 samples) */
-static long classify(const error_t *x_, int completed, double floor_, double *out, long *none)
+static long classify(const error_t *x_, int completed, double floor_, double *out, long *none,
+                     double *fx, double *fy)
 {
     const double period = x_->period;
     const error_t x = *x_;
@@ -284,30 +306,91 @@ static long classify(const error_t *x_, int completed, double floor_, double *ou
             last_out = k;
             break;
         }
-    if (last_out == n - 1)
-        return GM_NUMPY; /* outside the band at the end: not settled */
-    double t_in = last_out < 0 ? 0.0 : tt(&x, last_out + 1);
+    int has_in_band = last_out != n - 1; /* in the band at the last sample */
+    double t_in = last_out < 0 ? 0.0 : (has_in_band ? tt(&x, last_out + 1) : 0.0);
     double in_band = t_end - t_in;
-    if (!(in_band >= hold))
-        return GM_NUMPY; /* not long enough in the band: a fit decides */
-    out[S_SETTLING] = t_in - 0.0;
-    out[S_HOLD] = hold;
-    out[S_IN_BAND] = in_band;
-    n_none &= ~((1L << S_SETTLING) | (1L << S_HOLD) | (1L << S_IN_BAND));
     if (found)
         out[S_PERIOD] = p_osc, n_none &= ~(1L << S_PERIOD);
+    out[S_HOLD] = hold;
+    n_none &= ~(1L << S_HOLD);
+    if (has_in_band)
+        out[S_IN_BAND] = in_band, n_none &= ~(1L << S_IN_BAND);
+    if (has_in_band && in_band >= hold) {
+        out[S_SETTLING] = t_in - 0.0;
+        n_none &= ~(1L << S_SETTLING);
+        *none = n_none;
+        return GM_SETTLED;
+    }
+    /* the end of the run: its last third, at least MIN_WINDOW_S (or all of it) */
+    long nw = n - iw;
+    out[S_TW0] = tt(&x, iw);
+    out[S_TW1] = t_end;
+    out[S_WIN0] = tt(&x, iw) + t_on0;
+    out[S_WIN1] = t_end + t_on0;
+    n_none &= ~((1L << S_WIN0) | (1L << S_WIN1));
+    double peak = fabs(x.ew[iw]);
+    for (long k = iw + 1; k < n; k++)
+        if (fabs(x.ew[k]) > peak)
+            peak = fabs(x.ew[k]);
+    long m = peak > 0 ? crossings(&x, iw, 0.1 * peak, 0.5 * period, x.cbuf) : 0;
     *none = n_none;
-    return GM_SETTLED;
+    if (m >= 4) { /* the half-cycle peaks of |e| between consecutive crossings */
+        long a = iw + 0, b;
+        for (long k = 0; k < m; k++) {
+            /* np.searchsorted(tw, c[k]) */
+            long lo = iw, hi = n;
+            while (lo < hi) {
+                long mid = lo + (hi - lo) / 2;
+                if (tt(&x, mid) < x.cbuf[k])
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            b = lo;
+            if (k > 0) {
+                if (b <= a)
+                    return GM_NUMPY; /* an empty stretch: numpy's argmax raises */
+                long best = a; /* np.argmax: the first largest */
+                for (long j = a + 1; j < b; j++)
+                    if (fabs(x.ew[j]) > fabs(x.ew[best]))
+                        best = j;
+                fx[k - 1] = tt(&x, best);
+                fy[k - 1] = fabs(x.ew[best]);
+            }
+            a = b;
+        }
+        long npk = m - 1;
+        out[S_NFIT] = (double)npk;
+        out[S_PERIOD] = 2.0 * (np_sum(diff_term, x.cbuf, npk) / (double)npk);
+        n_none &= ~(1L << S_PERIOD);
+        out[S_AMP] = np_sum(array_term, fy, npk) / (double)npk;
+        *none = n_none;
+        return GM_FIT_PEAKS;
+    }
+    for (long k = 0; k < nw; k++) {
+        fx[k] = tt(&x, iw + k);
+        fy[k] = x.ew[iw + k];
+    }
+    double mn = fabs(fy[0]);
+    for (long k = 1; k < nw; k++)
+        if (fabs(fy[k]) < mn)
+            mn = fabs(fy[k]);
+    out[S_NFIT] = (double)nw;
+    out[S_MINABS] = mn;
+    out[S_E0] = x.ew[0];
+    out[S_AMP] = np_sum(abs_array_term, fy, nw) / (double)nw;
+    return GM_FIT_WINDOW;
 }
 
 /* glide_metrics(t, theta_g, delta_cmd, theta_ge, t_on, completed) of the table's columns
  * ct, cth, cd (nrows rows of ncol doubles); t_on given as its searchsorted key
- * t_on - 1e-9 (has_t_on 0: None). Returns GM_NUMPY, GM_NONE, GM_STOPPED, GM_SETTLED or
- * GM_TUMBLING; the values in out[S_COUNT], the bits of the None ones in *none; floor_
- * the band's floor BAND_FLOOR [rad]. */
+ * t_on - 1e-9 (has_t_on 0: None). Returns GM_NUMPY, GM_NONE, GM_STOPPED, GM_SETTLED,
+ * GM_TUMBLING, GM_FIT_PEAKS or GM_FIT_WINDOW; the values in out[S_COUNT], the bits of
+ * the None ones in *none; floor_ the band's floor BAND_FLOOR [rad]; fit (2 nrows doubles)
+ * the points to fit, out[S_NFIT] of them: their x from fit[0], their y from fit[nrows]. */
 long glider_glide_metrics(const double *data, long nrows, long ncol, long ct, long cth, long cd,
                           double theta_ge, int has_t_on, double t_on_key, int completed,
-                          double floor_, double *out, long *none)
+                          double floor_, double *out, long *none, double *fit)
 {
     const double period = 2.0 * GM_PI;
     long n_none = 0;
@@ -342,14 +425,15 @@ long glider_glide_metrics(const double *data, long nrows, long ncol, long ct, lo
         *none = n_none;
         return completed ? GM_NONE : GM_STOPPED;
     }
-    error_t x = {data, ncol, ct, cth, i0, nrows - i0, theta_ge, period, NULL};
+    error_t x = {data, ncol, ct, cth, i0, nrows - i0, theta_ge, period, NULL, NULL};
     long n = x.n;
-    x.ew = malloc((size_t)n * sizeof(double));
+    x.ew = malloc(2 * (size_t)n * sizeof(double));
     if (x.ew == NULL)
         return GM_NUMPY;
+    x.cbuf = x.ew + n;
     for (long k = 0; k < n; k++)
         x.ew[k] = wrap(e_turns(&x, k), period);
-    long code = classify(&x, completed, floor_, out, &n_none);
+    long code = classify(&x, completed, floor_, out, &n_none, fit, fit + nrows);
     free(x.ew);
     *none = n_none;
     return code;

@@ -192,9 +192,7 @@ def compute_metrics(
     to the same bits.
     """
     n = len(data)
-    end = None
-    if n:
-        end = data.value(-1, 0) if isinstance(data, Table) else float(data[-1, 0])
+    end = (data.value(-1, 0) if isinstance(data, Table) else float(data[-1, 0])) if n else None
     metrics: dict[str, Any] = {
         "scenario": scenario.name,
         "scenario_source": scenario.source,
@@ -227,9 +225,11 @@ def compute_metrics(
 
 
 # the kernel's codes and slots (glidemetrics.c)
-_GM_NUMPY, _GM_NONE, _GM_STOPPED, _GM_SETTLED, _GM_TUMBLING = -1, 0, 1, 2, 3
+_GM_NUMPY, _GM_NONE, _GM_STOPPED, _GM_SETTLED, _GM_TUMBLING, _GM_FIT_PEAKS, _GM_FIT_WINDOW = (
+    -1, 0, 1, 2, 3, 4, 5)  # fmt: skip
 (_EFFORT, _MAXABS, _RISE, _OVER, _OVER_PCT, _BAND, _FINAL, _SETTLING, _PERIOD, _RATE, _WIN0,
- _WIN1, _HOLD, _IN_BAND, _I0, _SLOTS) = range(16)  # fmt: skip
+ _WIN1, _HOLD, _IN_BAND, _I0, _AMP, _MINABS, _E0, _NFIT, _TW0, _TW1,
+ _SLOTS) = range(22)  # fmt: skip
 _KERNEL: list[Any] = []  # [lib or None], found once
 
 
@@ -241,12 +241,12 @@ def _kernel() -> Any:
 
         lib = library()
         if lib is not None:
-            c_long, c_double, c_int = ctypes.c_long, ctypes.c_double, ctypes.c_int
-            ptr = ctypes.c_void_p
+            c_long, c_double, c_int, ptr = (ctypes.c_long, ctypes.c_double, ctypes.c_int,
+                                            ctypes.c_void_p)  # fmt: skip
             f = lib.glider_glide_metrics
             f.restype = c_long
             f.argtypes = (ptr, c_long, c_long, c_long, c_long, c_long, c_double, c_int, c_double,
-                          c_int, c_double, ptr, ptr)  # fmt: skip
+                          c_int, c_double, ptr, ptr, ptr)  # fmt: skip
             g = lib.glider_wrapped_rms
             g.restype = c_int
             g.argtypes = (ptr, c_long, c_long, c_long, c_long, ptr)
@@ -265,15 +265,13 @@ def _address(data: Table | np.ndarray) -> tuple[int, Any] | None:
 
 
 def _glide_metrics_c(
-    data: Table | np.ndarray,
-    which: tuple[int, int, int],
-    theta_ge: float,
-    t_on: float | None,
+    data: Table | np.ndarray, which: tuple[int, int, int], theta_ge: float, t_on: float | None,
     completed: bool,
-) -> dict[str, Any] | None:
+) -> dict[str, Any] | None:  # fmt: skip
     """:func:`glide_metrics` of the table's columns ``which`` (time, ``plant.theta_g``,
-    ``controller.delta_cmd``) by the C kernel, to the same bits; None where numpy must
-    (a fit decides the outcome, a value is not finite, no C helper)."""
+    ``controller.delta_cmd``) by the C kernel, to the same bits (where a fit decides the
+    outcome, the kernel hands back the points and numpy fits them); None where numpy
+    must compute them all (a value is not finite, no C helper)."""
     lib = _kernel()
     where = _address(data) if lib is not None else None
     if where is None:
@@ -281,9 +279,10 @@ def _glide_metrics_c(
     nrows, ncol = len(data), (data.ncol if isinstance(data, Table) else data.shape[1])
     v = (ctypes.c_double * _SLOTS)()
     mask = ctypes.c_long(0)
+    fit = (ctypes.c_double * (2 * nrows))()
     code = lib.glider_glide_metrics(
         where[0], nrows, ncol, *which, theta_ge, t_on is not None,
-        0.0 if t_on is None else t_on - 1e-9, completed, BAND_FLOOR, v, ctypes.byref(mask),
+        0.0 if t_on is None else t_on - 1e-9, completed, BAND_FLOOR, v, ctypes.byref(mask), fit,
     )  # fmt: skip
     if code == _GM_NUMPY:
         return None
@@ -311,7 +310,27 @@ def _glide_metrics_c(
     elif code == _GM_TUMBLING:
         out.update(outcome=TUMBLING, outcome_period_s=val(_PERIOD), outcome_rate_per_s=v[_RATE],
                    outcome_window_s=[v[_WIN0], v[_WIN1]], settling_hold_s=MIN_HOLD_S)  # fmt: skip
+    elif code in (_GM_FIT_PEAKS, _GM_FIT_WINDOW):
+        status, sigma = _fitted(code, v, fit, nrows)
+        out.update(outcome=status, outcome_period_s=val(_PERIOD), outcome_amplitude_rad=v[_AMP],
+                   outcome_rate_per_s=sigma, outcome_window_s=[v[_WIN0], v[_WIN1]],
+                   settling_hold_s=v[_HOLD], in_band_s=val(_IN_BAND))  # fmt: skip
     return out
+
+
+def _fitted(code: int, v: Any, fit: Any, nrows: int) -> tuple[str, float]:
+    """The outcome of an error that neither settled nor tumbled, and its rate [1/s]:
+    numpy's fit of the kernel's points (as :func:`~glider_cosim.runner.outcome.classify`)."""
+    import numpy as np
+
+    from .outcome import _fit_rate, envelope_status, trend_status
+
+    m = int(v[_NFIT])
+    x = np.frombuffer(fit, dtype=float, count=m).copy()
+    sigma = _fit_rate(x, np.frombuffer(fit, dtype=float, count=m, offset=8 * nrows).copy())
+    if code == _GM_FIT_PEAKS:  # the envelope of an oscillation
+        return envelope_status(sigma, v[_PERIOD]), sigma
+    return trend_status(sigma, v[_TW1] - v[_TW0], v[_MINABS], v[_E0]), sigma
 
 
 def wrapped_rms(data: Table | np.ndarray, a: int, b: int) -> float:

@@ -260,16 +260,28 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
         p = float(2.0 * np.mean(np.diff(c)))
         sigma = _fit_rate(np.array(pk_t), np.array(pk_v))
         amp = float(np.mean(pk_v))
-        per_period = math.expm1(abs(sigma) * p)
-        if per_period < SUSTAINED_PER_PERIOD:
-            status = LIMIT_CYCLE
-        else:
-            status = DIVERGING if sigma > 0 else NOT_SETTLED
-        return Outcome(status, None, hold, p, amp, sigma, window, in_band)
+        return Outcome(envelope_status(sigma, p), None, hold, p, amp, sigma, window, in_band)
     sigma = _fit_rate(tw, ew)
-    change = math.expm1(sigma * (tw[-1] - tw[0]))
-    # farther from zero over the whole window than at the start (e.g. a tumbling glider
-    # whose angle error keeps growing turn after turn, whatever its local trend)
-    away = float(np.min(np.abs(ew))) > (1.0 + SUSTAINED_PER_PERIOD) * abs(float(e[0]))
-    status = DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED
+    status = trend_status(sigma, tw[-1] - tw[0], float(np.min(np.abs(ew))), float(e[0]))
     return Outcome(status, None, hold, p_osc, float(np.mean(np.abs(ew))), sigma, window, in_band)
+
+
+def envelope_status(sigma: float, period: float) -> str:
+    """The outcome of an oscillation whose envelope grows at ``sigma`` [1/s] (< 0 decays),
+    its period ``period`` [s]: a limit cycle if its amplitude changes by less than
+    ``SUSTAINED_PER_PERIOD`` a period, else diverging or not settled (still decaying)."""
+    if math.expm1(abs(sigma) * period) < SUSTAINED_PER_PERIOD:
+        return LIMIT_CYCLE
+    return DIVERGING if sigma > 0 else NOT_SETTLED
+
+
+def trend_status(sigma: float, span: float, least: float, first: float) -> str:
+    """The outcome of an error that does not oscillate: ``|e|`` grows at ``sigma`` [1/s]
+    over the window's ``span`` [s], its least ``|e|`` there ``least``, ``first`` the error
+    at the takeover. Diverging if it grows by more than ``SUSTAINED_PER_PERIOD`` or stays
+    farther from zero over the whole window than at the start (e.g. a tumbling glider
+    whose angle error keeps growing turn after turn, whatever its local trend); else not
+    settled (converging, or an offset)."""
+    change = math.expm1(sigma * span)
+    away = least > (1.0 + SUSTAINED_PER_PERIOD) * abs(first)
+    return DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED
