@@ -12,7 +12,8 @@ process, after a warm-up that loads the FMUs:
   ``estimation_rms`` (``wrapped_rms``), ``total`` (``run_many``; cProfile's own cost
   inflates it), and ``other`` (the rest: the result row, the recorder);
 - ``metrics_ms``: ``compute_metrics`` of one run's table (the columns a sweep records),
-  CPU time per call, the best of 5 rounds of 200 calls.
+  CPU time per call, the best of 5 rounds of 200 calls; ``metrics_ms_limit_cycle`` the
+  same for the ``fig3-4-kc`` scenario (a limit cycle: the outcome needs a fit).
 
 Usage: python bench/sweep_worker.py [--runs 240] [--repeat 3] [--flavor native|python]
        [--fmu-dir DIR] [--json]
@@ -50,7 +51,7 @@ PARTS = {
 def metrics_ms(scenario, fmu_dir: Path) -> float:
     """CPU ms of ``compute_metrics`` of one default run's table (best of 5 x 200)."""
     system = system_for(scenario, fmu_dir, scenario.step)
-    system.record = list(METRIC_COLUMNS)
+    system.record = [c for c in METRIC_COLUMNS if scenario.observer or "observer" not in c]
     sim = CoSimulation(system, step=scenario.step, coupling=scenario.coupling)
     rec = ArrayRecorder()
     sim.run(scenario.stop_time, rec)
@@ -99,6 +100,7 @@ def main() -> None:
         "worker_cpu_ms_per_run_all": [round(c, 4) for c in cpu],
         "profile_ms_per_run": parts,
         "metrics_ms": round(metrics_ms(scenario, Path(fmu_dir)), 4),
+        "metrics_ms_limit_cycle": round(metrics_ms(load_scenario("fig3-4-kc"), Path(fmu_dir)), 4),
         "outcomes": sorted({str(r.get("outcome")) for r in rows}),
     }, args.json)  # fmt: skip
 
