@@ -25,8 +25,9 @@ from typing import Any
 
 SOURCE = Path(__file__).with_name("fastloop.c")
 #: the files compiled into the helper (``shortest.c``: the CSV text, Python's repr;
-#: ``csvwriter.c``: the CSV recorder's writer thread)
-SOURCES = (SOURCE, SOURCE.with_name("shortest.c"), SOURCE.with_name("csvwriter.c"))
+#: ``csvwriter.c``: the CSV recorder's writer thread; ``glidemetrics.c``: the run's metrics)
+SOURCES = (SOURCE, SOURCE.with_name("shortest.c"), SOURCE.with_name("csvwriter.c"),
+           SOURCE.parent.parent / "runner" / "glidemetrics.c")  # fmt: skip
 #: the headers they include (in the build's hash too)
 HEADERS = (SOURCE.with_name("shortest.h"), SOURCE.with_name("shortest_pow10.h"))
 ENV = "GLIDER_COSIM_FASTLOOP"

@@ -20,8 +20,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from ..master.errors import Interrupted, MasterError, SystemSpecError, deferred_sigint
 from ..master.spec import Recorder, count_steps
 
@@ -134,6 +132,8 @@ class Pacer:
 
     def summary(self) -> dict[str, Any]:
         """``metrics.json``'s ``real_time``: factors, lateness percentiles (ms), overruns."""
+        import numpy as np  # percentiles, for a paced run only
+
         late = np.asarray(self.lateness_ns, dtype=float) / 1e6
         n = len(late)
         wall = (self.last_ns - self.start_ns) / 1e9

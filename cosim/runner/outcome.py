@@ -33,9 +33,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 MIN_HOLD_S = 10.0
 HOLD_PERIODS = 3.0
@@ -111,6 +112,8 @@ def wrap_angle(angle: Any, period: float = 2.0 * math.pi) -> Any:
     A glide one turn from another is the same glide, and an estimate one turn from the
     truth is no error.
     """
+    import numpy as np
+
     half = 0.5 * period
     return np.mod(np.asarray(angle, dtype=float) + half, period) - half
 
@@ -124,6 +127,8 @@ def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf
     from a non-zero value is the last change (a jump instead forgets the side the
     signal was on and the sample is skipped); a sample beyond ``+-hyst`` on the other
     side than the last one beyond it is a crossing, at the last change."""
+    import numpy as np
+
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
     n = len(e)
@@ -161,6 +166,8 @@ def oscillation_period(
     ``hyst``; sign changes by steps above ``jump`` ignored): twice the longest interval
     between consecutive crossings, ignoring the first one (the transient). None if ``e``
     crosses fewer than three times."""
+    import numpy as np
+
     c = _crossings(t, e, hyst, jump)
     if len(c) < 3:
         return None
@@ -168,6 +175,8 @@ def oscillation_period(
 
 
 def _fit_rate(times: np.ndarray, values: np.ndarray) -> float:
+    import numpy as np
+
     v = np.maximum(np.abs(values), 1e-300)
     if len(times) < 2 or np.ptp(times) == 0.0:
         return 0.0
@@ -202,6 +211,8 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
         If the arrays differ in length, have fewer than 2 samples, ``t`` is not strictly
         increasing, a value is not finite, or ``band`` or ``period`` is not > 0.
     """
+    import numpy as np
+
     t = np.asarray(t, dtype=float)
     e = np.asarray(e, dtype=float)
     if t.shape != e.shape or t.ndim != 1 or len(t) < 2:
@@ -249,16 +260,28 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
         p = float(2.0 * np.mean(np.diff(c)))
         sigma = _fit_rate(np.array(pk_t), np.array(pk_v))
         amp = float(np.mean(pk_v))
-        per_period = math.expm1(abs(sigma) * p)
-        if per_period < SUSTAINED_PER_PERIOD:
-            status = LIMIT_CYCLE
-        else:
-            status = DIVERGING if sigma > 0 else NOT_SETTLED
-        return Outcome(status, None, hold, p, amp, sigma, window, in_band)
+        return Outcome(envelope_status(sigma, p), None, hold, p, amp, sigma, window, in_band)
     sigma = _fit_rate(tw, ew)
-    change = math.expm1(sigma * (tw[-1] - tw[0]))
-    # farther from zero over the whole window than at the start (e.g. a tumbling glider
-    # whose angle error keeps growing turn after turn, whatever its local trend)
-    away = float(np.min(np.abs(ew))) > (1.0 + SUSTAINED_PER_PERIOD) * abs(float(e[0]))
-    status = DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED
+    status = trend_status(sigma, tw[-1] - tw[0], float(np.min(np.abs(ew))), float(e[0]))
     return Outcome(status, None, hold, p_osc, float(np.mean(np.abs(ew))), sigma, window, in_band)
+
+
+def envelope_status(sigma: float, period: float) -> str:
+    """The outcome of an oscillation whose envelope grows at ``sigma`` [1/s] (< 0 decays),
+    its period ``period`` [s]: a limit cycle if its amplitude changes by less than
+    ``SUSTAINED_PER_PERIOD`` a period, else diverging or not settled (still decaying)."""
+    if math.expm1(abs(sigma) * period) < SUSTAINED_PER_PERIOD:
+        return LIMIT_CYCLE
+    return DIVERGING if sigma > 0 else NOT_SETTLED
+
+
+def trend_status(sigma: float, span: float, least: float, first: float) -> str:
+    """The outcome of an error that does not oscillate: ``|e|`` grows at ``sigma`` [1/s]
+    over the window's ``span`` [s], its least ``|e|`` there ``least``, ``first`` the error
+    at the takeover. Diverging if it grows by more than ``SUSTAINED_PER_PERIOD`` or stays
+    farther from zero over the whole window than at the start (e.g. a tumbling glider
+    whose angle error keeps growing turn after turn, whatever its local trend); else not
+    settled (converging, or an offset)."""
+    change = math.expm1(sigma * span)
+    away = least > (1.0 + SUSTAINED_PER_PERIOD) * abs(first)
+    return DIVERGING if change > SUSTAINED_PER_PERIOD or away else NOT_SETTLED

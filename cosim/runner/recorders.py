@@ -7,52 +7,110 @@ import os
 import queue
 import threading
 import weakref
+from array import array
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+
+class Table:
+    """A run's rows of doubles without numpy: row-major, ``ncol`` values a row (time
+    first), as the recorders keep them; :meth:`array` makes the numpy array.
+
+    Parameters
+    ----------
+    values : array.array of 'd'
+        The rows' values, row after row (not copied: the table owns them).
+    nrows, ncol : int
+        Rows, and values in a row.
+    """
+
+    __slots__ = ("values", "nrows", "ncol")
+
+    def __init__(self, values: array, nrows: int, ncol: int) -> None:
+        self.values, self.nrows, self.ncol = values, nrows, ncol
+
+    def __len__(self) -> int:
+        return self.nrows
+
+    def value(self, row: int, col: int) -> float:
+        """One value (``row`` may be negative, as an index)."""
+        return self.values[(row % self.nrows) * self.ncol + col]
+
+    def address(self) -> int:
+        """Where the values are in memory (for the C helper; valid while the table is
+        alive and not grown)."""
+        return self.values.buffer_info()[0]
+
+    def array(self) -> Any:
+        """The rows as a 2-D numpy array of float64, ``(nrows, ncol)`` (a copy)."""
+        import numpy as np
+
+        if not self.nrows or not self.ncol:
+            return np.empty((self.nrows, self.ncol))
+        return np.frombuffer(self.values, dtype=float).reshape(self.nrows, self.ncol).copy()
+
+
+class ArrayOnAccess:
+    """A dataclass field (``RunResult.data``) set to a :class:`Table` or an array and read
+    as a numpy array, made on first access (the run itself needs no numpy)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        if obj is None:
+            raise AttributeError(self.slot[1:])  # no default for the dataclass field
+        value = obj.__dict__[self.slot]
+        if isinstance(value, Table):
+            value = obj.__dict__[self.slot] = value.array()
+        return value
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.slot] = value
 
 
 class ArrayRecorder:
-    """Keeps rows in a preallocated-in-chunks list (for the API)."""
+    """Keeps rows in memory (for the API): their doubles in an ``array.array``, no numpy
+    until :meth:`array`."""
 
     def __init__(self) -> None:
         self.columns: list[str] = []
-        self.rows: list[Sequence[float]] = []  # rows handed one by one
-        self._blocks: list[np.ndarray] = []  # earlier rows, as arrays
+        self._values = array("d")
+        self._nrows = 0
 
     def start(self, columns: Sequence[str]) -> None:
         self.columns = list(columns)
 
     def row(self, values: Sequence[float]) -> None:
-        self.rows.append(values)
+        self._values.extend(values)
+        self._nrows += 1
 
     def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
-        """``nrows`` rows of ``ncol`` doubles from a buffer (copied)."""
-        self._gather(ncol)
-        block = np.frombuffer(values, dtype=float, count=nrows * ncol).reshape(nrows, ncol)
-        self._blocks.append(block.copy())
-
-    def _gather(self, ncol: int) -> None:
-        if self.rows:
-            self._blocks.append(np.array(self.rows, dtype=float).reshape(-1, ncol))
-            self.rows = []
+        """``nrows`` rows of ``ncol`` doubles from a ctypes buffer (copied)."""
+        self._values.frombytes(ctypes.string_at(values, nrows * ncol * 8))
+        self._nrows += nrows
 
     def __len__(self) -> int:
-        return len(self.rows) + sum(len(b) for b in self._blocks)
+        return self._nrows
 
     def close(self) -> None:
         pass
 
-    def array(self, n_columns: int | None = None) -> np.ndarray:
+    def table(self, n_columns: int | None = None) -> Table:
+        """The rows as a :class:`Table` (a copy of the values), ``n_columns`` wide when
+        no columns were started."""
         n = len(self.columns) if self.columns else (n_columns or 0)
-        self._gather(n)
-        if not self._blocks:
-            return np.empty((0, n))
-        if len(self._blocks) > 1:
-            self._blocks = [np.concatenate(self._blocks)]
-        return self._blocks[0].copy()
+        if self._nrows and len(self._values) != self._nrows * n:
+            raise ValueError(
+                f"{self._nrows} rows of {len(self._values)} values in all: expected "
+                f"{n} values a row"
+            )
+        return Table(array("d", self._values), self._nrows, n)
+
+    def array(self, n_columns: int | None = None) -> Any:
+        """The rows as a 2-D numpy array of float64 (a copy)."""
+        return self.table(n_columns).array()
 
 
 def repr_row(values: Sequence[float]) -> str:
@@ -82,7 +140,7 @@ def csv_lines(data: Any) -> bytes:
 
     Parameters
     ----------
-    data : array_like
+    data : Table or array_like
         A 2-D table of numbers (one row per line).
 
     Returns
@@ -92,17 +150,27 @@ def csv_lines(data: Any) -> bytes:
     """
     from ..master.fastloop import library
 
-    table = np.ascontiguousarray(data, dtype=float)
-    if table.ndim != 2:
-        raise ValueError(f"csv_lines needs a 2-D table of numbers, got {table.ndim} dimension(s)")
-    nrows, ncol = table.shape
+    if isinstance(data, Table):  # its doubles as they are: no numpy
+        nrows, ncol, table = data.nrows, data.ncol, data
+        address = data.address
+    else:
+        import numpy as np
+
+        table = np.ascontiguousarray(data, dtype=float)
+        if table.ndim != 2:
+            raise ValueError(
+                f"csv_lines needs a 2-D table of numbers, got {table.ndim} dimension(s)"
+            )
+        nrows, ncol = table.shape
+        address = lambda: table.ctypes.data  # noqa: E731
     if nrows == 0 or ncol == 0:
         return b"\n" * nrows if ncol == 0 else b""
     lib = library()
     if lib is None:
-        return "".join(repr_row(r) for r in table.tolist()).encode()
+        values = table.values.tolist() if isinstance(table, Table) else table.ravel().tolist()
+        return "".join(repr_row(values[k : k + ncol]) for k in range(0, len(values), ncol)).encode()
     buf = ctypes.create_string_buffer(nrows * ncol * 25 + 64)
-    n = lib.glider_format_rows(ctypes.c_void_p(table.ctypes.data), nrows, ncol, buf, len(buf))
+    n = lib.glider_format_rows(ctypes.c_void_p(address()), nrows, ncol, buf, len(buf))
     return ctypes.string_at(buf, n)
 
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 import logging
 import math
+import sys
+from array import array
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from ..figures.drawing import draw_plots, start_drawer
 from ..fmus.folders import build_all, fmu_folder
@@ -34,7 +34,10 @@ from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, swapped, system_for
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
-from .recorders import ArrayRecorder, CsvRecorder
+from .recorders import ArrayOnAccess, ArrayRecorder, CsvRecorder, Table
+
+if TYPE_CHECKING:
+    import numpy as np
 
 log = logging.getLogger(__name__)
 
@@ -50,11 +53,14 @@ class RunResult:
 
     ``status`` is ``"ok"``, ``"stopped"`` (an FMU discarded the step, e.g. a stall) or
     ``"error"`` (an FMU error/fatal); ``message`` says which instance, call and time.
+    ``data`` is a 2-D numpy array (one row per communication point, ``columns`` wide),
+    made on first access from the rows the run kept (the run itself, its metrics and
+    files need no numpy).
     """
 
     scenario: Scenario
     columns: list[str]
-    data: np.ndarray
+    data: np.ndarray = ArrayOnAccess()  # type: ignore[assignment]
     metrics: dict[str, Any]
     status: str = "ok"
     message: str = ""
@@ -329,18 +335,19 @@ def simulate(
             del files["results"]  # the run failed before its first row
         if isinstance(recorder, RunProgress):
             recorder = recorder.inner
+        empty = Table(array("d"), 0, len(sim.columns))
         if hasattr(recorder, "read"):  # Parquet
-            data = recorder.read() if recorder.n_rows else np.empty((0, len(sim.columns)))
+            data: Any = recorder.read() if recorder.n_rows else empty
             columns = sim.columns
         elif isinstance(recorder, CsvRecorder):
             data = (
-                recorder.keep.array(len(sim.columns))
+                recorder.keep.table(len(sim.columns))
                 if recorder.n_rows and recorder.keep is not None
-                else np.empty((0, len(sim.columns)))
+                else empty
             )
             columns = sim.columns
         else:
-            columns, data = recorder.columns or sim.columns, recorder.array(len(sim.columns))
+            columns, data = recorder.columns or sim.columns, recorder.table(len(sim.columns))
         metrics = compute_metrics(columns, data, scenario, sim, status)
         metrics.update(status=status, message=message)
         ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
@@ -374,6 +381,7 @@ def _jsonable(obj: Any) -> Any:
         return [_jsonable(v) for v in obj]
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
-    if isinstance(obj, np.floating | np.integer):
+    np = sys.modules.get("numpy")  # a numpy scalar only if numpy was imported
+    if np is not None and isinstance(obj, np.floating | np.integer):
         return _jsonable(obj.item())
     return obj

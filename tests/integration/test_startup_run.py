@@ -42,7 +42,7 @@ def test_a_run_keeps_the_table_it_writes(tmp_path, monkeypatch, native_dir):
     def no_reading(*args, **kwargs):
         raise AssertionError("results.csv read back")
 
-    monkeypatch.setattr(run_module.np, "loadtxt", no_reading)
+    monkeypatch.setattr(np, "loadtxt", no_reading)
     result = simulate("default", tmp_path, fmu_dir=native_dir, build=False, plots=False,
                       stop_time=5.0)  # fmt: skip
     monkeypatch.undo()
