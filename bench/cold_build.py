@@ -1,5 +1,6 @@
-"""Cold builds of the native FMUs: the first ``glider-cosim run --flavor native`` and
-``glider-cosim build --flavor native`` (every platform), each into a fresh FMU cache.
+"""Cold builds: the first ``glider-cosim run`` (the default, Python flavor), the first
+``glider-cosim run --flavor native`` and ``glider-cosim build --flavor native`` (every
+platform), each into a fresh FMU cache.
 
 Each figure is the median wall time (s) of ``--repeat`` runs of the command in a new
 process, into a new temporary ``$GLIDER_COSIM_CACHE`` and, by default, a new
@@ -44,6 +45,7 @@ from _common import emit
 
 #: the commands timed: name -> glider-cosim arguments (``{out}``: a temporary folder)
 COMMANDS = {
+    "cold_run": ["run", "--out", "{out}"],
     "cold_run_native": ["run", "--flavor", "native", "--out", "{out}"],
     "cold_run_native_no_plots": ["run", "--flavor", "native", "--no-plots", "--out", "{out}"],
     "build_native_all": ["build", "--flavor", "native", "--out", "{out}"],

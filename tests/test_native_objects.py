@@ -93,27 +93,34 @@ def test_the_cache_lists_a_host_only_set_and_the_objects(tmp_path, monkeypatch):
     }
 
 
+@pytest.mark.parametrize("flavor", ["native", "python"])
 @pytest.mark.parametrize(
     ("host_only", "full_current", "expected"),
     [(True, False, "host"), (True, True, "full"), (False, False, "full"), (False, True, "full")],
 )
 def test_a_run_takes_the_full_set_if_current_else_a_host_only_one(
-    tmp_path, monkeypatch, host_only, full_current, expected
+    tmp_path, monkeypatch, flavor, host_only, full_current, expected
 ):
+    """A run (``host_only``) takes the cache's full set if it is current, else a set for
+    this machine alone in a folder of its own: native FMUs and, since issue 48, the Python
+    flavor's FMI 2.0 ones (whose runtime is then built for one platform, not two)."""
     monkeypatch.setenv("GLIDER_COSIM_CACHE", str(tmp_path))
     monkeypatch.setattr(folders, "sources_key", lambda flavor="python": "k")
-    monkeypatch.setattr(folders, "_current_native", lambda folder, fmi: full_current)
+    monkeypatch.setattr(folders, "_current", lambda folder, flavor, fmi: full_current)
     calls = []
     monkeypatch.setattr(folders, "build_all", lambda out, **kw: calls.append((Path(out), kw)))
-    got = folders.prepare_fmus(None, "native", host_only=host_only)
-    want = folders.cache_dir("native", host_only=expected == "host")
+    got = folders.prepare_fmus(None, flavor, host_only=host_only)
+    want = folders.cache_dir(flavor, host_only=expected == "host")
     assert got == want
     assert got.name == (
-        "native-k" if expected == "full" else f"native-only-{toolchain.host_platform()}-k"
+        f"{flavor}-k" if expected == "full" else f"{flavor}-only-{toolchain.host_platform()}-k"
     )
-    assert calls == [(want, {"only_stale": True, "flavor": "native", "fmi": 2,
+    assert calls == [(want, {"only_stale": True, "flavor": flavor, "fmi": 2,
                              "host_only": host_only})]  # fmt: skip
-    assert folders.prepare_fmus(None, "python", host_only=host_only) == folders.cache_dir("python")
+    # the Python flavor's FMI 3.0 set is always the full one
+    assert folders.prepare_fmus(None, "python", 3, host_only=host_only) == folders.cache_dir(
+        "python", 3
+    )
 
 
 def test_runs_run_here_and_exports_hand_on():

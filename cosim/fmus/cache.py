@@ -3,8 +3,9 @@ the sets of other glider-cosim versions.
 
 Layout: ``<cache_root>/<version>/<entry>``, where an entry is an FMU set
 ``<flavor>[-fmi3]-<sources key>`` (:func:`glider_cosim.fmus.folders.cache_dir`), a
-native set with this machine's binary alone, to run here
-``native[-fmi3]-only-<platform>-<sources key>``, the compiled fast loop
+set with this machine's binary alone, to run here
+``native[-fmi3]-only-<platform>-<sources key>`` or ``python-only-<platform>-<sources
+key>``, the compiled fast loop
 ``fastloop-<key>``, the native sources ``native-src`` or their objects ``native-obj``
 (:mod:`glider_cosim.fmus.objects`), the native FMUs' variable tables ``native-vars``,
 the cache's FMUs unpacked to run ``unpacked``, matplotlib's font cache ``matplotlib`` (the CLI's).

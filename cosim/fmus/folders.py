@@ -60,14 +60,14 @@ def cache_dir(flavor: str = "python", fmi: int = 2, host_only: bool = False) -> 
     sources: ``<cache_root>/<version>/<flavor>[-fmi3]-<sources_key>``. Other sources
     (another checkout, an edit) get another folder, so the FMUs are rebuilt when stale.
 
-    ``host_only`` (native flavor): the folder of the set built to run on this machine
-    alone, ``<flavor>[-fmi3]-only-<platform>-<sources_key>`` (:data:`HOST_ONLY`), apart
-    from the full set so that it is never taken for one."""
+    ``host_only`` (the native flavor, the Python flavor's FMI 2.0 set): the folder of the
+    set built to run on this machine alone, ``<flavor>[-fmi3]-only-<platform>-<sources_key>``
+    (:data:`HOST_ONLY`), apart from the full set so that it is never taken for one."""
 
     if flavor not in FLAVORS:
         raise ValueError(f"flavor {flavor!r} is invalid: expected one of {', '.join(FLAVORS)}")
     kind = flavor if fmi == 2 else f"{flavor}-fmi{fmi}"
-    if host_only and flavor == "native":
+    if host_only and _has_host_only(flavor, fmi):
         kind += f"{HOST_ONLY}{host_platform()}"
     return cache_root() / package_version() / f"{kind}-{sources_key(flavor)}"
 
@@ -242,11 +242,14 @@ def _build(
     stale = [c for c in wanted if not (only_stale and is_current(out / f"{c.name}.fmu", c))]
     todo = [c for c in wanted if c.name in force or c in stale]
     result = {c.name: out / f"{c.name}.fmu" for c in wanted}
+    # this machine's runtime alone for a run's host-only set (prepare_fmus), else every one
+    here = host_platform() if host_only and _has_host_only(flavor, 2) else None
+    platforms = (here,) if here else PYTHON_PLATFORMS
     if todo:
         with tempfile.TemporaryDirectory(prefix="glider_fmi_") as tmp, \
-                build_progress(todo, "python", 2, out, PYTHON_PLATFORMS) as progress:  # fmt: skip
+                build_progress(todo, "python", 2, out, platforms) as progress:  # fmt: skip
             progress.set_total(1 + len(todo))
-            binary = shown_runtimes(tmp, progress)
+            binary = shown_runtimes(tmp, progress, platforms=platforms)
             for c in todo:
                 progress.step(f"building {c.name}.fmu python")
                 result[c.name] = build_component(c, out, binary)
@@ -315,11 +318,12 @@ def prepare_fmus(
     FMUs may be handed on), or kept host-only if it holds a host-only set."""
     if fmu_dir is None:
         flavor = flavor or "python"
+        fmi = fmi or 2
         with same_sources():  # each FMU's hash made once
-            folder = cache_dir(flavor, fmi or 2)
-            if host_only and flavor == "native" and not _current_native(folder, fmi or 2):
-                folder = cache_dir(flavor, fmi or 2, host_only=True)
-            build_all(folder, only_stale=True, flavor=flavor, fmi=fmi or 2, host_only=host_only)
+            folder = cache_dir(flavor, fmi)
+            if host_only and _has_host_only(flavor, fmi) and not _current(folder, flavor, fmi):
+                folder = cache_dir(flavor, fmi, host_only=True)
+            build_all(folder, only_stale=True, flavor=flavor, fmi=fmi, host_only=host_only)
         return folder
     folder = Path(fmu_dir)
     if flavor is not None or fmi is not None or overwrite:  # else kept as it is
@@ -327,8 +331,17 @@ def prepare_fmus(
     return folder
 
 
-def _current_native(folder: Path, fmi: int) -> bool:
-    """True if ``folder`` holds the full native set of FMI ``fmi``, current."""
-    from .native import is_current
+def _has_host_only(flavor: str, fmi: int) -> bool:
+    """A run's cache may hold a set built for this machine alone: the native flavor's, and
+    the Python flavor's FMI 2.0 set (its runtime built for this platform only: a first run
+    then waits for zig's C library pieces of one platform, not two; issue 48)."""
+    return flavor == "native" or (fmi == 2 and host_platform() in PYTHON_PLATFORMS)
 
-    return all(is_current(folder / f"{c.name}.fmu", c, fmi) for c in NATIVE_COMPONENTS)
+
+def _current(folder: Path, flavor: str, fmi: int) -> bool:
+    """True if ``folder`` holds the flavor's full set of FMI ``fmi``, current."""
+    if flavor == "python":
+        return all(is_current(folder / f"{c.name}.fmu", c) for c in COMPONENTS)
+    from .native import is_current as native_current
+
+    return all(native_current(folder / f"{c.name}.fmu", c, fmi) for c in NATIVE_COMPONENTS)

@@ -188,10 +188,16 @@ def build_slave_fmu(
         return package_slave(Path(script), Path(out), binaries, project_files)
 
 
-def shown_runtimes(folder: Path | str, progress: Any, fmi3: bool = False) -> dict[str, Path]:
-    """:func:`glider_fmi.compile.compile_runtimes`, a step of ``progress``
-    (:func:`~glider_cosim.fmus.files.build_progress`), with zig's one-time build of each
-    platform's C runtime named first (:func:`~glider_cosim.fmus.objects.zig_first_note`)."""
+def shown_runtimes(
+    folder: Path | str,
+    progress: Any,
+    fmi3: bool = False,
+    platforms: Sequence[str] = runtime.PYTHON_PLATFORMS,
+) -> dict[str, Path]:
+    """:func:`glider_fmi.compile.compile_runtimes` for ``platforms``, a step of
+    ``progress`` (:func:`~glider_cosim.fmus.files.build_progress`), with zig's one-time
+    build of each platform's C runtime named first
+    (:func:`~glider_cosim.fmus.objects.zig_first_note`)."""
     from glider_fmi import toolchain
 
     from .objects import Target, zig_first_note
@@ -200,13 +206,13 @@ def shown_runtimes(folder: Path | str, progress: Any, fmi3: bool = False) -> dic
         chain = toolchain.select()
     except toolchain.ToolchainError:
         chain = None  # compile_runtimes says what is wrong
-    keys = [k for k in runtime.PYTHON_PLATFORMS if chain and chain.for_platform(k)]
+    keys = [k for k in platforms if chain and chain.for_platform(k)]
     for k in keys:
         note = zig_first_note(Target(k, toolchain.PLATFORMS[k], chain.for_platform(k)))
         if note:
             progress.note(note)
     progress.step(f"compiling the FMI {3 if fmi3 else 2}.0 runtime for {' and '.join(keys)}")
-    return runtime.compile_runtimes(folder, fmi3=fmi3, chain=chain)
+    return runtime.compile_runtimes(folder, fmi3=fmi3, chain=chain, platforms=platforms)
 
 
 def build_component(c: Component, out: Path, binary: Path | dict[str, Path]) -> Path:

@@ -17,6 +17,7 @@ import importlib.util
 import logging
 import sys
 import sysconfig
+from collections.abc import Sequence
 from pathlib import Path
 
 from . import toolchain
@@ -151,17 +152,20 @@ def compile_runtime(
 
 
 def compile_runtimes(
-    folder: Path | str, fmi3: bool = False, chain: toolchain.Toolchain | None = None
+    folder: Path | str,
+    fmi3: bool = False,
+    chain: toolchain.Toolchain | None = None,
+    platforms: Sequence[str] = PYTHON_PLATFORMS,
 ) -> dict[str, Path]:
-    """The runtime for every platform of :data:`PYTHON_PLATFORMS` the toolchain builds,
-    warning-free, in ``folder``: platform -> library. Platforms no compiler chosen builds
-    (a system compiler without zig) are left out with a one-line warning."""
+    """The runtime for every platform of ``platforms`` (default :data:`PYTHON_PLATFORMS`)
+    the toolchain builds, warning-free, in ``folder``: platform -> library. Platforms no
+    compiler chosen builds (a system compiler without zig) are left out with a one-line
+    warning."""
     chain = chain or toolchain.select()
-    missing = [p for p in PYTHON_PLATFORMS if chain.for_platform(p) is None]
-    if len(missing) == len(PYTHON_PLATFORMS):
+    missing = [p for p in platforms if chain.for_platform(p) is None]
+    if len(missing) == len(platforms):
         raise RuntimeBuildError(
-            f"--compiler {chain.spec} builds none of {', '.join(PYTHON_PLATFORMS)} (add zig, "
-            "the default)"
+            f"--compiler {chain.spec} builds none of {', '.join(platforms)} (add zig, the default)"
         )
     if missing:
         logging.getLogger(__name__).warning(
@@ -169,7 +173,7 @@ def compile_runtimes(
             ", ".join(missing),
         )  # fmt: skip
     built = {}
-    for platform in PYTHON_PLATFORMS:
+    for platform in platforms:
         if platform in missing:
             continue
         out = Path(folder) / f"runtime{3 if fmi3 else 2}-{platform}.so"

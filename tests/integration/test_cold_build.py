@@ -79,6 +79,28 @@ def test_a_run_builds_this_machines_binary_alone_and_an_export_every_platforms(
     assert np.array_equal(a.data, b.data)
 
 
+def test_a_first_run_builds_the_python_runtime_for_this_machine_alone(
+    tmp_path, monkeypatch, fmu_dir
+):
+    """Issue 48: a first ``glider-cosim run`` (the Python flavor) into an empty cache
+    compiles the FMI runtime for this machine's platform alone (zig builds the C library
+    pieces of one platform, not two: about 5 s of a newcomer's first run), into a set of
+    its own that nothing hands on; its results are the full set's, bit for bit."""
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("GLIDER_COSIM_CACHE", str(cache))
+    assert main(["run", "--no-plots", "--stop-time", "2", "--out", str(tmp_path / "run")]) == 0
+    host = folders.cache_dir("python", host_only=True)
+    assert host.name.startswith(f"python-only-{HOST}-")
+    assert not folders.cache_dir("python").exists()  # no full set to take it for
+    for name in NAMES:
+        assert binaries(host / f"{name}.fmu") == [f"binaries/linux64/{name}.so"]
+        assert len(binaries(fmu_dir / f"{name}.fmu")) == 2  # the full set: aarch64 too
+    a = simulate("default", None, fmu_dir=fmu_dir, build=False, stop_time=10.0)
+    b = simulate("default", None, fmu_dir=host, build=False, stop_time=10.0)
+    assert a.status == b.status == "ok"
+    assert np.array_equal(a.data, b.data)
+
+
 def test_an_edit_recompiles_only_the_files_it_touched(tmp_path, monkeypatch, native_dir):
     """The session's objects serve a host-only build (nothing compiled); a changed
     GliderPlant_vars.h recompiles plant_fmu.c alone, the one file that includes it."""
