@@ -21,9 +21,10 @@ from .files import (  # noqa: F401 (re-exported)
     file_sha256,
     fmu_flavor,
     package_version,
+    same_sources,
 )
 from .fmi3 import build_fmi3
-from .native import NATIVE_COMPONENTS, build_native, native_hash, same_sources
+from .native import NATIVE_COMPONENTS, build_native, native_hash
 from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
 from .python import (
     COMPONENTS,

@@ -16,13 +16,12 @@ with every C file, ``buildDescription.xml`` and ``<SourceFiles>``, so tools can 
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import logging
 import tempfile
 import zipfile
-from collections.abc import Collection, Iterator
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,14 @@ import glider_plant
 from glider_fmi import toolchain
 
 from . import objects, osp, platforms, wasm
-from .files import FLAVOR_FILE, build_progress, package_version, replacing
+from .files import (  # noqa: F401 (same_sources re-exported)
+    FLAVOR_FILE,
+    build_progress,
+    made_once,
+    package_version,
+    replacing,
+    same_sources,
+)
 from .native_description import build_description, model_description
 from .native_vars import NativeBuildError, make_vars_header, vars_header  # noqa: F401
 from .platforms import binary_entries, zip_member
@@ -126,11 +132,12 @@ def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | N
     (``chain``, default :func:`glider_fmi.toolchain.select`), the version and the code
     that writes the model description (``slave_base.py``, ``derivatives.py``).
 
-    Made once a process for the same files (their paths, modification times and sizes):
-    a run's staleness checks ask for it 9 times (issue 48)."""
-    key = (c.name, fmi, chain)
-    if _SAME_SOURCES["on"] and key in _SAME_SOURCES["hashes"]:
-        return _SAME_SOURCES["hashes"][key]
+    Made once a process for the same files (their paths, modification times and sizes),
+    and once within :func:`~glider_cosim.fmus.files.same_sources` (issue 48)."""
+    return made_once(("native", c.name, fmi, chain), lambda: _native_hash(c, fmi, chain))
+
+
+def _native_hash(c: NativeComponent, fmi: int, chain: toolchain.Toolchain | None) -> str:
     files = [FMI_DIR / w for w in ("slave_base.py", "derivatives.py")] + source_files(c, fmi)
     stamp = tuple((str(f), st.st_mtime_ns, st.st_size) for f in files for st in [f.stat()])
     parts = (
@@ -141,28 +148,7 @@ def native_hash(c: NativeComponent, fmi: int = 2, chain: toolchain.Toolchain | N
         package_version(),
         osp.fingerprint(),
     )
-    digest = _native_digest(parts, stamp)
-    if _SAME_SOURCES["on"]:
-        _SAME_SOURCES["hashes"][key] = digest
-    return digest
-
-
-#: :func:`same_sources`' state: on, and the hashes made meanwhile
-_SAME_SOURCES: dict[str, Any] = {"on": 0, "hashes": {}}
-
-
-@contextlib.contextmanager
-def same_sources() -> Iterator[None]:
-    """Within it, each :func:`native_hash` is made once (the sources are taken not to
-    change): a command's preparation of the cache asks for each FMU's 3 times (the
-    folder's key, its staleness, the full set's), 3-4 ms of a run (issue 48)."""
-    _SAME_SOURCES["on"] += 1
-    try:
-        yield
-    finally:
-        _SAME_SOURCES["on"] -= 1
-        if not _SAME_SOURCES["on"]:
-            _SAME_SOURCES["hashes"].clear()
+    return _native_digest(parts, stamp)
 
 
 @functools.lru_cache(maxsize=64)

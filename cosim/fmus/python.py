@@ -19,7 +19,7 @@ from glider_fmi import bundle
 from glider_fmi import compile as runtime
 
 from . import osp
-from .files import replacing
+from .files import made_once, replacing
 
 #: resource file in each FMU holding the hash of the sources it was built from
 HASH_FILE = "resources/glider_cosim_source.sha256"
@@ -74,7 +74,12 @@ def _binaries(binary: Path | dict[str, Path]) -> dict[str, Path]:
 
 def source_hash(c: Component) -> str:
     """SHA-256 over the component's sources, the script shim, the runtime (source and
-    flags) and the Python configuration it records."""
+    flags) and the Python configuration it records (made once within
+    :func:`~glider_cosim.fmus.files.same_sources`)."""
+    return made_once(("python", c.name), lambda: _source_hash(c))
+
+
+def _source_hash(c: Component) -> str:
     h = hashlib.sha256(shim_text(c).encode())
     h.update(runtime.runtime_fingerprint().encode())
     h.update(runtime.python_config().encode())

@@ -26,11 +26,12 @@ LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
 
 def parameter_defaults(fmu: str | Path) -> dict[str, Any]:
     """Start values of an FMU's parameters and inputs, by name, from its model
-    description (Real as float, Integer as int, Boolean as bool)."""
-    from fmpy import read_model_description
+    description (Real as float, Integer as int, Boolean as bool), read without fmpy
+    (:func:`glider_cosim.inputs.archives.read_description`)."""
+    from ..inputs.archives import read_description
 
     conv = {"Real": float, "Integer": int, "Boolean": lambda v: str(v).lower() in ("true", "1")}
-    md = read_model_description(str(fmu))
+    md = read_description(fmu)
     return {
         v.name: conv[v.type](v.start)
         for v in md.modelVariables

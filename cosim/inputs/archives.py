@@ -140,17 +140,13 @@ def _is_pythonfmu(md: Any, names: set[str]) -> bool:
 def _platform() -> tuple[str, str, str]:
     """This host's FMI 2 binaries folder (``linux64``, ``win64``, ``darwin64``), FMI 3
     platform tuple (``x86_64-linux``) and shared library suffix, as fmpy names them."""
-    if sys.platform.startswith("win"):
-        system, suffix = "windows", ".dll"
-        import platform
+    from glider_fmi.toolchain import host_machine
 
-        machine = platform.machine().lower()
-    else:
-        system = "darwin" if sys.platform == "darwin" else "linux"
-        suffix = ".dylib" if system == "darwin" else ".so"
-        machine = os.uname().machine.lower()
+    system, arch = host_machine()
+    system = system if system in ("windows", "darwin") else "linux"
+    suffix = {"windows": ".dll", "darwin": ".dylib"}.get(system, ".so")
     fmi2 = "win" if system == "windows" else system
-    if machine in ("aarch64", "arm64"):
+    if arch == "aarch64":
         return f"{fmi2}64", f"aarch64-{system}", suffix
     if sys.maxsize > 2**32:
         return f"{fmi2}64", f"x86_64-{system}", suffix

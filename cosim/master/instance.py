@@ -76,10 +76,10 @@ def unpacked_in_cache(fmu: Path) -> str | None:
     temporary folder) or when the cache cannot be written."""
     from ..fmus.files import cache_root, file_sha256, package_version
 
+    if not in_cache(fmu):
+        return None
     root = cache_root()
     try:
-        if not fmu.resolve().is_relative_to(root.resolve()):
-            return None
         final = root / package_version() / "unpacked" / f"{fmu.stem[:40]}-{file_sha256(fmu)[:32]}"
         if final.is_dir():
             return str(final)

@@ -244,14 +244,26 @@ def fingerprint(chain: Toolchain | None = None) -> str:
         return f"no toolchain: {err}"
 
 
+def host_machine() -> tuple[str, str]:
+    """This machine's system (``linux``, ``windows``, ``darwin``, else ``sys.platform``)
+    and architecture as we name them (``x86_64``, ``aarch64``, else the machine's own
+    lower-case name): the one reading of the machine, for our platform key and for the
+    binaries folder a host loads (:mod:`glider_cosim.inputs.archives`)."""
+    if sys.platform == "win32":
+        import platform as _platform  # os.uname is POSIX's
+
+        machine = _platform.machine().lower()
+    else:
+        machine = os.uname().machine.lower()
+    system = {"linux": "linux", "win32": "windows", "darwin": "darwin"}.get(
+        sys.platform, sys.platform
+    )
+    return system, {"amd64": "x86_64", "arm64": "aarch64"}.get(machine, machine)
+
+
 def host_platform() -> str | None:
     """This machine's platform key (None for one we do not build)."""
-    import platform as _platform
-
-    arch = {"amd64": "x86_64", "arm64": "aarch64"}.get(
-        _platform.machine().lower(), _platform.machine().lower()
-    )
-    system = {"linux": "linux", "win32": "windows", "darwin": "darwin"}.get(sys.platform)
+    system, arch = host_machine()
     key = f"{arch}-{system}"
     return key if key in PLATFORMS else None
 
