@@ -54,19 +54,6 @@ def test_the_check_sees_a_heavy_import():  # the test above can fail
     assert {"numpy", "fmpy"} <= _imported("import glider_cosim.studies.linearize")
 
 
-#: fmpy and what its model description reader brings (issue 48: 30-40 ms of a run)
-FMPY = {"fmpy", "lxml", "attr", "attrs"}
-
-
-def test_the_master_imports_no_fmpy():
-    # FMI 2 FMUs run on our binding, model descriptions are read with the standard
-    # library: fmpy comes with an FMI 3 FMU only (glider_cosim.master.fmi3.FMU3Adapter)
-    code = ("import glider_cosim.master.cosimulation, glider_cosim.master.instance, "
-            "glider_cosim.master.binding, glider_cosim.realtime.serve, glider_cosim.inputs.check, "
-            "glider_cosim.fmus.variables\nglider_cosim.master.CoSimulation")  # fmt: skip
-    assert _imported(code) & FMPY == set()
-
-
 def test_the_lazy_packages_still_export_their_names():
     import glider_cosim.master as master
     import glider_cosim.verify as verify

@@ -165,24 +165,21 @@ def binary_path(md: Any) -> str:
     return f"binaries/{folder}/{md.coSimulation.modelIdentifier}{LIBRARY_SUFFIX}"
 
 
-class _FmpyError(Exception):
-    """fmpy's plain Exception for a bad description, carried to :func:`read_fmu`."""
-
-
-def _fmpy_checks(p: Path) -> None:
-    """fmpy's reading of the description (schema and model checks); :class:`_FmpyError`."""
+def _description(source: str, validate: bool) -> Any:
+    """fmpy's ``read_model_description`` of the FMU file ``source``;
+    fmpy's plain Exception (schema, model checks, XML) as :class:`InputFileError`'s
+    reason, carried in a ``ValueError``."""
     from fmpy import read_model_description
 
     try:
-        read_model_description(str(p))
+        return read_model_description(source, validate=validate)
     except Exception as err:  # noqa: BLE001 - fmpy raises plain Exception for bad descriptions
-        raise _FmpyError(str(err)) from None
+        raise ValueError(one_line(err)) from None
 
 
 def read_fmu(path: str | Path, where: str | None, schema: bool = True) -> Any:
     """Check that ``path`` is a complete FMI 2.0 or 3.0 co-simulation FMU; return its
-    model description (:class:`~glider_cosim.inputs.description.ModelDescription`, read
-    without fmpy: fmpy's attribute names).
+    model description (fmpy's ``ModelDescription``, from ``fmpy.read_model_description``).
 
     Checked without loading anything: a regular zip file, ``modelDescription.xml``, FMI
     2.0 or 3.0 co-simulation, the binary for this platform (``binaries/<platform>/<model
@@ -191,18 +188,15 @@ def read_fmu(path: str | Path, where: str | None, schema: bool = True) -> Any:
     ``resources/slavemodule.txt`` and the script it names (without them pythonfmu's
     binary crashes at instantiation).
 
-    With ``schema`` (the default), the description also passes fmpy's checks (the FMI
-    schema and its model checks) and a failure there is named by fmpy, as before issue 48;
-    the master leaves them out for the FMUs of its own cache (no fmpy, lxml or attrs in a
-    native run).
+    With ``schema`` (the default), fmpy validates the description against the FMI schema
+    and runs its model checks, and a failure there is named by fmpy; the master leaves
+    the validation out for the FMUs of its own cache, which glider-cosim built.
 
     Raises
     ------
     InputFileError
         What is missing or unreadable, after ``where``.
     """
-    from .description import ModelDescriptionError, parse_model_description
-
     p = regular_file(path, where, "FMU")
     name = quote(p.name)
     try:
@@ -213,14 +207,12 @@ def read_fmu(path: str | Path, where: str | None, schema: bool = True) -> Any:
                 raise InputFileError(f"{_at(where)}FMU {name} has no modelDescription.xml")
             if md_info.file_size > MAX_MODEL_DESCRIPTION:
                 raise InputFileError(f"{_at(where)}FMU {name}: modelDescription.xml is too large")
-            data = z.read(md_info)  # CRC and deflate data checked
+            z.read(md_info)  # CRC and deflate data checked
             try:
-                if schema:
-                    _fmpy_checks(p)
-                md = parse_model_description(data)
-            except (ModelDescriptionError, _FmpyError) as err:
+                md = _description(str(p), schema)
+            except ValueError as err:
                 raise InputFileError(
-                    f"{_at(where)}FMU {name} has no readable model description ({one_line(err)})"
+                    f"{_at(where)}FMU {name} has no readable model description ({err})"
                 ) from None
             if md.fmiVersion not in ("2.0", "3.0") or md.coSimulation is None:
                 raise InputFileError(
@@ -260,27 +252,28 @@ def read_fmu(path: str | Path, where: str | None, schema: bool = True) -> Any:
 
 
 def read_description(path: str | Path) -> Any:
-    """The model description of the FMU file ``path``, read without fmpy (nothing else
-    of the FMU is checked: :func:`read_fmu` checks a whole FMU).
+    """The model description of the FMU file ``path`` (fmpy's ``read_model_description``,
+    without schema validation; nothing else of the FMU is checked: :func:`read_fmu` checks
+    a whole FMU).
 
     Raises
     ------
     InputFileError
         Not a readable zip, no ``modelDescription.xml``, or one that cannot be read.
     """
-    from .description import ModelDescriptionError, parse_model_description
-
     name = quote(Path(path).name)
     try:
         with zipfile.ZipFile(path) as z:
             info = z.getinfo("modelDescription.xml")
             if info.file_size > MAX_MODEL_DESCRIPTION:
                 raise InputFileError(f"FMU {name}: modelDescription.xml is too large")
-            return parse_model_description(z.read(info))
-    except ModelDescriptionError as err:
-        raise InputFileError(f"FMU {name} has no readable model description ({err})") from None
+            z.read(info)  # CRC and deflate data checked
     except _ZIP_ERRORS as err:
         raise InputFileError(f"FMU {name} is not a readable zip ({one_line(err)})") from None
+    try:
+        return _description(str(path), False)
+    except ValueError as err:
+        raise InputFileError(f"FMU {name} has no readable model description ({err})") from None
 
 
 def confined(folder: Path, ref: str, where: str) -> Path:

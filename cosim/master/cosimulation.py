@@ -1,11 +1,15 @@
 """The co-simulation master's run loop: CoSimulation loads, initialises and steps a System.
 
-It runs FMI 2.0 and FMI 3.0 co-simulation FMUs at a fixed step. FMI 2.0 instances run
-on our ctypes binding (:mod:`glider_cosim.master.binding`, no fmpy); FMI 3.0 ones on
-``fmpy.fmi3.FMU3Slave`` behind the same FMI
-2.0-named calls (:mod:`glider_cosim.master.fmi3`: Float64, Int32 and Boolean for Real,
-Integer and Boolean; a doStep that sets terminateSimulation is a Discard), so both kinds
-mix in one system and share the C fast loop (:mod:`glider_cosim.master.fastloop`).
+It runs FMI 2.0 and FMI 3.0 co-simulation FMUs at a fixed step, read by
+``fmpy.read_model_description``: FMI 2.0 instances on fmpy's ``FMU2Slave``, FMI 3.0 ones
+on fmpy's ``FMU3Slave`` behind the same FMI 2.0-named calls
+(:mod:`glider_cosim.master.fmi3`: Float64, Int32 and Boolean for Real, Integer and
+Boolean; a doStep that sets terminateSimulation is a Discard), so both kinds mix in one
+system. They are instantiated, initialised, reset and terminated through fmpy's
+objects, and stepped through them (``getReal``, ``setReal``, ``doStep``) unless the C
+fast loop (:mod:`glider_cosim.master.fastloop`) makes the per-step calls: it calls the
+same instances through the functions of the ``dll`` fmpy loaded and their
+``component``, with the same bits (``GLIDER_COSIM_FASTLOOP=0`` turns it off).
 
 Instances are connected output -> input by variable name
 (:mod:`glider_cosim.master.plan`, where the coupling schemes are described). Time is
@@ -58,9 +62,6 @@ from .spec import (
     System,
     count_steps,
 )
-
-_C_TRUE = ctypes.c_int(1)
-
 
 _LIVE: weakref.WeakSet[CoSimulation] = weakref.WeakSet()
 
@@ -244,11 +245,6 @@ class CoSimulation(DrivenInputs, InitialInputs):
         self._setup_instances()
 
     # ---------------------------------------------------------------- stepping
-    def _check(self, inst: Instance, call: str, status: int) -> None:
-        """Raise for a status worse than fmi2Warning (raw ctypes calls)."""
-        if status > 1:
-            self._raise(inst, call, status)
-
     def _raise(self, inst: Instance, call: str, status: int) -> None:
         t = self.t0 + self.k * self.step_size
         if status >= 4:
@@ -262,8 +258,9 @@ class CoSimulation(DrivenInputs, InitialInputs):
         raise cls(inst.name, call, t, status, inst.log, inst.fmi)
 
     def _plan_calls(self) -> None:
-        """Raw ctypes functions with preallocated arrays for the per-step calls."""
+        """The per-step calls: through the instances' objects, or the C fast loop."""
         calls = plan_calls(self.instances, self._exchange_plan)
+        self._slave_ops = calls.slave_ops
         self._exchange_ops, self._steppers = calls.exchange_ops, calls.steppers
         self._fast = calls.fast
         self._reads, self._row_from_reads = calls.reads, calls.row_from_reads
@@ -285,17 +282,12 @@ class CoSimulation(DrivenInputs, InitialInputs):
             for names, value in self._reads:
                 vals.update(zip(names, value[:]))
             return
-        for read, inst, fn, call, comp, vr, n, value, names, sources in self._exchange_ops:
+        call = self._call
+        for read, inst, method, name, vrs, arg in self._slave_ops:
             if read:
-                status = fn(comp, vr, n, value)
-                if status > 1:
-                    self._raise(inst, call, status)
-                vals.update(zip(names, value[:]))  # the array as a list, in one call
+                vals.update(zip(arg, call(inst, name, method, vrs)))
             else:
-                value[:] = sources(vals)
-                status = fn(comp, vr, n, value)
-                if status > 1:
-                    self._raise(inst, call, status)
+                call(inst, name, method, vrs, arg(vals))
 
     def communication_point(self) -> tuple[float, ...]:
         """Exchange values at ``t_k`` (events included) and return the recorded row."""
@@ -315,18 +307,16 @@ class CoSimulation(DrivenInputs, InitialInputs):
 
     def do_step(self) -> None:
         """Step every instance from ``t_k`` to ``t_k + h``."""
-        t = ctypes.c_double(self.t0 + self.k * self.step_size)
-        h = self._c_step
+        t = self.t0 + self.k * self.step_size
         if self._fast is not None:
-            i, status = self._fast.step(t, h)
+            i, status = self._fast.step(ctypes.c_double(t), self._c_step)
             if i >= 0:
                 self._raise(self._steppers[i][0], "fmi2DoStep", status)
             self.k += 1
             return
-        for inst, fn, comp in self._steppers:
-            status = fn(comp, t, h, _C_TRUE)
-            if status > 1:
-                self._raise(inst, "fmi2DoStep", status)
+        h = self.step_size
+        for inst in self.instances.values():
+            self._call(inst, "fmi2DoStep", inst.slave.doStep, t, h)
         self.k += 1
 
     def run(self, stop_time: float, recorder: Recorder) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import bisect
-import ctypes
 from collections.abc import Callable
 from typing import Any
 
@@ -20,7 +19,7 @@ class DrivenInputs:
     A mixin of the co-simulation, so that the per-step calls and flags stay on one object
     (no lookup more per step); it uses the co-simulation's :attr:`system`,
     :attr:`values`, ``_driven`` groups (:func:`~glider_cosim.master.plan.plan_exchange`)
-    and its FMI calls ``_check``, ``_resolve`` and ``_set_value``.
+    and its FMI calls ``_call``, ``_resolve`` and ``_set_value``.
     """
 
     system: System
@@ -31,7 +30,7 @@ class DrivenInputs:
     _pending_events: int
     _drive_static: bool
     _drive_done: bool
-    _check: Callable[..., None]
+    _call: Callable[..., Any]
     _resolve: Callable[..., Any]
     _set_value: Callable[..., None]
 
@@ -68,10 +67,7 @@ class DrivenInputs:
                 new.append(value)
             if new == self._driven_last[j]:
                 continue  # unchanged since the last call: the FMU holds its inputs
-            for i, value in enumerate(new):
-                g.value[i] = value
-            comp = ctypes.c_void_p(inst.slave.component)
-            self._check(inst, "fmi2SetReal", inst.call_dll().fmi2SetReal(comp, g.vr, g.cn, g.value))
+            self._call(inst, "fmi2SetReal", inst.slave.setReal, list(g.vr), new)
             self._driven_last[j] = new
 
     def _events(self, t: float) -> bool:

@@ -56,9 +56,10 @@ class FMUCallError(MasterError, RuntimeError):
 
 class FMIStatusError(RuntimeError):
     """An FMI function returned a status worse than Warning (or fmi2Instantiate NULL), as
-    :class:`~glider_cosim.master.binding.FMU2Binary` and the FMI 3 and wasm adapters raise
-    it; the master turns it into :class:`FMUCallError` or :class:`FMUStopped` with the
-    instance, the time and the FMU's log. Attributes ``call`` (also ``function``, fmpy's
+    the FMI 3 and wasm adapters raise it (fmpy's own calls raise its ``FMICallException``,
+    with the same ``function`` and ``status``); the master turns it into
+    :class:`FMUCallError` or :class:`FMUStopped` with the instance, the time and the FMU's
+    log. Attributes ``call`` (also ``function``, fmpy's
     name) and ``status``."""
 
     def __init__(self, call: str, status: int):
@@ -69,8 +70,8 @@ class FMIStatusError(RuntimeError):
 
 def fmi_call_errors() -> tuple[type[BaseException], ...]:
     """What a failed FMI call raises: :class:`FMIStatusError`, and fmpy's
-    ``FMICallException`` when fmpy is imported (an FMI 3 FMU's calls; a host of the user's
-    own). fmpy is never imported here: a native FMI 2 run goes without it (issue 48)."""
+    ``FMICallException`` once fmpy is imported (it is whenever an FMU is loaded; this
+    module, which the command line's parser imports, does not import it)."""
     fmi1 = sys.modules.get("fmpy.fmi1")
     fmpy_error = getattr(fmi1, "FMICallException", None)
     return (FMIStatusError,) if fmpy_error is None else (FMIStatusError, fmpy_error)

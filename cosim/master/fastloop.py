@@ -2,14 +2,17 @@
 
 :class:`CoSimulation` plans its exchange as a list of batched Real gets and sets in a
 fixed order (see :mod:`glider_cosim.master.plan`). Run from Python, every one of them is a
-ctypes call (about 0.5 us each, 9 per macro step for the glider loop). Here the plan is
+call of the instance's fmpy object (``FMU2Slave.getReal``, ``setReal``, ``doStep``: a few
+microseconds each, 12 per macro step for the glider loop). Here the plan is
 handed to a small C function (``fastloop.c``, compiled once per FMU cache, into
 ``<cache>/<version>/fastloop-<hash>/``, with the build's toolchain: zig's C compiler by
 default, see :mod:`glider_fmi.toolchain`) that makes the same FMI calls, in the same
 order, with the same arrays; a write's values are copied from the read arrays they come
-from. The results are bit for bit those of the Python loop (tested), which remains the
-path when the plan has non-Real groups, no compiler is found, or
-``GLIDER_COSIM_FASTLOOP=0``.
+from. The C loop calls the very instances fmpy created: the function addresses come from
+the ``dll`` fmpy loaded, the instance from its ``component``. The results are bit for bit
+those of the Python path (tested), which remains the path when the plan has non-Real
+groups, an instance the C loop cannot call (a WebAssembly component, an external
+endpoint), no compiler is found, or ``GLIDER_COSIM_FASTLOOP=0``.
 """
 
 from __future__ import annotations
@@ -190,6 +193,12 @@ def build_helper(
     return out
 
 
+def fast_loop_wanted() -> bool:
+    """False when ``GLIDER_COSIM_FASTLOOP=0`` asks for the master's Python path (every
+    call through the instances' fmpy objects)."""
+    return os.environ.get(ENV, "1") != "0"
+
+
 class FastLoop:
     """A planned exchange and the steps of all instances, run in C.
 
@@ -244,7 +253,7 @@ class FastLoop:
         cls, ops: Sequence[tuple], steppers: Sequence[tuple], hold_gil: bool
     ) -> FastLoop | None:
         """A :class:`FastLoop` for the plan, or None where the Python loop must run."""
-        if os.environ.get(ENV, "1") == "0":
+        if not fast_loop_wanted():
             return None
         if any(op[7]._type_ is not ctypes.c_double for op in ops):
             return None

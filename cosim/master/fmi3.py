@@ -1,22 +1,21 @@
 """An FMI 3.0 co-simulation instance behind the FMI 2.0 calls the master makes.
 
 The master (:mod:`glider_cosim.master.cosimulation`) drives its instances with the
-methods of fmpy's ``FMU2Slave`` that our binding (:mod:`glider_cosim.master.binding`)
-keeps (instantiate, setupExperiment, enter/exit initialisation, terminate, reset, free,
-set/get Real/Integer/Boolean) and, at every step, raw ctypes calls with FMI 2.0
-signatures (``fmi2GetReal(c, vr, n, values)``, ``fmi2DoStep(c, t, h, noSetPrior)``) made
-from Python or from its C fast loop. :class:`FMU3Adapter` wraps fmpy's ``FMU3Slave`` in
+methods of fmpy's ``FMU2Slave`` (instantiate, setupExperiment, enter/exit initialisation,
+terminate, reset, free, set/get Real/Integer/Boolean, doStep) and, in its C fast loop,
+with the FMI 2.0 functions themselves (``fmi2GetReal(c, vr, n, values)``,
+``fmi2DoStep(c, t, h, noSetPrior)``). :class:`FMU3Adapter` wraps fmpy's ``FMU3Slave`` in
 the same methods: setupExperiment stores the start time, which fmi3EnterInitializationMode
-receives; Float64, Int32 and Boolean stand for Real, Integer and Boolean. Its
+receives; Float64, Int32 and Boolean stand for Real, Integer and Boolean; a doStep that
+sets ``terminateSimulation`` raises the Discard an FMI 2.0 FMU returns for a stall. Its
 :attr:`~FMU3Adapter.component` is the address of a small C structure (the fmi3 instance
 and its FMU's fmi3 functions) that the shims of ``fastloop.c`` take in place of an FMI 2.0
 component: ``glider_shim_get_float64`` calls fmi3GetFloat64 with ``nValues = n``,
 ``glider_shim_do_step`` calls fmi3DoStep and returns fmi3Discard when the FMU sets
 ``terminateSimulation`` (a stall), which the master treats as the clean stop an FMI 2.0
 fmi2Discard is. The C fast loop and the block runs therefore serve FMI 3.0 instances
-unchanged, with one more C call per FMI call. Without a C compiler, Python functions of
-the same signatures stand in for the shims. fmpy is imported when an :class:`FMU3Adapter`
-is made, never by importing this module (a native FMI 2 run goes without it).
+unchanged, with one more C call per FMI call. Without a C compiler (no shims), the fast
+loop is not used, and the master steps the instance through fmpy's methods.
 """
 
 from __future__ import annotations
@@ -25,6 +24,7 @@ import ctypes
 from typing import Any
 
 from ..fmus.fmi3_description import FMI3_TYPES
+from .errors import FMIStatusError
 from .fastloop import SHIMS, shim_library
 
 #: FMI 3 types the master treats as the FMI 2 ones
@@ -86,54 +86,6 @@ class ShimCalls:
         self.holds_gil = holds_gil
 
 
-def _python_shims(raw: ctypes.CDLL, adapter: _Adapter) -> dict[str, Any]:
-    """Python functions with the shims' signatures (no C compiler: no fast loop either)."""
-    inst = ctypes.c_void_p(0)
-
-    def instance() -> ctypes.c_void_p:
-        inst.value = adapter.instance
-        return inst
-
-    def values(fn_name: str):
-        fn = getattr(raw, fn_name)
-        fn.restype = ctypes.c_int
-        return lambda comp, vr, n, value: fn(instance(), vr, n, value, n)
-
-    def booleans(fn_name: str, read: bool):
-        fn = getattr(raw, fn_name)
-        fn.restype = ctypes.c_int
-
-        def call(comp, vr, n, value):
-            m = len(value)
-            b = (ctypes.c_bool * m)(*([] if read else [bool(x) for x in value]))
-            st = fn(instance(), vr, n, b, n)
-            if read and st <= 1:
-                value[:] = [int(x) for x in b]
-            return st
-
-        return call
-
-    step = raw.fmi3DoStep
-    step.restype = ctypes.c_int
-
-    def do_step(comp, t, h, no_set):
-        flags = [ctypes.c_bool(False) for _ in range(3)]
-        last = ctypes.c_double(0.0)
-        st = step(instance(), t, h, ctypes.c_bool(bool(getattr(no_set, "value", no_set))),
-                  *(ctypes.byref(f) for f in flags), ctypes.byref(last))  # fmt: skip
-        return 2 if st <= 1 and flags[1].value else st
-
-    return {
-        "fmi2GetReal": values("fmi3GetFloat64"),
-        "fmi2SetReal": values("fmi3SetFloat64"),
-        "fmi2GetInteger": values("fmi3GetInt32"),
-        "fmi2SetInteger": values("fmi3SetInt32"),
-        "fmi2GetBoolean": booleans("fmi3GetBoolean", True),
-        "fmi2SetBoolean": booleans("fmi3SetBoolean", False),
-        "fmi2DoStep": do_step,
-    }
-
-
 class FMU3Adapter:
     """fmpy's ``FMU3Slave`` with the ``FMU2Slave`` methods the master calls.
 
@@ -149,7 +101,6 @@ class FMU3Adapter:
         raw = ctypes.CDLL(self.dll._name)  # plain function pointers, no argtypes
         for field, fn_name in _FIELDS.items():
             setattr(self._adapter, field, ctypes.cast(getattr(raw, fn_name), ctypes.c_void_p))
-        self._raw = raw
         self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
         self._log: Any = None
 
@@ -158,11 +109,12 @@ class FMU3Adapter:
         """What the per-step calls take as their component: the adapter's address."""
         return ctypes.addressof(self._adapter)
 
-    def calls(self, holds_gil: bool) -> ShimCalls:
-        """The per-step calls (the C shims, or Python ones without a compiler)."""
+    def calls(self, holds_gil: bool) -> ShimCalls | None:
+        """The per-step calls for the C fast loop (the C shims), or None without a C
+        compiler."""
         lib = shim_library(holds_gil)
         if lib is None:
-            return ShimCalls(_python_shims(self._raw, self._adapter), holds_gil)
+            return None
         return ShimCalls({k: getattr(lib, v) for k, v in SHIMS.items()}, holds_gil)
 
     # ---------------------------------------------------------- FMU2Slave's methods
@@ -203,6 +155,16 @@ class FMU3Adapter:
 
     def setBoolean(self, vr, values) -> None:
         self.slave.setBoolean(vr, values)
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize,
+               noSetFMUStatePriorToCurrentPoint=True) -> None:  # fmt: skip
+        """fmi3DoStep; :class:`~glider_cosim.master.errors.FMIStatusError` with fmi3Discard
+        when the FMU sets ``terminateSimulation`` (a stall: the master's clean stop)."""
+        _, terminate, _, _ = self.slave.doStep(
+            currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint
+        )
+        if terminate:
+            raise FMIStatusError("fmi3DoStep", 2)
 
     def getReal(self, vr) -> list[float]:
         return self.slave.getFloat64(vr)

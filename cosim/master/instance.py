@@ -16,13 +16,9 @@ from glider_fmi.compile import PYTHON_CONFIG_FILE
 from ..inputs.archives import InputFileError, read_fmu, safe_extract
 from ..inputs.tempdirs import new_temp_dir
 from ..inputs.text import did_you_mean, one_line, quote
-from . import binding, wasm
+from . import wasm
 from .errors import STATUS, STATUS3, FMUCallError, SystemSpecError, fmi_call_errors
 from .fmi3 import TYPE_AS_FMI2, fmi3_call_name
-
-#: the calls made at every step, through :meth:`Instance.call_dll`
-_HOT_CALLS = tuple(f"fmi2{a}{t}" for a in ("Get", "Set") for t in ("Real", "Integer", "Boolean"))
-_HOT_CALLS += ("fmi2DoStep",)
 
 _EXTRACTED: dict[tuple[str, int, int], str] = {}
 
@@ -59,7 +55,7 @@ _KEPT: set[str] = set()
 
 def in_cache(fmu: Path) -> bool:
     """True for an FMU of the per-user FMU cache, which glider-cosim built: its model
-    description is read without fmpy's schema checks (issue 48)."""
+    description is read without schema validation (fmpy's ``validate=False``)."""
     from ..fmus.files import cache_root
 
     try:
@@ -105,12 +101,34 @@ def _remove_extracted() -> None:
             shutil.rmtree(folder, ignore_errors=True)
 
 
+def _fmi2_callbacks(logger: Any) -> Any:
+    """fmpy's ``fmi2CallbackFunctions`` with ``logger(env, instance_name, status,
+    category, message)`` (the message unformatted: FMI's ``...`` arguments are not read),
+    and the C library's ``calloc`` and ``free`` themselves (fmpy's, called from C without
+    Python in between); the caller keeps it alive as long as the instance."""
+    import fmpy
+    from fmpy.fmi2 import (
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
+
+    cb = fmi2CallbackFunctions()
+    cb.logger = fmi2CallbackLoggerTYPE(logger)
+    cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(
+        ctypes.cast(fmpy.calloc, ctypes.c_void_p).value
+    )
+    cb.freeMemory = fmi2CallbackFreeMemoryTYPE(ctypes.cast(fmpy.free, ctypes.c_void_p).value)
+    return cb
+
+
 class Instance:
-    """One FMU instance under a name: an FMI 2.0 one on our binding
-    (:class:`~glider_cosim.master.binding.FMU2Binary`), an FMI 3.0 one on fmpy's
-    ``FMU3Slave`` behind :class:`~glider_cosim.master.fmi3.FMU3Adapter` (or its
-    component, :class:`~glider_cosim.master.wasm.WasmAdapter`), with batched value
-    access. fmpy is imported for an FMI 3.0 FMU only."""
+    """One FMU instance under a name: its model description read by fmpy's
+    ``read_model_description``; an FMI 2.0 one on fmpy's ``FMU2Slave``, an FMI 3.0 one on
+    fmpy's ``FMU3Slave`` behind :class:`~glider_cosim.master.fmi3.FMU3Adapter` (or its
+    WebAssembly component, :class:`~glider_cosim.master.wasm.WasmAdapter`), with batched
+    value access."""
 
     def __init__(self, name: str, fmu: Path):
         self.name = name
@@ -152,11 +170,13 @@ class Instance:
         except InputFileError as err:
             raise SystemSpecError(f"instance {name}: {err}") from None
         try:
-            adapter: Any = binding.FMU2Binary
+            from fmpy.fmi2 import FMU2Slave
+
+            adapter: Any = FMU2Slave
             if self.fmi == 3 and wasm.wanted():  # run --flavor wasm: the component
                 adapter = wasm.WasmAdapter
             elif self.fmi == 3:
-                from .fmi3 import FMU3Adapter  # imports fmpy
+                from .fmi3 import FMU3Adapter
 
                 adapter = FMU3Adapter
             self.slave = adapter(
@@ -165,7 +185,7 @@ class Instance:
                 modelIdentifier=self.md.coSimulation.modelIdentifier,
                 instanceName=name,
             )
-        except Exception as err:  # fmpy raises plain Exception, ctypes OSError here
+        except Exception as err:  # noqa: BLE001 - fmpy raises plain Exception here
             raise SystemSpecError(
                 f"instance {name}: the binary of {quote(self.fmu.name)} cannot be loaded "
                 f"({one_line(err)})"
@@ -176,28 +196,27 @@ class Instance:
         self.fatal = False
         self.failed = False  # returned fmi2Error: only getters, reset and free are allowed
 
-    def call_dll(self) -> Any:
-        """The FMU's binary for the per-step calls (for FMI 3, the shims of
-        :meth:`~glider_cosim.master.fmi3.FMU3Adapter.calls` under the FMI 2 names).
+    @property
+    def on_runtime(self) -> bool:
+        """The FMU runs on our FMI runtime for Python (the Python flavor), which takes the
+        GIL for every call: the C fast loop may call it with the GIL held."""
+        return (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file()
 
-        An FMU on our FMI runtime runs its code under the GIL, which the runtime takes for
-        every call: it is called with the GIL held (``ctypes.PyDLL``), saving a release
-        and re-acquisition per call. Any other FMU is called through the binding's handle
-        (:attr:`~glider_cosim.master.binding.FMU2Binary.dll`), with the GIL released.
+    def call_dll(self) -> Any:
+        """The functions the C fast loop (:mod:`~glider_cosim.master.fastloop`) calls for
+        this instance, by their FMI 2 names, or None when it cannot call it: for FMI 2,
+        the ``dll`` fmpy's ``FMU2Slave`` loaded (the loop takes the functions' addresses
+        and passes the instance's ``component``: the very instance fmpy created); for FMI
+        3, the shims of :meth:`~glider_cosim.master.fmi3.FMU3Adapter.calls` (None without
+        a C compiler); None for a WebAssembly component. The Python path calls the
+        instance's object's methods instead.
         """
         if self._call_dll is None:
-            dll = self.slave.dll
-            on_runtime = (Path(self.unzipdir) / "resources" / PYTHON_CONFIG_FILE).is_file()
             if self.fmi == 3:  # the FMI 2-signature shims over the fmi3 calls
-                self._call_dll = self.slave.calls(holds_gil=on_runtime)
+                calls = getattr(self.slave, "calls", None)
+                self._call_dll = None if calls is None else calls(holds_gil=self.on_runtime)
                 return self._call_dll
-            if on_runtime:
-                # the master passes ctypes objects of the exact types: no argtypes to check
-                gil_dll = ctypes.PyDLL(dll._name)
-                for name in _HOT_CALLS:
-                    getattr(gil_dll, name).restype = ctypes.c_int
-                dll = gil_dll
-            self._call_dll = dll
+            self._call_dll = self.slave.dll
         return self._call_dll
 
     def var(self, name: str, causality: Iterable[str] | None = None):
@@ -229,7 +248,7 @@ class Instance:
             from fmpy.fmi3 import fmi3LogMessageCallback
 
             return fmi3LogMessageCallback(lambda env, st, cat, msg: logger(env, None, st, cat, msg))
-        return binding.callbacks(logger)
+        return _fmi2_callbacks(logger)
 
     def instantiate(self, callbacks: Any, t0: float) -> None:
         """fmi2Instantiate (fmi3InstantiateCoSimulation) with :meth:`callbacks`; raises

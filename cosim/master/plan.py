@@ -26,7 +26,7 @@ from typing import Any
 
 from ..inputs.text import did_you_mean, quote
 from .errors import SystemSpecError
-from .fastloop import FastLoop
+from .fastloop import FastLoop, fast_loop_wanted
 from .instance import Instance
 from .spec import System, VarRef
 
@@ -272,15 +272,20 @@ def plan_exchange(
 
 @dataclass
 class Calls:
-    """The per-step calls as raw ctypes functions with preallocated arrays."""
+    """The per-step calls: through the instances' fmpy objects, or from the C fast loop."""
 
-    #: the exchange of one communication point, flattened in its order: ``(read, inst,
-    #: fn, call, comp, vr, n, value, names, sources)``, names for a read, the source
-    #: variables for a write (with ``sources``, their values from the value table)
+    #: the exchange of one communication point through the instances' objects (fmpy's
+    #: ``FMU2Slave``, :class:`~glider_cosim.master.fmi3.FMU3Adapter`, ...), in its order:
+    #: ``(read, inst, method, call, vrs, arg)``, ``arg`` the names of the values read, or
+    #: for a write a function of the value table giving the values set
+    slave_ops: list[tuple]
+    #: the same exchange as raw ctypes functions with preallocated arrays for the fast
+    #: loop: ``(read, inst, fn, call, comp, vr, n, value, names, sources)`` (empty
+    #: without the fast loop)
     exchange_ops: list[tuple]
-    #: ``(inst, fmi2DoStep, comp)`` per instance
+    #: ``(inst, fmi2DoStep, comp)`` per instance for the fast loop (empty without it)
     steppers: list[tuple]
-    #: the same calls from C, one ctypes call per exchange and per step (if possible)
+    #: the fast loop: one ctypes call per exchange and per step, or None
     fast: FastLoop | None
     #: the read arrays with the names of their values, in the order of the exchange
     reads: list[tuple[list[str], Any]]
@@ -288,43 +293,62 @@ class Calls:
     row_from_reads: Callable[[Any], tuple] | None
 
 
-def plan_calls(instances: dict[str, Instance], exchange: Exchange) -> Calls:
-    """Raw ctypes functions with preallocated arrays for the per-step calls."""
-    readers: dict[str, list[tuple]] = {}
-    writers: dict[str, list[tuple]] = {}
-    for n, inst in instances.items():
-        dll, comp = inst.call_dll(), ctypes.c_void_p(inst.slave.component)
-        readers[n] = [
-            (inst, getattr(dll, f"fmi2Get{g.type}"), f"fmi2Get{g.type}", comp, g.vr, g.cn,
-             g.value, [f"{n}.{v}" for v in names])
-            for g, names in exchange.read[n]
-        ]  # fmt: skip
-        writers[n] = [
-            (inst, getattr(dll, f"fmi2Set{g.type}"), f"fmi2Set{g.type}", comp, g.vr, g.cn,
-             g.value, srcs)
-            for g, srcs in exchange.write[n]
-        ]  # fmt: skip
-    ops = [(True, *r) for n in exchange.plain for r in readers[n]]
+def _ordered(exchange: Exchange) -> list[tuple[bool, str, Group, list[str]]]:
+    """The exchange's batched calls in order: ``(read, instance, group, names)``, names
+    the variables read, or for a write the ``instance.variable`` each value comes from."""
+    read = exchange.read
+    ops = [(True, n, g, names) for n in exchange.plain for g, names in read[n]]
     for n in exchange.ft_order:
-        ops += [(False, *w) for w in writers[n]]
-        ops += [(True, *r) for r in readers[n]]
-    ops += [(False, *w) for n in exchange.plain for w in writers[n]]
-    # a write's values come from the value table in one call (a tuple for a slice)
-    exchange_ops = [(*op, None if op[0] else _tuple_getter(op[-1])) for op in ops]
-    steppers = [
-        (inst, inst.call_dll().fmi2DoStep, ctypes.c_void_p(inst.slave.component))
-        for inst in instances.values()
-    ]
-    hold_gil = all(
-        getattr(i.call_dll(), "holds_gil", isinstance(i.call_dll(), ctypes.PyDLL))
-        for i in instances.values()
-    )
-    fast = FastLoop.plan(exchange_ops, steppers, hold_gil)
-    reads = [(op[8], op[7]) for op in exchange_ops if op[0]]
+        ops += [(False, n, g, srcs) for g, srcs in exchange.write[n]]
+        ops += [(True, n, g, names) for g, names in read[n]]
+    ops += [(False, n, g, srcs) for n in exchange.plain for g, srcs in exchange.write[n]]
+    return ops
+
+
+def _as_ints(get: Callable[[list[int]], list]) -> Callable[[list[int]], list[int]]:
+    """``get`` with its values as ints (FMI 3's Booleans come as bool)."""
+    return lambda vr: [int(x) for x in get(vr)]
+
+
+def plan_calls(instances: dict[str, Instance], exchange: Exchange) -> Calls:
+    """The per-step calls: through the instances' objects, and for the C fast loop
+    (:class:`~glider_cosim.master.fastloop.FastLoop`, if it can run) raw ctypes functions
+    with preallocated arrays."""
+    ordered = _ordered(exchange)
+    slave_ops = []
+    for read, n, g, names in ordered:
+        inst = instances[n]
+        if read:
+            get = getattr(inst.slave, f"get{g.type}")
+            get = get if g.type == "Real" else _as_ints(get)
+            slave_ops.append((True, inst, get, f"fmi2Get{g.type}", list(g.vr),
+                              [f"{n}.{v}" for v in names]))  # fmt: skip
+        else:
+            slave_ops.append((False, inst, getattr(inst.slave, f"set{g.type}"),
+                              f"fmi2Set{g.type}", list(g.vr), _tuple_getter(names)))  # fmt: skip
+    none = Calls(slave_ops, [], [], None, [], None)
+    if not fast_loop_wanted():
+        return none
+    dlls = {n: inst.call_dll() for n, inst in instances.items()}
+    if any(dll is None for dll in dlls.values()):
+        return none  # an FMU the C loop cannot call (no compiler for FMI 3's shims, wasm)
+    comps = {n: ctypes.c_void_p(inst.slave.component) for n, inst in instances.items()}
+    ops = []
+    for read, n, g, names in ordered:
+        kind = "Get" if read else "Set"
+        ops.append((read, instances[n], getattr(dlls[n], f"fmi2{kind}{g.type}"),
+                    f"fmi2{kind}{g.type}", comps[n], g.vr, g.cn, g.value,
+                    [f"{n}.{v}" for v in names] if read else names, None))  # fmt: skip
+    steppers = [(inst, dlls[n].fmi2DoStep, comps[n]) for n, inst in instances.items()]
+    hold_gil = all(getattr(dlls[n], "holds_gil", i.on_runtime) for n, i in instances.items())
+    fast = FastLoop.plan(ops, steppers, hold_gil)
+    if fast is None:
+        return none
+    reads = [(op[8], op[7]) for op in ops if op[0]]
     flat = [name for names, _ in reads for name in names]
     pos = {name: i for i, name in enumerate(flat)}
     row_from_reads = None
     record = exchange.record
-    if fast is not None and record and all(r in pos for r in record):
+    if record and all(r in pos for r in record):
         row_from_reads = _tuple_getter([pos[r] for r in record])
-    return Calls(exchange_ops, steppers, fast, reads, row_from_reads)
+    return Calls(slave_ops, ops, steppers, fast, reads, row_from_reads)

@@ -2,12 +2,11 @@
 
 ``glider-cosim run --flavor wasm`` runs the native FMI 3.0 FMUs' components
 (``binaries/wasm32-wasip2/<id>.wasm``, :mod:`glider_cosim.fmus.wasm`) instead of their
-shared libraries: :class:`WasmAdapter` has the methods the master calls on an FMI 2.0
-binary (:class:`~glider_cosim.master.binding.FMU2Binary`; as
-:class:`~glider_cosim.master.fmi3.FMU3Adapter` has for an FMI 3.0 library), each one
-call of the component's ``co-simulation-instance`` resource through
-wasmtime's component API (``wasmtime.component``), and per-step calls with the FMI 2.0
-signatures the master's exchange plan makes (Python functions: no C fast loop). The
+shared libraries: :class:`WasmAdapter` has the methods of fmpy's ``FMU2Slave`` that the
+master calls on an FMU (as :class:`~glider_cosim.master.fmi3.FMU3Adapter` has for an FMI
+3.0 library), each one call of the component's ``co-simulation-instance`` resource
+through wasmtime's component API (``wasmtime.component``); no C fast loop: the master
+steps it through these methods. The
 component gets one import, ``fmi:fmi3/callbacks@3.0.0#log-message``, which passes each
 message to the master's FMI 3.0 logger: the same statuses and texts as the native FMUs.
 
@@ -175,7 +174,7 @@ class WasmAdapter:
             )
         engine, component = load_component(path)
         self.guid, self.name, self.unzipdir = guid, instanceName, str(unzipDirectory)
-        self.dll = None  # no shared library: the per-step calls are :meth:`calls`
+        self.dll = None  # no shared library: the master calls the methods below
         self._log: Any = None
         self._resource: Any = None
         self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
@@ -239,7 +238,7 @@ class WasmAdapter:
 
     @property
     def component(self) -> int:
-        """Not a pointer: the per-step calls (:meth:`calls`) know their instance."""
+        """Not a pointer: the methods know their instance."""
         return 0
 
     def get_version(self) -> str:
@@ -314,49 +313,17 @@ class WasmAdapter:
     def setFMUState(self, state: bytes) -> None:
         self._check("fmi3SetFMUState", self.call("set-fmu-state", bytes(state)))
 
-    def calls(self, holds_gil: bool = True) -> Any:
-        """The per-step calls under their FMI 2 names, with FMI 2's signatures
-        (``fn(component, vr, nvr, values)``, ``fmi2DoStep(component, t, h, noSetPrior)``)
-        on ctypes arrays and numbers, returning FMI's status numbers."""
-        from .fmi3 import ShimCalls
-
-        def getter(what: str, convert: Any):
-            def get(comp, vr, n, value):
-                k = getattr(n, "value", n)
-                out = self.call(what, list(vr[:k]))
-                if isinstance(out, str):
-                    return STATUS[out]
-                value[:k] = [convert(x) for x in out]
-                return 0
-
-            return get
-
-        def setter(what: str, convert: Any):
-            def put(comp, vr, n, value):
-                k = getattr(n, "value", n)
-                return _status(self.call(what, list(vr[:k]), [convert(x) for x in value[:k]]))
-
-            return put
-
-        def do_step(comp, t, h, no_set):
-            out = self.call("do-step", getattr(t, "value", t), getattr(h, "value", h),
-                            bool(getattr(no_set, "value", no_set)))  # fmt: skip
-            if isinstance(out, str):
-                return STATUS[out]
-            return 2 if getattr(out, "terminate-simulation") else 0
-
-        return ShimCalls(
-            {
-                "fmi2GetReal": getter("get-float64", float),
-                "fmi2SetReal": setter("set-float64", float),
-                "fmi2GetInteger": getter("get-int32", int),
-                "fmi2SetInteger": setter("set-int32", int),
-                "fmi2GetBoolean": getter("get-boolean", int),
-                "fmi2SetBoolean": setter("set-boolean", bool),
-                "fmi2DoStep": do_step,
-            },
-            holds_gil,
-        )
+    def doStep(self, currentCommunicationPoint, communicationStepSize,
+               noSetFMUStatePriorToCurrentPoint=True) -> None:  # fmt: skip
+        """``do-step``; :class:`FMIStatusError` for a status above Warning, and fmi3Discard
+        when the component sets ``terminate-simulation`` (the master's clean stop)."""
+        out = self.call("do-step", float(currentCommunicationPoint),
+                        float(communicationStepSize),
+                        bool(noSetFMUStatePriorToCurrentPoint))  # fmt: skip
+        if isinstance(out, str):
+            raise FMIStatusError("fmi3DoStep", STATUS[out])
+        if getattr(out, "terminate-simulation"):
+            raise FMIStatusError("fmi3DoStep", 2)
 
 
 __all__ = ["WasmAdapter", "WasmError", "component_path", "components", "use_components", "wanted"]

@@ -70,10 +70,10 @@ def parse_external(items: list[str]) -> dict[str, str]:
 
 
 class ExternalSlave:
-    """The calls of one instance, answered by an endpoint (the fmpy slave's and the raw
-    per-step calls' signatures, as the master makes them)."""
+    """The calls of one instance, answered by an endpoint (the methods of fmpy's
+    ``FMU2Slave`` that the master calls; no C fast loop)."""
 
-    holds_gil = False
+    dll = None
     component = None
 
     def __init__(self, inst: Any, endpoint: Endpoint, pacer: Any = None):
@@ -143,40 +143,24 @@ class ExternalSlave:
     def reset(self) -> None:
         raise EndpointError(f"{self.where}: an external component cannot be reset")
 
-    # ------------------------------------------------------- per step (raw calls)
+    # ------------------------------------------------------------------ per step
     def _t(self) -> float:
         return self.t0 + self.k * self.h
 
-    def fmi2SetReal(self, comp: Any, vr: Any, n: Any, value: Any) -> int:  # noqa: N802
-        for i in range(n.value):
-            self.u[self.in_index[vr[i]]] = value[i]
-        self.dirty = True
-        return 0
-
-    fmi2SetInteger = fmi2SetBoolean = fmi2SetReal  # noqa: N815
-
-    def fmi2GetReal(self, comp: Any, vr: Any, n: Any, value: Any) -> int:  # noqa: N802
-        if self.dirty or self.stale_out:
-            self._exchange()
-        for i in range(n.value):
-            value[i] = self.y[self.out_index[vr[i]]]
-        return 0
-
-    fmi2GetInteger = fmi2GetBoolean = fmi2GetReal  # noqa: N815
-
-    def fmi2DoStep(self, comp: Any, t: Any, h: Any, flag: Any) -> int:  # noqa: N802
+    def doStep(self, t: float, h: float, flag: Any = True) -> None:  # noqa: N802
+        """The endpoint steps with the inputs of this point (sent first if changed)."""
         if self.dirty:
-            self._exchange()  # the endpoint steps with the inputs of this point
+            self._exchange()
         self.k += 1
         self.stale_out = True
-        return 0
 
     def getReal(self, vrs: list[int]) -> list[float]:  # noqa: N802
-        """Outputs for the master's Initialization Mode (after START): an exchange at
-        the start time with the inputs set so far (unless done since they were set), in
-        lockstep whatever the pacing."""
+        """Outputs at the current point: an exchange with the inputs set so far (unless
+        done since they were set). In the master's Initialization Mode (after START,
+        before the first step) it is made in lockstep whatever the pacing; at the steps
+        after, paced."""
         if self.dirty or self.stale_out:
-            self._exchange(lockstep=True)
+            self._exchange(lockstep=self.k == 0)
         return [self.y[self.out_index[vr]] for vr in vrs]
 
     getInteger = getBoolean = getReal  # noqa: N815
@@ -278,7 +262,6 @@ def attach(sim: Any, external: dict[str, Any], pacer: Any = None) -> dict[str, E
         slave = ExternalSlave(inst, endpoint, pacer)
         slave.h = sim.step_size
         inst.slave = slave
-        inst._call_dll = slave
         inst.outputs_before_exit = False  # the endpoint starts at Exit (START)
         slaves[name] = slave
     sim.external = slaves

@@ -325,7 +325,8 @@ def test_integer_and_boolean_values_through_the_shims(
     assert fast_loop_seen[-1][0] == {"plant": 3, "observer": 3, "controller": 3}
 
 
-def test_python_shims_without_a_compiler_equal_the_c_ones(native_dir, fmi3_dirs, monkeypatch):
+def test_the_fmpy_path_without_a_compiler_equals_the_c_shims(native_dir, fmi3_dirs, monkeypatch):
+    # no C compiler: no shims, no fast loop; FMU3Slave's own methods step the FMI 3 FMUs
     import glider_cosim.master.fmi3 as fmi3_slave
 
     a = simulate("default", None, fmu_dir=native_dir, build=False)

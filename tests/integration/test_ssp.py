@@ -180,10 +180,10 @@ def test_missing_fmu_member_is_refused(ssp, tmp_path):
 
 
 def test_unknown_connection_is_refused_before_any_fmu_is_instantiated(ssp, tmp_path, monkeypatch):
-    from glider_cosim.master.binding import FMU2Binary
+    from fmpy.fmi2 import FMU2Slave
 
     calls = []
-    monkeypatch.setattr(FMU2Binary, "instantiate", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(FMU2Slave, "instantiate", lambda *a, **k: calls.append(a))
     bad = edit_ssd(ssp, tmp_path, 'startConnector="theta_meas"', 'startConnector="pitch"')
     with pytest.raises(SSPError, match="has no variable 'pitch'"):
         run_ssp(bad)
