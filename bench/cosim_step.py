@@ -2,13 +2,15 @@
 against the same sampled loop calling the model code directly (no FMI).
 
 Usage: python bench/cosim_step.py [--json] [--repeat N] [--native-only] [--cli-only]
-       [--wasm-only] [--fresh-font-cache]
+       [--wasm-only] [--paths-only] [--fresh-font-cache]
 The last line with --json is one JSON object (figures quoted in
 docs/explanation/performance.md). --native-only skips the Python flavor, libcosim and the
 cold run. --cli-only measures the command line alone: ``glider-cosim run`` with and
 without plots (median of 5 warm runs each, both flavors) and ``glider-cosim --help``.
 --wasm-only measures the FMI 3.0 native FMUs' WebAssembly components under wasmtime
-(``run --flavor wasm``) beside the same FMUs' native libraries, alone.
+(``run --flavor wasm``) beside the same FMUs' native libraries, alone. --paths-only
+measures the master's two paths alone, in memory, both flavors: the C fast loop over the
+instances fmpy created, and the fmpy path (``GLIDER_COSIM_FASTLOOP=0``), interleaved.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from _common import emit
 
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
-from glider_cosim.master.fastloop import FastLoop, library
+from glider_cosim.master.fastloop import ENV, FastLoop, library
 from glider_cosim.runner import monolithic
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
 from glider_cosim.runner.parquet import ParquetFormatError, ParquetRecorder, require_pyarrow
@@ -86,6 +88,37 @@ def runs_seconds_per_step(fmu_dir: Path, recorders: dict, repeat: int) -> dict[s
             finally:
                 rec.close()
                 sim.close()
+    return best
+
+
+def paths_seconds_per_step(fmu_dir: Path, repeat: int) -> dict[str, float]:
+    """The default scenario in memory through :meth:`CoSimulation.run`, once on the C
+    fast loop (over the instances fmpy created) and once on the fmpy path
+    (``GLIDER_COSIM_FASTLOOP=0``: every call through ``FMU2Slave``'s methods), one of
+    each per round, best of ``repeat`` each; seconds per macro step."""
+    sc = load_scenario(None)
+    n = round(sc.stop_time / sc.step)
+    best = {"c_loop": float("inf"), "fmpy": float("inf")}
+    old = os.environ.get(ENV)
+    try:
+        for _ in range(repeat):
+            for name, value in (("c_loop", "1"), ("fmpy", "0")):
+                os.environ[ENV] = value
+                sim = CoSimulation(system_for(sc, fmu_dir), step=sc.step, coupling=sc.coupling)
+                try:
+                    sim.initialize()
+                    if (sim._fast is not None) != (value == "1"):
+                        raise SystemExit(f"bench: {ENV}={value} took the other path")
+                    t0 = time.perf_counter()
+                    sim.run(sc.stop_time, ArrayRecorder())
+                    best[name] = min(best[name], (time.perf_counter() - t0) / n)
+                finally:
+                    sim.close()
+    finally:
+        if old is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = old
     return best
 
 
@@ -358,6 +391,8 @@ def main() -> None:
     ap.add_argument("--native-only", action="store_true", help="the native figures alone")
     ap.add_argument("--cli-only", action="store_true", help="the command line's figures alone")
     ap.add_argument("--wasm-only", action="store_true", help="the WebAssembly figures alone")
+    ap.add_argument("--paths-only", action="store_true",
+                    help="the C loop and the fmpy path alone, in memory")  # fmt: skip
     ap.add_argument("--fmi3-dir", default="fmus/fmi3/native",
                     help="the native FMI 3 FMUs (with their WebAssembly components)")  # fmt: skip
     ap.add_argument("--fresh-font-cache", action="store_true",
@@ -367,6 +402,17 @@ def main() -> None:
     fmu_dir = Path(args.fmu_dir)
     native_dir = Path(args.native_dir)
     fmi3_dir = Path(args.fmi3_dir)
+    if args.paths_only:
+        build_all(native_dir, only_stale=True, flavor="native")
+        build_all(fmu_dir, only_stale=True, flavor="python")
+        paths = {}
+        for flavor, folder in (("native", native_dir), ("python", fmu_dir)):
+            for name, sec in paths_seconds_per_step(folder, args.repeat * 3).items():
+                paths[f"{flavor}_{name}_us_per_macro_step"] = round(sec * 1e6, 2)
+        paths["scenario"] = ("default (60 s, 3 FMUs, 50 Hz), CoSimulation.run in memory, "
+                             "initialisation not included; best of the rounds")  # fmt: skip
+        emit({**paths, "load_average": os.getloadavg(), "cpus": os.cpu_count()}, args.json)
+        return
     build_all(fmi3_dir, only_stale=True, flavor="native", fmi=3)
     wasm, native3 = wasm_and_native_fmi3(fmi3_dir, args.repeat)
     result: dict = {
