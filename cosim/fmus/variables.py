@@ -26,7 +26,7 @@ LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
 
 def parameter_defaults(fmu: str | Path) -> dict[str, Any]:
     """Start values of an FMU's parameters and inputs, by name, from its model
-    description (Real as float, Integer as int, Boolean as bool), read without fmpy
+    description (Real as float, Integer as int, Boolean as bool), read by fmpy
     (:func:`glider_cosim.inputs.archives.read_description`)."""
     from ..inputs.archives import read_description
 
@@ -142,7 +142,7 @@ def overrides_echo(overrides: dict[str, Any], fmus: dict[str, Any]) -> str:
 
     descriptions: dict[str, Any] = {}
     for inst in {ref.partition(".")[0] for ref in overrides}:
-        try:  # without fmpy (issue 48)
+        try:
             descriptions[inst] = read_description(fmus[inst])
         except (InputFileError, KeyError, TypeError, AttributeError):  # our tables then
             descriptions[inst] = None
