@@ -21,9 +21,8 @@ import math
 import posixpath
 import time
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 from xml.etree import ElementTree as ET
 
 import numpy as np
@@ -37,12 +36,10 @@ from ..fmus.lsref import (
     MANIFEST,
     sha3,
 )
-from ..inputs.text import one_line, quote, shown_path
+from ..inputs.text import one_line, quote
 from .cases import VerifyInputError
-
-
-class LsrefFileError(VerifyInputError):
-    """A file of the FMU's LS-REF folder cannot be used (names the file and what is wrong)."""
+from .lsref_report import LsrefFileError, LsrefReport, Planned, compare
+from .lsref_run import simulate
 
 
 @dataclass
@@ -60,183 +57,6 @@ class Entry:
     def path(self) -> str:
         """The entry's path in the FMU archive."""
         return resolve(LSREF_DIR, self.source, MANIFEST)
-
-
-@dataclass
-class VariableResult:
-    """One variable of an experiment: its worst point against the tolerance there."""
-
-    name: str
-    passed: bool
-    max_error: float
-    tolerance: float
-    time: float | None
-    value: float | None
-    reference: float | None
-
-
-@dataclass
-class ExperimentResult:
-    """One experiment of an experiments file: pass/fail, per variable, and a note."""
-
-    file: str
-    role: str
-    name: str
-    tolerance: float
-    start: float
-    stop: float
-    step: float
-    passed: bool
-    variables: list[VariableResult] = field(default_factory=list)
-    note: str = ""
-    seconds: float = 0.0
-
-
-@dataclass
-class LsrefReport:
-    """What :func:`verify_lsref` found: checksums and experiments."""
-
-    fmu: Path
-    model_name: str
-    fmi_version: str
-    sha256: str
-    #: (file in the archive, "ok" or what is wrong)
-    checksums: list[tuple[str, str]] = field(default_factory=list)
-    experiments: list[ExperimentResult] = field(default_factory=list)
-
-    @property
-    def checksum_failures(self) -> list[tuple[str, str]]:
-        return [(f, m) for f, m in self.checksums if m != "ok"]
-
-    @property
-    def passed(self) -> bool:
-        """Every checksum matches, at least one experiment ran and every one passed."""
-        return (
-            not self.checksum_failures
-            and bool(self.experiments)
-            and all(e.passed for e in self.experiments)
-        )
-
-    @property
-    def exit_code(self) -> int:
-        return 0 if self.passed else 1
-
-    def table(self) -> str:
-        """The FMU, the checksums' failures, one block per experiment (one row per
-        variable), a closing count."""
-        lines = [
-            f"FMU     {shown_path(self.fmu)} (sha256 {self.sha256})",
-            f"model   {self.model_name}: FMI {self.fmi_version}, FMI-LS-REF "
-            f"({len(self.experiments)} experiments, {len(self.checksums)} checksums)",
-        ]
-        for path, message in self.checksum_failures:
-            lines.append(f"checksum FAIL  {path}: {message}")
-        for e in self.experiments:
-            verdict = "pass" if e.passed else "FAIL"
-            lines += [
-                "",
-                f"{e.file} [{e.role}] experiment {e.name!r}: {verdict} (tolerance "
-                f"{e.tolerance:g}, {e.start:g} to {e.stop:g} s, step {e.step:g} s, "
-                f"run {e.seconds:.2f} s){'; ' + e.note if e.note else ''}",
-            ]
-            if e.variables:
-                rows = [
-                    (
-                        "variable",
-                        "result",
-                        "max error",
-                        "tolerance",
-                        "at t (s)",
-                        "value",
-                        "reference",
-                    )
-                ]
-                for v in e.variables:
-                    rows.append(
-                        (
-                            v.name,
-                            "pass" if v.passed else "FAIL",
-                            f"{v.max_error:.3g}",
-                            f"{v.tolerance:.3g}",
-                            _num(v.time, "{:.6g}"),
-                            _num(v.value, "{:.10g}"),
-                            _num(v.reference, "{:.10g}"),
-                        )
-                    )
-                widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-                lines += [
-                    "  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows
-                ]
-        n_pass = sum(e.passed for e in self.experiments)
-        bad = len(self.checksum_failures)
-        lines += [
-            "",
-            f"{self.model_name} ({shown_path(self.fmu)}): {n_pass} of "
-            f"{len(self.experiments)} experiments pass"
-            + (f"; {bad} file(s) changed after the FMU was built" if bad else ""),
-        ]
-        return "\n".join(lines)
-
-    def as_dict(self) -> dict[str, Any]:
-        """The whole result as plain data (``verify --json``)."""
-        n_pass = sum(e.passed for e in self.experiments)
-        return {
-            "fmu": str(self.fmu),
-            "sha256": self.sha256,
-            "model_name": self.model_name,
-            "fmi_version": self.fmi_version,
-            "kind": "fmi-ls-ref",
-            "passed": self.passed,
-            "exit_code": self.exit_code,
-            "counts": {
-                "passed": n_pass,
-                "failed": len(self.experiments) - n_pass,
-                "checksum_failures": len(self.checksum_failures),
-            },
-            "checksums": [
-                {
-                    "file": f,
-                    "result": "pass" if m == "ok" else "fail",
-                    **({} if m == "ok" else {"message": m}),
-                }
-                for f, m in self.checksums
-            ],
-            "experiments": [
-                {
-                    "file": e.file,
-                    "role": e.role,
-                    "experiment": e.name,
-                    "result": "pass" if e.passed else "fail",
-                    "tolerance": e.tolerance,
-                    "start": e.start,
-                    "stop": e.stop,
-                    "step": e.step,
-                    "seconds": e.seconds,
-                    "note": e.note,
-                    "variables": [
-                        {
-                            "name": v.name,
-                            "result": "pass" if v.passed else "fail",
-                            "max_error": _finite(v.max_error),
-                            "tolerance": _finite(v.tolerance),
-                            "time": _finite(v.time),
-                            "value": _finite(v.value),
-                            "reference": _finite(v.reference),
-                        }
-                        for v in e.variables
-                    ],
-                }
-                for e in self.experiments
-            ],
-        }
-
-
-def _num(v: float | None, fmt: str) -> str:
-    return "-" if v is None else fmt.format(v)
-
-
-def _finite(value: float | None) -> float | str | None:
-    return value if value is None or math.isfinite(value) else str(float(value))
 
 
 # ------------------------------------------------------------------ reading
@@ -321,22 +141,6 @@ def check_checksums(z: zipfile.ZipFile, entries: list[Entry]) -> list[tuple[str,
         else:
             out.append((path, "ok"))
     return out
-
-
-@dataclass
-class Planned:
-    """One experiment as read from its file (data, not yet run)."""
-
-    file: str
-    role: str
-    name: str
-    tolerance: float
-    start: float
-    stop: float
-    step: float
-    parameters: dict[str, tuple[str, str]]  # name -> (SSV type, value text)
-    stimuli: tuple[list[str], np.ndarray] | None
-    references: tuple[list[str], np.ndarray] | None
 
 
 def _table(z: zipfile.ZipFile, path: str, where: str) -> tuple[list[str], np.ndarray]:
@@ -457,188 +261,6 @@ def read_experiments(z: zipfile.ZipFile, entry: Entry) -> list[Planned]:
     return out
 
 
-# ------------------------------------------------------------------ running (fmpy)
-_SETTERS = {
-    "Real": "setReal",
-    "Float64": "setFloat64",
-    "Float32": "setFloat32",
-    "Integer": "setInteger",
-    "Int32": "setInt32",
-    "Boolean": "setBoolean",
-}
-_GETTERS = {k: v.replace("set", "get", 1) for k, v in _SETTERS.items()}
-
-
-def _typed(var: Any, text: str, where: str) -> float | int | bool:
-    from ..inputs.ssp_files import parse_value
-
-    kind = {"Float64": "Real", "Float32": "Real", "Int32": "Integer"}.get(var.type, var.type)
-    return parse_value(text.strip(), kind, where)
-
-
-def simulate(fmu: Path, md: Any, unzipdir: str, ex: Planned) -> tuple[np.ndarray, str]:
-    """Run one experiment with fmpy; (rows of time + the references' variables at every
-    communication point reached, a note: empty, or how the run ended early)."""
-    from fmpy.fmi2 import FMU2Slave
-    from fmpy.fmi3 import FMU3Slave
-
-    where = f"{ex.file}: experiment {quote(ex.name)}"
-    variables = {v.name: v for v in md.modelVariables}
-    ref_cols = ex.references[0][1:] if ex.references else []
-    stim_cols = ex.stimuli[0][1:] if ex.stimuli else []
-    for name in [*stim_cols, *ref_cols, *ex.parameters]:
-        if name not in variables:
-            raise LsrefFileError(f"{where}: {quote(name)} is not a variable of {md.modelName}")
-    for name in stim_cols:
-        if variables[name].causality not in ("input", "parameter"):
-            raise LsrefFileError(
-                f"{where}: stimulus {quote(name)} is a "
-                f"{variables[name].causality}, expected an input"
-            )
-    for name in [*stim_cols, *ref_cols, *ex.parameters]:
-        if variables[name].type not in _SETTERS:
-            raise LsrefFileError(
-                f"{where}: {quote(name)} is of type {variables[name].type}: "
-                "expected Real, Integer or Boolean"
-            )
-    fmi3 = str(md.fmiVersion).startswith("3")
-    common = {
-        "unzipDirectory": unzipdir,
-        "modelIdentifier": md.coSimulation.modelIdentifier,
-        "instanceName": "lsref",
-    }
-    slave = (
-        FMU3Slave(instantiationToken=md.instantiationToken, **common)
-        if fmi3
-        else FMU2Slave(guid=md.guid, **common)
-    )
-
-    def put(name: str, value: Any) -> None:
-        v = variables[name]
-        getattr(slave, _SETTERS[v.type])([v.valueReference], [value])
-
-    n = int(round((ex.stop - ex.start) / ex.step))
-    rows: list[list[float]] = []
-    note = ""
-    stim_t = ex.stimuli[1][:, 0] if ex.stimuli else None
-    slave.instantiate()
-    try:
-        if not fmi3:
-            slave.setupExperiment(startTime=ex.start)
-        for name, (_, text) in ex.parameters.items():
-            put(name, _typed(variables[name], text, f"{where}: parameter {quote(name)}"))
-        last = -1
-
-        def drive(t: float) -> None:  # the stimuli's row in effect at t, set once
-            nonlocal last
-            if stim_t is None:
-                return
-            i = int(np.searchsorted(stim_t, t + 1e-9 * ex.step, "right")) - 1
-            if i >= 0 and i != last:
-                for j, c in enumerate(stim_cols, start=1):
-                    value = ex.stimuli[1][i, j]
-                    kind = variables[c].type
-                    put(
-                        c,
-                        bool(value)
-                        if kind == "Boolean"
-                        else int(round(value))
-                        if kind in ("Integer", "Int32")
-                        else float(value),
-                    )
-                last = i
-
-        if fmi3:
-            slave.enterInitializationMode(startTime=ex.start)
-        else:
-            slave.enterInitializationMode()
-        drive(ex.start)  # the inputs at the start take part in the initialisation
-        slave.exitInitializationMode()
-        vrs = [variables[c].valueReference for c in ref_cols]
-        kinds = [variables[c].type for c in ref_cols]
-        for k in range(n + 1):
-            t = ex.start + k * ex.step
-            drive(t)
-            row = [t]
-            for vr, kind in zip(vrs, kinds):
-                row.append(float(getattr(slave, _GETTERS[kind])([vr])[0]))
-            rows.append(row)
-            if k == n:
-                break
-            try:
-                slave.doStep(t, ex.step)
-            except Exception as err:  # noqa: BLE001 - fmpy raises FMICallException
-                note = f"the FMU stopped at t = {t:g} s: {one_line(err)}"
-                break
-        slave.terminate()
-    finally:
-        try:
-            slave.freeInstance()
-        except Exception:  # noqa: BLE001 - an FMU that failed may refuse that too
-            pass
-    return np.array(rows, dtype=float).reshape(-1, 1 + len(ref_cols)), note
-
-
-def compare(ex: Planned, data: np.ndarray, note: str, seconds: float) -> ExperimentResult:
-    """Compare a run with the experiment's references, per variable."""
-    res = ExperimentResult(
-        ex.file,
-        ex.role,
-        ex.name,
-        ex.tolerance,
-        ex.start,
-        ex.stop,
-        ex.step,
-        True,
-        note=note,
-        seconds=seconds,
-    )
-    if note:
-        res.passed = False
-    if ex.references is None:
-        res.note = "; ".join(filter(None, [note, "no references: the run itself is the test"]))
-        return res
-    cols, ref = ex.references
-    k = np.round((ref[:, 0] - ex.start) / ex.step)
-    off = np.abs(ex.start + k * ex.step - ref[:, 0]) > 1e-6 * ex.step
-    if np.any(off) or np.any(k < 0) or np.any(k > round((ex.stop - ex.start) / ex.step)):
-        bad = ref[np.argmax(off | (k < 0)), 0]
-        raise LsrefFileError(
-            f"{ex.file}: experiment {quote(ex.name)}: reference time {bad:g} s "
-            "is not a communication point between start and stop"
-        )
-    k = k.astype(int)
-    reached = k < len(data)
-    if not np.all(reached):
-        res.passed = False
-    for j, name in enumerate(cols[1:], start=1):
-        y_ref = ref[reached, j]
-        y = data[k[reached], j]
-        err = np.abs(y - y_ref)
-        err = np.where(np.isfinite(err), err, np.inf)
-        tol = ex.tolerance * (1.0 + np.abs(y_ref))
-        if not len(err):
-            res.variables.append(VariableResult(name, False, math.inf, 0.0, None, None, None))
-            continue
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(tol > 0, err / tol, np.where(err > 0, np.inf, 0.0))
-        i = int(np.argmax(ratio))
-        ok = bool(np.all(err <= tol))
-        res.passed &= ok
-        res.variables.append(
-            VariableResult(
-                name,
-                ok,
-                float(err[i]),
-                float(tol[i]),
-                float(ref[reached][i, 0]),
-                float(y[i]),
-                float(y_ref[i]),
-            )
-        )
-    return res
-
-
 def carries_lsref(fmu: str | Path) -> bool:
     """True if ``fmu`` (a zip) carries an LS-REF manifest."""
     try:
@@ -705,3 +327,28 @@ def verify_lsref(fmu: str | Path) -> LsrefReport | None:
 
         shutil.rmtree(unzipdir, ignore_errors=True)
     return report
+
+
+def lsref_command(fmu: str, as_json: bool) -> int | None:
+    """``glider-cosim verify FMU`` on the experiments the FMU carries: print the report
+    (``as_json``: one JSON object), return the exit code; None if it carries none and is
+    one of our components (then the kit's cases run). An FMU that carries none and is no
+    component of ours is refused in one line (:class:`VerifyInputError`)."""
+    import json
+
+    report = verify_lsref(fmu)
+    if report is None:
+        from .compare import detect_component
+        from .run import open_fmu
+
+        md = open_fmu(Path(fmu))
+        try:
+            detect_component(md)
+        except VerifyInputError:
+            raise VerifyInputError(
+                f"FMU {quote(Path(fmu).name)} ({md.modelName}) carries no FMI-LS-REF "
+                f"experiments ({MANIFEST}) and is not a glider component: nothing to verify"
+            ) from None
+        return None
+    print(json.dumps(report.as_dict(), indent=1) if as_json else report.table())
+    return report.exit_code
