@@ -154,13 +154,21 @@ def add_experiments(
     title = f"{md.modelName} {sc.name}"
     what = f"{md.modelName} in the loop of scenario {sc.name!r}"
     related = lw.experiment_files(folder, [ex], types, role, title, what)
+    return write_copy(fmu, out, related)
+
+
+def write_copy(fmu: Path, out: Path, related: list[lw.Related]) -> Path:
+    """Write ``out``: every file of ``fmu`` as it is, plus ``related`` in its LS-REF folder
+    and the manifest listing them (its old entries kept); ``out`` is recorded as written
+    by glider-cosim in its folder's record. Refused as :func:`add_experiments` says."""
+    _check_out(fmu, out)
     with zipfile.ZipFile(fmu) as src:
         names = set(src.namelist())
         clash = [f"{packed.LSREF_DIR}/{r.source}" for r in related
                  if f"{packed.LSREF_DIR}/{r.source}" in names]  # fmt: skip
         if clash:
-            raise AddExperimentsError(f"FMU {quote(fmu.name)} already has {clash[0]}: an "
-                                      f"experiment of scenario {sc.name!r} is there")  # fmt: skip
+            raise AddExperimentsError(f"FMU {quote(fmu.name)} already has {clash[0]}: "
+                                      "give the experiment another name")  # fmt: skip
         old = src.read(packed.MANIFEST) if packed.MANIFEST in names else None
         manifest = merged_manifest(old, related)
         with record.locked(out.parent):

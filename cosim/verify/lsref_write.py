@@ -49,6 +49,7 @@ Our three FMUs carry (:func:`write_folders`):
 
 from __future__ import annotations
 
+import posixpath
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -236,7 +237,8 @@ def experiment_files(
                 table_bytes(*ex.references),
             )
         )
-        listed.append((ex, files))
+        here = posixpath.dirname(f"{folder}.exp") or "."  # the .exp's own folder
+        listed.append((ex, {k: posixpath.relpath(v, here) for k, v in files.items()}))
     exp = Related(
         f"{folder}.exp",
         role,
