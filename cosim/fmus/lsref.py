@@ -2,10 +2,11 @@
 (experiments, parameter sets, the readme, the manifest listing them with checksums).
 
 The folder's files are data shipped in the package, ``verification/lsref/<model>/``,
-written by :mod:`glider_cosim.verify.lsref_write` (``python -m
-glider_cosim.verify.lsref_write --write``; what they hold and what the standards leave
-open is told there). Every build (both flavors, FMI 2.0 and 3.0) packs them through
-:func:`entries`; the FMUs' binaries and model descriptions do not change.
+written by :mod:`glider_cosim.verify.lsref_ours` (``python -m
+glider_cosim.verify.lsref_ours --write``); what they hold and what the standards leave
+open is told in :mod:`glider_cosim.interop.lsref_write`. Every build (both flavors,
+FMI 2.0 and 3.0) packs them through :func:`entries`; the FMUs' binaries and model
+descriptions do not change.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from ..fmus import record
 from ..fmus.files import file_sha256, replacing
 from ..fmus.lsref import ROLES
 from ..inputs.text import quote
-from . import lsref_write as lw
+from ..interop import lsref_write as lw
 from .lsref_ours import record_component
 
 

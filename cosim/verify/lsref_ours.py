@@ -2,7 +2,7 @@
 --write | --check``), shipped in ``verification/lsref/<model>/`` and packed by every
 build (:mod:`glider_cosim.fmus.lsref`), and recording an instance of a loop at component
 level (:func:`record_component`, also for ``glider-cosim add-experiments``).
-:mod:`glider_cosim.verify.lsref_write` says what the folders hold."""
+:mod:`glider_cosim.interop.lsref_write` says what the folders hold."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..fmus.lsref import LSREF_DIR, MANIFEST, data_root
-from .lsref_write import (
+from ..interop.lsref_write import (
     SMOKE_TOLERANCE,
     SSV_MIME,
     VALIDATION_TOLERANCE,

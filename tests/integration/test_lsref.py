@@ -15,9 +15,9 @@ import pytest
 import glider_cosim
 from glider_cosim.cli.main import main
 from glider_cosim.fmus.lsref import LSREF_DIR, MANIFEST, data_root
+from glider_cosim.interop.lsref_write import Experiment, experiment_files
 from glider_cosim.verify.lsref import verify_lsref
 from glider_cosim.verify.lsref_add import AddExperimentsError, write_copy
-from glider_cosim.verify.lsref_write import Experiment, experiment_files
 
 pytestmark = pytest.mark.integration
 

@@ -1,6 +1,6 @@
 """Writing FMI-LS-REF folders: experiments, parameter sets and documents that travel
 inside an FMU (``extra/org.fmi-standard.fmi-ls-ref/``); our three FMUs' folders
-(``python -m glider_cosim.verify.lsref_write --write``, shipped in
+(``python -m glider_cosim.verify.lsref_ours --write``, shipped in
 ``verification/lsref/<model>/`` and packed by every build, :mod:`glider_cosim.fmus.lsref`).
 
 The layered standard FMI-LS-REF (modelica/fmi-ls-ref, version 1.0.0-alpha.1) lists an
@@ -139,7 +139,7 @@ def ssv_bytes(name: str, values: Mapping[str, Any], types: Mapping[str, str]) ->
 
     ``types``: variable name -> its FMI type in the model description (``Real``,
     ``Float64``, ``Integer``, ``Int32``, ``Boolean``)."""
-    from ..interop.ssp_common import as_ssp1_type, format_value, qname
+    from .ssp_common import as_ssp1_type, format_value, qname
 
     root = ET.Element(qname("ssv", "ParameterSet"), {"version": "1.0", "name": name})
     params = ET.SubElement(root, qname("ssv", "Parameters"))
