@@ -58,15 +58,12 @@ def simulate(fmu: Path, md: Any, unzipdir: str, ex: Planned) -> tuple[np.ndarray
             )
     fmi3 = str(md.fmiVersion).startswith("3")
     common = {
+        "guid": md.guid,  # fmpy keeps an FMI 3 FMU's instantiationToken there too
         "unzipDirectory": unzipdir,
         "modelIdentifier": md.coSimulation.modelIdentifier,
         "instanceName": "lsref",
     }
-    slave = (
-        FMU3Slave(instantiationToken=md.instantiationToken, **common)
-        if fmi3
-        else FMU2Slave(guid=md.guid, **common)
-    )
+    slave = FMU3Slave(**common) if fmi3 else FMU2Slave(**common)
 
     def put(name: str, value: Any) -> None:
         v = variables[name]

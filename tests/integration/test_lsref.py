@@ -244,3 +244,19 @@ def test_add_experiments_writes_a_copy_that_carries_its_loop(tmp_path, fmu_dir, 
     assert main([*args[:5], str(foreign), *args[6:]]) == 2
     assert "is not a file glider-cosim wrote there" in capsys.readouterr().err
     assert foreign.read_bytes() == before
+
+
+def test_the_one_fmu_export_carries_its_loop(fmu_dir, tmp_path, schemas, capsys):
+    from glider_cosim.interop.onefmu import export_one_fmu
+
+    fmu = export_one_fmu(tmp_path / "GliderLoop.fmu", "default", fmu_dir)
+    with zipfile.ZipFile(fmu) as z:
+        assert _validate(z, schemas) >= 3
+    report = verify_lsref(fmu)
+    assert report is not None and report.passed, report.table()
+    assert [e.role for e in report.experiments] == ["experiment/smoke-test",
+                                                    "experiment/validation"]  # fmt: skip
+    assert {v.name for v in report.experiments[0].variables} >= {
+        "plant.theta_g",
+        "controller.delta_cmd",
+    }
