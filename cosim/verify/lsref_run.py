@@ -5,6 +5,7 @@ communication point are set."""
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,7 @@ def _typed(var: Any, text: str, where: str) -> float | int | bool:
 def simulate(fmu: Path, md: Any, unzipdir: str, ex: Planned) -> tuple[np.ndarray, str]:
     """Run one experiment with fmpy; (rows of time + the references' variables at every
     communication point reached, a note: empty, or how the run ended early)."""
+    from fmpy.fmi1 import FMICallException
     from fmpy.fmi2 import FMU2Slave
     from fmpy.fmi3 import FMU3Slave
 
@@ -75,10 +77,6 @@ def simulate(fmu: Path, md: Any, unzipdir: str, ex: Planned) -> tuple[np.ndarray
     stim_t = ex.stimuli[1][:, 0] if ex.stimuli else None
     slave.instantiate()
     try:
-        if not fmi3:
-            slave.setupExperiment(startTime=ex.start)
-        for name, (_, text) in ex.parameters.items():
-            put(name, _typed(variables[name], text, f"{where}: parameter {quote(name)}"))
         last = -1
 
         def drive(t: float) -> None:  # the stimuli's row in effect at t, set once
@@ -100,32 +98,35 @@ def simulate(fmu: Path, md: Any, unzipdir: str, ex: Planned) -> tuple[np.ndarray
                     )
                 last = i
 
-        if fmi3:
-            slave.enterInitializationMode(startTime=ex.start)
-        else:
-            slave.enterInitializationMode()
-        drive(ex.start)  # the inputs at the start take part in the initialisation
-        slave.exitInitializationMode()
+        try:
+            if not fmi3:
+                slave.setupExperiment(startTime=ex.start)
+            for name, (_, text) in ex.parameters.items():
+                put(name, _typed(variables[name], text, f"{where}: parameter {quote(name)}"))
+            if fmi3:
+                slave.enterInitializationMode(startTime=ex.start)
+            else:
+                slave.enterInitializationMode()
+            drive(ex.start)  # the inputs at the start take part in the initialisation
+            slave.exitInitializationMode()
+        except FMICallException as err:
+            return np.empty((0, 1 + len(ref_cols))), f"initialisation failed: {one_line(err)}"
         vrs = [variables[c].valueReference for c in ref_cols]
         kinds = [variables[c].type for c in ref_cols]
         for k in range(n + 1):
             t = ex.start + k * ex.step
-            drive(t)
-            row = [t]
-            for vr, kind in zip(vrs, kinds):
-                row.append(float(getattr(slave, _GETTERS[kind])([vr])[0]))
-            rows.append(row)
-            if k == n:
-                break
             try:
-                slave.doStep(t, ex.step)
-            except Exception as err:  # noqa: BLE001 - fmpy raises FMICallException
+                drive(t)
+                rows.append([t, *(float(getattr(slave, _GETTERS[kind])([vr])[0])
+                                  for vr, kind in zip(vrs, kinds))])  # fmt: skip
+                if k < n:
+                    slave.doStep(t, ex.step)
+            except FMICallException as err:
                 note = f"the FMU stopped at t = {t:g} s: {one_line(err)}"
                 break
-        slave.terminate()
+        if not note:
+            slave.terminate()
     finally:
-        try:
+        with contextlib.suppress(FMICallException):  # an FMU that failed may refuse it
             slave.freeInstance()
-        except Exception:  # noqa: BLE001 - an FMU that failed may refuse that too
-            pass
     return np.array(rows, dtype=float).reshape(-1, 1 + len(ref_cols)), note
