@@ -58,11 +58,19 @@ def schemas():
     }
 
 
+#: our FMU sets: (fixture, key in it or None)
+SETS = {"python-fmi2": ("fmu_dir", None), "native-fmi2": ("native_dir", None),
+        "python-fmi3": ("fmi3_python", None), "native-fmi3": ("fmi3_dirs", "native")}  # fmt: skip
+
+
 @pytest.fixture(scope="module")
-def every_set(fmu_dir, native_dir, fmi3_dirs) -> dict[str, Path]:
-    """Our FMUs in every flavor and FMI version."""
-    return {"python-fmi2": fmu_dir, "native-fmi2": native_dir,
-            "python-fmi3": fmi3_dirs["python"], "native-fmi3": fmi3_dirs["native"]}  # fmt: skip
+def fmi3_python(tmp_path_factory) -> Path:
+    """Our Python-flavor FMUs as FMI 3.0 (without the native build fmi3_dirs makes too)."""
+    from glider_cosim.fmus.fmi3 import build_fmi3
+
+    out = tmp_path_factory.mktemp("fmi3_python")
+    build_fmi3(out, "python")
+    return out
 
 
 def _validate(z: zipfile.ZipFile, schemas) -> int:
@@ -79,26 +87,29 @@ def _validate(z: zipfile.ZipFile, schemas) -> int:
     return n
 
 
-def test_every_fmu_we_build_carries_valid_experiments(every_set, schemas):
+@pytest.mark.parametrize("kind", SETS)
+def test_every_fmu_we_build_carries_valid_experiments(kind, request, schemas):
     from fmpy.validation import validate_fmu
 
-    for kind, folder in every_set.items():
-        for model in MODELS:
-            fmu = folder / f"{model}.fmu"
-            with zipfile.ZipFile(fmu) as z:
-                # the folder is the shipped one, byte for byte, in every flavor and version
-                shipped = {f"{LSREF_DIR}/{p.relative_to(data_root() / model).as_posix()}":
-                           p.read_bytes() for p in (data_root() / model).rglob("*")
-                           if p.is_file()}  # fmt: skip
-                carried = {n: z.read(n) for n in z.namelist() if n.startswith(LSREF_DIR)}
-                assert carried == shipped, (kind, model)
-                assert _validate(z, schemas) >= 4
-            assert validate_fmu(str(fmu)) == [], (kind, model)
-            report = verify_lsref(fmu)
-            assert report is not None and report.passed, report.table()
-            roles = {e.role for e in report.experiments}
-            assert roles == {"experiment/smoke-test", "experiment/validation"}
-            assert not report.checksum_failures and len(report.checksums) >= 5
+    fixture, key = SETS[kind]
+    folder = request.getfixturevalue(fixture)
+    folder = folder[key] if key else folder
+    for model in MODELS:
+        fmu = folder / f"{model}.fmu"
+        with zipfile.ZipFile(fmu) as z:
+            # the folder is the shipped one, byte for byte, in every flavor and version
+            shipped = {f"{LSREF_DIR}/{p.relative_to(data_root() / model).as_posix()}":
+                       p.read_bytes() for p in (data_root() / model).rglob("*")
+                       if p.is_file()}  # fmt: skip
+            carried = {n: z.read(n) for n in z.namelist() if n.startswith(LSREF_DIR)}
+            assert carried == shipped, (kind, model)
+            assert _validate(z, schemas) >= 4
+        assert validate_fmu(str(fmu)) == [], (kind, model)
+        report = verify_lsref(fmu)
+        assert report is not None and report.passed, report.table()
+        roles = {e.role for e in report.experiments}
+        assert roles == {"experiment/smoke-test", "experiment/validation"}
+        assert not report.checksum_failures and len(report.checksums) >= 5
 
 
 def test_the_shipped_folders_are_up_to_date(fmu_dir, tmp_path):
