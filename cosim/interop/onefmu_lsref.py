@@ -19,15 +19,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..fmus.lsref import LSREF_DIR, MANIFEST
 from .lsref_write import (
     SSV_MIME,
     VALIDATION_TOLERANCE,
     Experiment,
     Related,
     experiment_files,
-    manifest_bytes,
     ssv_bytes,
+    zip_entries,
 )
 
 #: the smoke test's span, s (the whole run if shorter)
@@ -100,9 +99,7 @@ def loop_entries(
             "`glider-cosim verify` runs them.\n")  # fmt: skip
     related.append(Related("README.md", "document", "text/markdown",
                            f"{model}: what the container is", text.encode()))  # fmt: skip
-    out = {f"{LSREF_DIR}/{r.source}": r.data for r in related}
-    out[MANIFEST] = manifest_bytes(related)
-    return out
+    return zip_entries(related)
 
 
 class _Rows:
