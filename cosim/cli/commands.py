@@ -380,10 +380,10 @@ def dispatch(args: argparse.Namespace) -> int:
         return _report(args)
     if args.command == "analyze":
         return _analyze(args)
-    if args.command == "verify":
+    if args.command in ("verify", "add-experiments"):
         from ..verify.command import run_command
 
-        if args.export:
+        if getattr(args, "export", None):
             _check_out_dir(Path(args.export), "--export")
         return run_command(args)
     if args.command == "cache":

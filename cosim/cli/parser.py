@@ -346,16 +346,21 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     add_sweep_parser(sub)
     v = sub.add_parser(
         "verify",
-        help="run the component verification kit on an FMU",
-        description="Run the reference cases of a component (plant, observer, controller) on\n"
-        "an FMI 2.0 or 3.0 co-simulation FMU and compare with the references; exit 0 if\n"
-        "at least one case ran and every case run passed, 1 if a case\n"
-        "failed, 2 on bad input, a missing core interface or no case that can run.",
+        help="run the experiments an FMU carries (FMI-LS-REF), or the verification kit",
+        description="Run the FMI-LS-REF experiments an FMU carries (its files' checksums first),\n"
+        "else (or with --kit) our component's reference cases. Exit 0 if one ran and all\n"
+        "passed, 1 if one failed or a file changed after the FMU was built, 2 on bad input.",
     )
     if command in (None, "verify"):
         from ..verify.command import add_arguments, tolerance_arg
 
         add_arguments(v, tolerance_arg)
+    ae = sub.add_parser("add-experiments", help="write an FMI-LS-REF experiment into a copy "
+                        "of your FMU, from a run of our loop around it")  # fmt: skip
+    if command in (None, "add-experiments"):
+        from ..verify.command import add_experiments_arguments
+
+        add_experiments_arguments(ae)
     sub.add_parser(
         "scenarios",
         help="list the shipped scenarios, one line each",

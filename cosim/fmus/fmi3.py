@@ -23,7 +23,7 @@ from pathlib import Path
 
 from glider_fmi import compile as runtime
 
-from . import native, osp
+from . import lsref, native, osp
 from .files import build_progress, replacing
 from .fmi3_description import fmi3_model_description
 from .python import COMPONENTS, build_component, shown_runtimes, source_hash
@@ -74,6 +74,8 @@ def _repackage(fmu2: Path, out: Path, binary: dict[str, Path]) -> Path:
             else:
                 z.writestr(item, src.read(item))
         z.writestr(osp.extra_path(md), osp.generate(md))
+        for entry, data in lsref.entries(md).items():  # FMI 3.0's types in its SSV files
+            z.writestr(entry, data)
         for platform, lib in binary.items():
             z.write(lib, f"binaries/{platform}/{name}.so")
         z.writestr(FMI3_HASH_FILE, fmi3_hash(name) + "\n")

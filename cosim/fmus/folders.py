@@ -13,7 +13,7 @@ from glider_fmi.compile import PYTHON_PLATFORMS
 from glider_fmi.toolchain import host_platform
 
 from ..inputs.text import quote
-from . import osp, record
+from . import lsref, osp, record
 from .files import (  # noqa: F401 (re-exported)
     CACHE_ENV,
     build_progress,
@@ -53,6 +53,7 @@ def sources_key(flavor: str = "python") -> str:
         hashes = [native_hash(c) for c in NATIVE_COMPONENTS]
     else:
         hashes = [source_hash(c) for c in COMPONENTS]
+    hashes.append(lsref.fingerprint())  # the experiments the FMUs carry
     return hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:16]
 
 

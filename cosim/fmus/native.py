@@ -32,7 +32,7 @@ import glider_observer
 import glider_plant
 from glider_fmi import toolchain
 
-from . import objects, osp, platforms, wasm
+from . import lsref, objects, osp, platforms, wasm
 from .files import (  # noqa: F401 (same_sources re-exported)
     FLAVOR_FILE,
     build_progress,
@@ -180,6 +180,10 @@ def is_current(
         with zipfile.ZipFile(fmu) as z:
             if z.read(NATIVE_HASH_FILE).decode().strip() != native_hash(c, fmi, chain):
                 return False
+            # the LS-REF folder is checked apart: its data are not in native_hash, which
+            # makes the model description's GUID
+            if not lsref.is_current(z):
+                return False
             has = set(z.read(PLATFORMS_FILE).decode().split())
         return has >= set(need if need is not None else wanted_platforms(chain, False))
     except (OSError, KeyError, zipfile.BadZipFile, toolchain.ToolchainError):
@@ -233,6 +237,8 @@ def _package(c: NativeComponent, out: Path, chain: toolchain.Toolchain, fmi: int
     with replacing(fmu) as part, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", md)
         z.writestr(osp.extra_path(md), osp.generate(md))
+        for entry, data in lsref.entries(md).items():
+            z.writestr(entry, data)
         mine = (extra or {}).get(c.name, {})  # zip path -> bytes: its component, manifest
         for entry, data in {**binary_entries(c.name, built, fmi), **mine}.items():
             z.writestr(zip_member(entry), data)

@@ -18,7 +18,7 @@ import glider_plant
 from glider_fmi import bundle
 from glider_fmi import compile as runtime
 
-from . import osp
+from . import lsref, osp
 from .files import made_once, replacing
 
 #: resource file in each FMU holding the hash of the sources it was built from
@@ -84,6 +84,7 @@ def _source_hash(c: Component) -> str:
     h.update(runtime.runtime_fingerprint().encode())
     h.update(runtime.python_config().encode())
     h.update(osp.fingerprint().encode())
+    h.update(lsref.fingerprint().encode())
     for f in c.sources:
         h.update(f.name.encode())
         h.update(f.read_bytes())
@@ -171,6 +172,7 @@ def package_slave(
         )
         _finish(staged, staged.stem, binary)
         osp.add_to_fmu(staged)
+        lsref.add_to_fmu(staged)  # our models' experiments (none for another model)
         fmu = out / staged.name
         with replacing(fmu) as part:  # a process reading the FMU meanwhile sees old or new
             shutil.copyfile(staged, part)

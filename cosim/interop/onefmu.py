@@ -186,9 +186,11 @@ def export_one_fmu(
             for ref in exposed:
                 inst, name = ref.split(".", 1)
                 container.add_input(ref, files[inst], name)
+            types = {}  # instance.variable -> FMI type (the LS-REF parameter sets)
             for inst, fname in files.items():
                 md = read_model_description(str(work / fname))
                 for v in md.modelVariables:
+                    types[f"{inst}.{v.name}"] = v.type
                     if v.causality == "output":
                         container.add_output(fname, v.name, f"{inst}.{v.name}")
             values = with_sampling(sc.parameters, sc.step, sc.source, has_our_observer(sc))
@@ -215,7 +217,11 @@ def export_one_fmu(
                 for n, v in params.items()
                 if f"{i}.{n}" in exposed
             }
-            _finish(work / f"{CONTAINER_NAME}.fmu", work, files, out, starts)
+            from .onefmu_lsref import loop_entries
+
+            folder = Path(built["GliderPlant"]).parent
+            extra = loop_entries(sc, folder, CONTAINER_NAME, tuple(exposed), types)
+            _finish(work / f"{CONTAINER_NAME}.fmu", work, files, out, starts, extra)
     except FMUContainerError as err:
         raise OneFMUError(f"{out}: the FMU container could not be built: {_reason(err)}") from None
     finally:
@@ -241,10 +247,16 @@ def _reason(err: Exception) -> str:
 
 
 def _finish(
-    built: Path, work: Path, files: dict[str, str], out: Path, starts: dict[str, str]
+    built: Path,
+    work: Path,
+    files: dict[str, str],
+    out: Path,
+    starts: dict[str, str],
+    extra: dict[str, bytes],
 ) -> None:
     """Copy the container to ``out`` with units in its model description and the quiet
-    forwarder as its binary (the container's own kept beside it)."""
+    forwarder as its binary (the container's own kept beside it), and the files of
+    ``extra`` (zip path -> bytes: its FMI-LS-REF folder)."""
     from glider_fmi.compile import fmi_headers
     from glider_fmi.toolchain import ToolchainError, host_command
 
@@ -277,6 +289,8 @@ def _finish(
                         _entry(info, binary[: -len(".so")] + ".container.so"), z.read(info)
                     )
                 dst.writestr(_entry(info, info.filename), data)
+            for name, data in extra.items():
+                dst.writestr(name, data)
     tmp.replace(out)
 
 

@@ -22,6 +22,12 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
     )
     p.add_argument("--case", default=None, help="one case (default: every case)")
     p.add_argument(
+        "--kit",
+        action="store_true",
+        help="run the verification kit's cases of our components instead of the FMI-LS-REF "
+        "experiments the FMU carries (implied by --component, --case, --rtol, --atol)",
+    )
+    p.add_argument(
         "--rtol",
         type=tolerance,
         default=None,
@@ -58,6 +64,28 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
     add_overwrite_option(p)
 
 
+def add_experiments_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``glider-cosim add-experiments``."""
+    from ..fmus.lsref import ROLES
+
+    p.description = (
+        "Put FMU in the loop of a scenario (the instance its [fmus] table gives it, else\n"
+        "the component whose interface it has), run the loop, and write a copy of FMU that\n"
+        "carries an FMI-LS-REF experiment: its recorded inputs as stimuli, its outputs as\n"
+        "references, the scenario's parameter values. FMU itself is never written over."
+    )
+    p.add_argument("fmu", metavar="FMU", help="your FMI 2.0 or 3.0 co-simulation FMU")
+    p.add_argument("--from", dest="case", required=True, metavar="CASE",
+                   help="a shipped scenario's name or a scenario file")  # fmt: skip
+    p.add_argument("--out", required=True, metavar="NEW.fmu",
+                   help="the new FMU (not FMU; an existing file only if glider-cosim "
+                   "wrote it)")  # fmt: skip
+    p.add_argument("--role", default=ROLES[0], choices=ROLES,
+                   help="the experiment's role (default: experiment, a smoke test)")  # fmt: skip
+    p.add_argument("--fmu-dir", default=None,
+                   help="our other FMUs of the loop (default: the per-user cache)")  # fmt: skip
+
+
 def run_command(args: argparse.Namespace) -> int:
     """``glider-cosim verify``: 0 if at least one case ran and every case run passed, 1 if
     a case failed; VerifyInputError (bad input, the core interface missing, no case could
@@ -66,6 +94,11 @@ def run_command(args: argparse.Namespace) -> int:
     from .compare import verify
     from .writing import export, write_references
 
+    if args.command == "add-experiments":
+        from .lsref_add import add_experiments
+
+        print(f"wrote {add_experiments(args.fmu, args.case, args.out, args.role, args.fmu_dir)}")
+        return 0
     if args.write_references or args.export:
         if args.fmu is not None:
             raise VerifyInputError("give an FMU or --write-references/--export, not both")
@@ -81,7 +114,14 @@ def run_command(args: argparse.Namespace) -> int:
         return 0
     if args.fmu is None:
         raise VerifyInputError("expected an FMU (or --write-references, --export DIR)")
+    kit = args.kit or args.component or args.case or args.rtol is not None or args.atol is not None
     try:
+        if not kit:  # the experiments the FMU carries (FMI-LS-REF), else the kit's cases
+            from .lsref import lsref_command
+
+            code = lsref_command(args.fmu, args.json)
+            if code is not None:
+                return code
         report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
     except VerifyInputError as err:
         if args.json:
