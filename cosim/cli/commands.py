@@ -292,7 +292,7 @@ def _analyze(args: argparse.Namespace) -> int:
 def runs_here(args: argparse.Namespace) -> bool:
     """True if the command runs our FMUs here alone (run, sweep or report without a Dask
     scheduler, analyze): the host-only set serves it (exports hand every platform's on)."""
-    here = ("run", "sweep", "report", "analyze")
+    here = ("run", "sweep", "report", "analyze", "compare")
     return args.command in here and not getattr(args, "scheduler", None)
 
 
@@ -314,7 +314,7 @@ def dispatch(args: argparse.Namespace) -> int:
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         from ..scenarios.system import swapped_in  # a user's FMU in --fmu-dir, swapped in
 
-        swaps = folder is not None and args.command in ("run", "sweep", "export-ssp")
+        swaps = folder is not None and args.command in ("run", "sweep", "export-ssp", "compare")
         skip = swapped_in(args.scenario) if swaps else set()
         try:
             fmi, here = getattr(args, "fmi", None), runs_here(args)
@@ -386,6 +386,15 @@ def dispatch(args: argparse.Namespace) -> int:
         if args.export:
             _check_out_dir(Path(args.export), "--export")
         return run_command(args)
+    if args.command == "compare":
+        from ..scenarios.scenario import load_scenario
+        from ..studies.compare import compare, default_out, describe, swapped_component
+
+        swapped_component(load_scenario(args.scenario))  # bad input: one line, nothing made
+        out = Path(args.out) if args.out is not None else default_out(args.scenario)
+        _check_out_dir(out, "--out")
+        print(describe(compare(args.scenario, out, args.fmu_dir)))
+        return 0
     if args.command == "cache":
         from ..fmus.cache import cache_report
 

@@ -100,7 +100,7 @@ def loop_wiring(
         ]
         if lacks:
             raise SystemSpecError(
-                f"{who(inst)} lacks what the loop requires of a {inst}: {', '.join(lacks)} "
+                f"{who(inst)} lacks what the loop requires of the {inst}: {', '.join(lacks)} "
                 "(docs/reference/fmu-interfaces.md)"
             )
     skipped: dict[str, list[str]] = {}

@@ -4,6 +4,7 @@ output is named by ``run`` with the fix (pythonfmu FMUs built here, in ``tmp_pat
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 from pathlib import Path
@@ -149,7 +150,7 @@ def test_extra_inputs_are_connected_by_name_or_left_at_their_start(own, caplog):
 
 def test_a_controller_without_delta_cmd_is_refused_in_one_line(own, caplog):
     with pytest.raises(SystemSpecError, match=r"controller \('MuteController'\) lacks what the "
-                       r"loop requires of a controller: delta_cmd \(output, rad\)"):  # fmt: skip
+                       r"loop requires of the controller: delta_cmd \(output, rad\)"):  # fmt: skip
         _run({"controller": own["MuteController"]}, caplog, stop=1.0)
 
 
@@ -190,3 +191,97 @@ def test_run_names_a_one_step_late_controller_with_the_fix(own, caplog):
     caplog.clear()
     _, notes = _run({"controller": own["PController"]}, caplog, stop=1.0)
     assert not [n for n in notes if "late" in n]
+
+
+def test_verify_judges_a_new_law_on_what_the_loop_needs(own, capsys):
+    from glider_cosim.cli import main
+    from glider_cosim.verify import verify
+
+    report = verify(own["PController"])
+    assert [(c.name, c.passed) for c in report.loop] == [
+        ("interface", True), ("initialization", True), ("feedthrough", True),
+        ("closed loop", True),
+    ]  # fmt: skip
+    assert report.passed and not report.port and report.results == []
+    assert main(["verify", str(own["PController"])]) == 0
+    out = capsys.readouterr().out
+    assert "apply only to ports of our laws" in out
+    assert out.rstrip().endswith("controller (PController): loop checks 4 of 4 pass: PASS")
+    assert main(["verify", str(own["PController"]), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["port"] is False and data["exit_code"] == 0
+    assert [c["result"] for c in data["loop_checks"]] == ["pass"] * 4
+
+
+def test_verify_names_a_late_output_with_the_fix(own, capsys):
+    from glider_cosim.cli import main
+
+    assert main(["verify", str(own["LateController"])]) == 1
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith("feedthrough"))  # fmt: skip
+    assert row.split()[1] == "FAIL" and row.endswith(LATE_FIX)
+
+
+def test_verify_an_estimator_and_what_our_controller_reads(own, capsys):
+    from glider_cosim.cli import main
+    from glider_cosim.verify import verify
+
+    report = verify(own["LagEstimator"])
+    assert report.component == "observer"
+    checks = {c.name: c for c in report.loop}
+    assert list(checks) == ["interface", "initialization", "closed loop"]
+    assert checks["interface"].passed and checks["initialization"].passed
+    assert not checks["closed loop"].passed
+    assert "has no output V_hat (m/s), which controller ('GliderController') reads" in (
+        checks["closed loop"].detail
+    )
+    assert main(["verify", str(own["MuteController"]), "--component", "controller"]) == 2
+    err = capsys.readouterr().err
+    assert "lacks what the loop requires of the controller: delta_cmd (output, rad)" in err
+
+
+def test_compare_runs_the_benchmark_set_and_says_where_theirs_is_better(own, tmp_path, capsys):
+    import csv
+    import hashlib
+
+    from glider_cosim.cli import main
+    from glider_cosim.studies.compare import GRID_DEG
+
+    fmu = own["PController"]
+    before = hashlib.sha256(fmu.read_bytes()).hexdigest()
+    sc = tmp_path / "mine.toml"
+    sc.write_text(f"name = 'mine'\n[fmus]\ncontroller = '{fmu}'\n")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(sc), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    names = ["default", "noisy-pitch", "depth-protocol"] + [f"start{d:+.0f}deg" for d in GRID_DEG]
+    assert [line.split(" ")[0] for line in printed[:-1]] == names
+    assert all(": theirs is better in " in line for line in printed[:-1])
+    assert sorted(p.name for p in out.glob("*.png")) == sorted(f"compare-{n}.png" for n in names)
+    with (out / "compare.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 6 * len(names)
+    assert {r["theirs_is"] for r in rows} <= {"better", "worse", "same"}
+    assert {r["measure"] for r in rows} == {"settling", "rise", "overshoot", "effort",
+                                            "largest tail angle", "outcome"}  # fmt: skip
+    default = {r["measure"]: r for r in rows if r["case"] == "default"}
+    assert default["outcome"]["ours"] == "settled"  # our passivity law, K_c = 10
+    assert float(default["settling"]["ours"]) > 0
+    md = (out / "compare.md").read_text()
+    assert "## Where theirs beats ours, and where not" in md and "(better)" in md
+    page = (out / "compare.html").read_text()
+    assert page.count("<img ") == len(names) and 'class="better"' in page
+    assert hashlib.sha256(fmu.read_bytes()).hexdigest() == before  # never written into
+
+
+def test_compare_refuses_a_scenario_without_a_component_in_one_line(own, tmp_path, capsys):
+    from glider_cosim.cli import main
+
+    sc = tmp_path / "plain.toml"
+    sc.write_text("name = 'plain'\n")
+    assert main(["compare", str(sc), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"glider-cosim compare: error: {sc}: [fmus] swaps nothing: expected exactly "
+                   "one of controller or observer (compare puts your component in our loop, "
+                   "beside ours)"]  # fmt: skip
+    assert not (tmp_path / "o").exists()
