@@ -14,7 +14,7 @@ from ..inputs.text import command_line, one_line, prefix, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
-from . import webassembly
+from . import compare, webassembly
 from .parser import UsageError, uses_fmu_options
 
 log = logging.getLogger(__name__)
@@ -43,10 +43,8 @@ def _check_out_file(path: Path, option: str, suffix: str) -> None:
     if path.suffix.lower() != suffix:
         raise UsageError(f"{shown}: expected a file name ending in {suffix}")
     if not path.parent.is_dir() and not path.parent.exists():
-        raise UsageError(
-            f"{shown}: folder {quote(str(path.parent))} does not exist: expected an existing "
-            "folder (create it first)"
-        )
+        raise UsageError(f"{shown}: folder {quote(str(path.parent))} does not exist: expected "
+                         "an existing folder (create it first)")  # fmt: skip
     _check_out_dir(path.parent, option)
 
 
@@ -387,14 +385,7 @@ def dispatch(args: argparse.Namespace) -> int:
             _check_out_dir(Path(args.export), "--export")
         return run_command(args)
     if args.command == "compare":
-        from ..scenarios.scenario import load_scenario
-        from ..studies.compare import compare, default_out, describe, swapped_component
-
-        swapped_component(load_scenario(args.scenario))  # bad input: one line, nothing made
-        out = Path(args.out) if args.out is not None else default_out(args.scenario)
-        _check_out_dir(out, "--out")
-        print(describe(compare(args.scenario, out, args.fmu_dir)))
-        return 0
+        return compare.run(args, _check_out_dir)
     if args.command == "cache":
         from ..fmus.cache import cache_report
 

@@ -347,13 +347,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     v = sub.add_parser(
         "verify",
         help="run the component verification kit on an FMU",
-        description="Judge a controller or estimator on what the loop needs (interface and\n"
-        "units, outputs in Initialization Mode, no one-step-late output, the default\n"
-        "start settling in our loop), then run the reference cases of its component,\n"
-        "which count only for a port of our laws; a plant, or --case: the reference\n"
-        "cases on an FMI 2.0 or 3.0 co-simulation FMU, compared with the references.\n"
-        "Exit 0 if every check (and case counted) passed, 1 if one failed, 2 on bad\n"
-        "input, a missing required interface or no case that can run.",
+        description="A controller or estimator: the loop's checks (interface, units, outputs\n"
+        "in Initialization Mode, none one step late, the default start settling), then the\n"
+        "reference cases (counted for a port of our laws only); a plant, or --case: the\n"
+        "cases on an FMI 2.0/3.0 FMU against the references. Exit 0 if all counted pass,\n"
+        "1 if one failed, 2 on bad input, a missing interface or no case that can run.",
     )
     if command in (None, "verify"):
         from ..verify.command import add_arguments, tolerance_arg
@@ -362,16 +360,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     cm = sub.add_parser(
         "compare",
         help="your controller or estimator against ours, on the paper's benchmark set",
-        description="Run the paper's benchmark set (the default start, the noisy pitch, the\n"
-        "depth protocol, a grid of starts) with the component the scenario's [fmus]\n"
-        "swaps in and with ours, on the same master and our plant; write compare.md,\n"
-        "compare.html, compare.csv and one overlay figure per case. Exit 0 when the runs\n"
-        "complete, whatever the comparison says; 2 on bad input.",
+        description="The paper's benchmark set with the scenario's [fmus] component and with\n"
+        "ours, on our master and plant: compare.md/.html/.csv, an overlay figure per case.\n"
+        "Exit 0 when the runs complete, whatever the comparison says; 2 on bad input.",
     )
-    cm.add_argument("scenario", metavar="SCENARIO",
-                    help="TOML file whose [fmus] swaps the controller or the observer")  # fmt: skip
-    cm.add_argument("--out", default=None, metavar="DIR",
-                    help="output folder (default: out/<scenario>-compare)")  # fmt: skip
+    cm.add_argument("scenario", metavar="SCENARIO", help="TOML file whose [fmus] swaps the "
+                    "controller or the observer")  # fmt: skip
+    cm.add_argument("--out", default=None, metavar="DIR", help="output folder (default: "
+                    "out/<scenario>-compare)")  # fmt: skip
     add_fmu_options(cm)
     sub.add_parser(
         "scenarios",
