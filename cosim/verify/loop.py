@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -196,13 +197,22 @@ def loop_checks(
     VerifyInputError
         The FMU lacks what the loop requires (:func:`interface_check`).
     """
+    from ..progress import Progress
+
     if component not in LOOP_COMPONENTS:
         return []
     checks = [interface_check(md, component, path.name)]
-    checks.append(initialization_check(path, md, component))
-    if component == "controller":
-        checks.append(feedthrough_check(path))
-    checks.append(closed_loop_check(path, component, fmu_dir))
+    steps: list[tuple[str, Callable[[], LoopCheck]]] = [
+        ("initialization", lambda: initialization_check(path, md, component)),
+        ("feedthrough", lambda: feedthrough_check(path)),
+        ("closed loop: the default start", lambda: closed_loop_check(path, component, fmu_dir)),
+    ]
+    if component != "controller":
+        del steps[1]
+    with Progress(len(steps), "verify", f"verify {path.name}: what the loop needs") as bar:
+        for label, check in steps:
+            bar.step(label)
+            checks.append(check())
     return checks
 
 
@@ -221,6 +231,8 @@ class LoopReport:
         return cls(report, loop)
 
     def __getattr__(self, name: str) -> Any:
+        if name.startswith("__") or name in ("report", "loop"):  # unpickling: not set yet
+            raise AttributeError(name)
         return getattr(self.report, name)
 
     @property
