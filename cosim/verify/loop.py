@@ -270,9 +270,12 @@ class LoopReport:
         cases = self.report.table().split("\n")[3:]  # the report's rows, without its header
         lines += ["", self.cases_note(), *cases]
         n_ok = sum(c.passed for c in self.loop)
+        cases = self.report.results
+        counted = (f"reference cases {sum(r.passed for r in cases)} of {len(cases)} pass"
+                   if self.port else "reference cases not counted (not a port)")  # fmt: skip
         lines.append(
             f"{self.component} ({self.model_name}): loop checks {n_ok} of {len(self.loop)} "
-            f"pass: {'PASS' if self.passed else 'FAIL'}"
+            f"pass, {counted}: {'PASS' if self.passed else 'FAIL'}"
         )
         return "\n".join(lines)
 
