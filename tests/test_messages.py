@@ -114,9 +114,8 @@ def _error(capsys, argv: list[str]) -> str:
     [
         (["rnu"], "glider-cosim: error: argument command: invalid choice: 'rnu' (choose from "
          "'build', 'run', 'serve', 'build-onboard', 'export-ssp', 'host-env', 'export-fmu', "
-         "'report', 'explore', 'analyze', 'sweep', 'verify', 'add-experiments', 'scenarios', "
-         "'cache'); did you "
-         "mean 'run'?"),
+         "'report', 'explore', 'analyze', 'sweep', 'verify', 'add-experiments', 'compare', "
+         "'scenarios', 'cache'); did you mean 'run'?"),
         (["run", "--coupling", "jacobe"], "glider-cosim run: error: argument --coupling: invalid "
          "choice: 'jacobe' (choose from 'gauss-seidel', 'jacobi'); did you mean 'jacobi'?"),
         (["sweep", "--flavor", "natve"], "glider-cosim sweep: error: argument --flavor: invalid "

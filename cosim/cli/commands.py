@@ -14,7 +14,7 @@ from ..inputs.text import command_line, one_line, prefix, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
-from . import webassembly
+from . import compare, webassembly
 from .parser import UsageError, uses_fmu_options
 
 log = logging.getLogger(__name__)
@@ -43,10 +43,8 @@ def _check_out_file(path: Path, option: str, suffix: str) -> None:
     if path.suffix.lower() != suffix:
         raise UsageError(f"{shown}: expected a file name ending in {suffix}")
     if not path.parent.is_dir() and not path.parent.exists():
-        raise UsageError(
-            f"{shown}: folder {quote(str(path.parent))} does not exist: expected an existing "
-            "folder (create it first)"
-        )
+        raise UsageError(f"{shown}: folder {quote(str(path.parent))} does not exist: expected "
+                         "an existing folder (create it first)")  # fmt: skip
     _check_out_dir(path.parent, option)
 
 
@@ -292,7 +290,7 @@ def _analyze(args: argparse.Namespace) -> int:
 def runs_here(args: argparse.Namespace) -> bool:
     """True if the command runs our FMUs here alone (run, sweep or report without a Dask
     scheduler, analyze): the host-only set serves it (exports hand every platform's on)."""
-    here = ("run", "sweep", "report", "analyze")
+    here = ("run", "sweep", "report", "analyze", "compare")
     return args.command in here and not getattr(args, "scheduler", None)
 
 
@@ -314,7 +312,7 @@ def dispatch(args: argparse.Namespace) -> int:
         args.fmu_dir_given = args.fmu_dir  # what the user said, for the run record
         from ..scenarios.system import swapped_in  # a user's FMU in --fmu-dir, swapped in
 
-        swaps = folder is not None and args.command in ("run", "sweep", "export-ssp")
+        swaps = folder is not None and args.command in ("run", "sweep", "export-ssp", "compare")
         skip = swapped_in(args.scenario) if swaps else set()
         try:
             fmi, here = getattr(args, "fmi", None), runs_here(args)
@@ -386,6 +384,8 @@ def dispatch(args: argparse.Namespace) -> int:
         if getattr(args, "export", None):
             _check_out_dir(Path(args.export), "--export")
         return run_command(args)
+    if args.command == "compare":
+        return compare.run(args, _check_out_dir)
     if args.command == "cache":
         from ..fmus.cache import cache_report
 

@@ -347,9 +347,13 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     v = sub.add_parser(
         "verify",
         help="run the experiments an FMU carries (FMI-LS-REF), or the verification kit",
-        description="Run the FMI-LS-REF experiments an FMU carries (its files' checksums first),\n"
-        "else (or with --kit) our component's reference cases. Exit 0 if one ran and all\n"
-        "passed, 1 if one failed or a file changed after the FMU was built, 2 on bad input.",
+        description="Run the FMI-LS-REF experiments an FMU carries (its files' checksums\n"
+        "first). Else (or with --kit): a controller or estimator gets the loop's checks\n"
+        "(interface, units, outputs in Initialization Mode, none one step late, the\n"
+        "default start settling), then the reference cases (counted for a port of our\n"
+        "laws only); a plant, or --case: the cases against the references. Exit 0 if\n"
+        "all counted pass, 1 if one failed or a file changed after the FMU was built,\n"
+        "2 on bad input, a missing interface or nothing that can run.",
     )
     if command in (None, "verify"):
         from ..verify.command import add_arguments, tolerance_arg
@@ -361,6 +365,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         from ..verify.command import add_experiments_arguments
 
         add_experiments_arguments(ae)
+    cm = sub.add_parser(
+        "compare",
+        help="your controller or estimator against ours, on the paper's benchmark set",
+        description="The paper's benchmark set with the scenario's [fmus] component and with\n"
+        "ours, on our master and plant: compare.md/.html/.csv, an overlay figure per case.\n"
+        "Exit 0 when the runs complete, whatever the comparison says; 2 on bad input.",
+    )
+    cm.add_argument("scenario", metavar="SCENARIO", help="TOML file whose [fmus] swaps the "
+                    "controller or the observer")  # fmt: skip
+    cm.add_argument("--out", default=None, metavar="DIR", help="output folder (default: "
+                    "out/<scenario>-compare)")  # fmt: skip
+    add_fmu_options(cm)
     sub.add_parser(
         "scenarios",
         help="list the shipped scenarios, one line each",

@@ -14,6 +14,7 @@ from pathlib import Path
 from fmpy import read_model_description
 
 from .folders import build_all, fmu_folder
+from .variables import LOOP_INTERFACE
 
 DOC = Path("docs") / "reference" / "fmu-interfaces.md"
 HEADER = """# FMU interfaces
@@ -39,9 +40,36 @@ def _start(v) -> str:
     return str(v.start)
 
 
+#: what each word of :data:`~glider_cosim.fmus.variables.LOOP_INTERFACE` means here
+_NEED = {
+    "required": "required",
+    "optional": "optional: connected when declared",
+    "read": "required when the controller reads it (ours does)",
+}
+
+
+def swap_markdown() -> str:
+    """The section on an FMU swapped in for our controller or estimator: what is required
+    and what is optional (from :data:`~glider_cosim.fmus.variables.LOOP_INTERFACE`)."""
+    parts = [
+        "\n## Your own controller or estimator\n",
+        "An FMU swapped in for ours (a scenario's `[fmus]`) needs only these variables;",
+        "every other input it declares is connected to the loop's output of the same name",
+        "when there is one, else it keeps its start value, and `run` names in one line what",
+        "it left unconnected (see [write a controller](../how-to/write-a-controller.md),",
+        "[write an estimator](../how-to/write-an-estimator.md)).\n",
+        "| component | name | causality | unit | needed |",
+        "|---|---|---|---|---|",
+    ]
+    for component, table in LOOP_INTERFACE.items():
+        for name, (caus, unit, need) in table.items():
+            parts.append(f"| {component} | `{name}` | {caus} | {unit} | {_NEED[need]} |")
+    return "\n".join(parts) + "\n"
+
+
 def interface_markdown(fmus: dict[str, Path]) -> str:
-    """Markdown tables of every FMU's variables."""
-    parts = [HEADER]
+    """Markdown tables of every FMU's variables, after what a swapped-in FMU needs."""
+    parts = [HEADER, swap_markdown()]
     for name, path in fmus.items():
         md = read_model_description(str(path))
         parts.append(f"\n## {name}.fmu\n\n{md.description}\n")

@@ -31,7 +31,7 @@ from ..realtime.pacing import Pacer, RealTime, TooLate, paced_run
 from ..scenarios.overrides import override_scenario
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario, load_scenario
-from ..scenarios.system import DISTURBANCE_INPUTS, swapped, system_for
+from ..scenarios.system import DISTURBANCE_INPUTS, fit_swapped, swapped, system_for
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
 from .recorders import ArrayOnAccess, ArrayRecorder, CsvRecorder, Table
@@ -99,12 +99,14 @@ def skip_optional(sim: CoSimulation, scenario: Scenario) -> list[str]:
 
     Optional: the disturbance inputs (``plant.F_x``, ``F_z``, ``M_y``) when the scenario
     drives none of them (no ``inputs``, disturbance or event on them), and recorded
-    variables of a swapped instance (``[fmus]``) that its FMU lacks. :func:`simulate`
-    logs each note (logger ``glider_cosim.runner.run``, level WARNING) once the system is
-    loaded. Everything else stays required:
+    variables of a swapped instance (``[fmus]``) that its FMU lacks. A swapped controller
+    or estimator is wired by :func:`~glider_cosim.scenarios.system.loop_wiring`: its
+    optional inputs (``V_hat``, ...) are connected when it declares them, its other
+    inputs by name. :func:`simulate` logs each note (logger ``glider_cosim.runner.run``,
+    level WARNING) once the system is loaded. Everything else stays required:
     :meth:`~glider_cosim.master.CoSimulation.load` names a missing connection.
     """
-    notes = []
+    notes = fit_swapped(sim, set(scenario.fmus))
     used = set(scenario.inputs) | {d.target for d in scenario.disturbances}
     used |= {t for e in scenario.events for t in e.actions}
     for ref in DISTURBANCE_INPUTS:
@@ -276,6 +278,10 @@ def simulate(
         sim.load(before_checks)
     except SystemSpecError as err:
         raise SystemSpecError(f"{scenario.source}: {err}") from None
+    if ssp_system is None and scenario.fmus:
+        from .probe import late_notes
+
+        notes.extend(late_notes(dict(scenario.fmus)))  # a swapped controller, probed alone
     for note in notes:  # only for a system that loaded: a refused one gets one line
         log.warning(note)
     if options is None:

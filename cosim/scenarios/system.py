@@ -4,10 +4,17 @@ what a scenario sets."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from ..fmus.variables import LOOP_INTERFACE
+from ..inputs.text import quote
+from ..master.errors import SystemSpecError
 from ..master.spec import System
 from .sampling import has_our_observer, with_sampling
 from .scenario import Scenario, load_scenario
+
+if TYPE_CHECKING:
+    from ..master.cosimulation import CoSimulation
 
 FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
 
@@ -31,6 +38,139 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
             ("observer.theta_g_hat", "controller.theta_g_hat"),
         ]
     return conns
+
+
+#: where an input of a swapped-in FMU that the loop does not connect looks for an output
+#: of the same name, first to last (an estimate before the plant's true value)
+_BY_NAME = ("observer", "plant", "controller")
+
+
+def loop_wiring(
+    connections: list[tuple[str, str]],
+    variables: dict[str, dict[str, str]],
+    model_names: dict[str, str],
+    swapped_instances: set[str],
+    driven: set[str],
+) -> tuple[list[tuple[str, str]], list[str], list[str]]:
+    """The loop's connections fitted to the FMUs swapped in, and one note per such FMU.
+
+    What an FMU in place of our controller or estimator must have and may have is
+    :data:`~glider_cosim.fmus.variables.LOOP_INTERFACE`: a connection to an optional
+    input it lacks is dropped; each input it declares that no connection or driven value
+    feeds is connected to the loop's output of the same name (the estimator's first,
+    then the plant's), else left at its start value. Our FMUs (not swapped) are wired
+    as they are.
+
+    Parameters
+    ----------
+    connections : list of (source, target)
+        ``"instance.variable"`` pairs (:func:`default_connections`).
+    variables : dict
+        Instance -> its variables' names -> causality (from the model descriptions).
+    model_names : dict
+        Instance -> model name, for the notes.
+    swapped_instances : set of str
+        The instances whose FMU the scenario swaps in (``[fmus]``).
+    driven : set of str
+        The ``"instance.variable"`` inputs the scenario drives (values, tables).
+
+    Returns
+    -------
+    connections, notes, left
+        The connections to make; one line per swapped FMU that was wired otherwise than
+        ours (what was left unconnected, what was connected by name); the inputs
+        (``"instance.variable"``) left at their start value, for the caller to drive.
+
+    Raises
+    ------
+    SystemSpecError
+        A swapped FMU lacks a variable the loop requires (named, with its causality and
+        unit), or an output the other component reads.
+    """
+    interface = {inst: LOOP_INTERFACE.get(inst, {}) for inst in swapped_instances}
+
+    def who(inst: str) -> str:
+        return f"{inst} ({quote(model_names.get(inst, inst))})"
+
+    for inst in sorted(swapped_instances):
+        lacks = [
+            f"{name} ({caus}, {unit})"
+            for name, (caus, unit, need) in interface[inst].items()
+            if need == "required" and variables.get(inst, {}).get(name) != caus
+        ]
+        if lacks:
+            raise SystemSpecError(
+                f"{who(inst)} lacks what the loop requires of the {inst}: {', '.join(lacks)} "
+                "(docs/reference/fmu-interfaces.md)"
+            )
+    skipped: dict[str, list[str]] = {}
+    kept = []
+    for src, dst in connections:
+        inst, _, name = dst.partition(".")
+        if inst in swapped_instances and name not in variables.get(inst, {}):
+            if interface[inst].get(name, ("", "", "required"))[2] == "optional":
+                skipped.setdefault(inst, []).append(f"{src} (no optional input {name})")
+                continue
+        kept.append((src, dst))
+    for src, dst in kept:
+        inst, _, name = src.partition(".")
+        if interface.get(inst) and variables.get(inst, {}).get(name) != "output":
+            caus, unit, _ = interface[inst].get(name, ("output", "", ""))
+            raise SystemSpecError(
+                f"{who(inst)} has no output {name}{f' ({unit})' if unit else ''}, which "
+                f"{who(dst.partition('.')[0])} reads as {dst}: add the output, or swap in a "
+                f"{dst.partition('.')[0]} without that input"
+            )
+    fed = {dst for _, dst in kept} | driven
+    by_name: dict[str, list[str]] = {}
+    left = []
+    for inst in sorted(swapped_instances):
+        for name, caus in variables.get(inst, {}).items():
+            ref = f"{inst}.{name}"
+            if caus != "input" or ref in fed:
+                continue
+            source = next(
+                (f"{o}.{name}" for o in _BY_NAME
+                 if o != inst and variables.get(o, {}).get(name) == "output"),
+                None,
+            )  # fmt: skip
+            if source is None:
+                left.append(ref)
+                skipped.setdefault(inst, []).append(
+                    f"input {name}, left at its start value (no output {name} in the loop)"
+                )
+            else:
+                kept.append((source, ref))
+                by_name.setdefault(inst, []).append(f"{source} -> {ref}")
+    notes = []
+    for inst in sorted(set(skipped) | set(by_name)):
+        parts = []
+        if skipped.get(inst):
+            parts.append("not connected: " + "; ".join(skipped[inst]))
+        if by_name.get(inst):
+            parts.append("connected by name: " + ", ".join(by_name[inst]))
+        notes.append(f"{who(inst)}: {'; '.join(parts)}")
+    return kept, notes, left
+
+
+def fit_swapped(sim: CoSimulation, swapped_instances: set[str]) -> list[str]:
+    """Fit a loaded co-simulation's wiring to the FMUs swapped in (:func:`loop_wiring`):
+    its connections replaced, the inputs nothing feeds driven at their start values;
+    returns the notes (one line per swapped FMU wired otherwise than ours)."""
+    mine = {inst for inst in swapped_instances if inst in sim.instances}
+    if not mine:
+        return []
+    sim.system.connections, notes, left = loop_wiring(
+        list(sim.system.connections),
+        {n: {v.name: v.causality for v in i.md.modelVariables} for n, i in sim.instances.items()},
+        {n: i.md.modelName for n, i in sim.instances.items()},
+        mine,
+        set(sim.system.driven) | set(sim.system.tables),
+    )
+    for ref in left:
+        inst, _, name = ref.partition(".")
+        sim.system.driven[ref] = float(sim.instances[inst].vars[name].start or 0.0)
+    return notes
 
 
 def swapped(scenario: Scenario) -> set[str]:

@@ -58,7 +58,8 @@ def add_arguments(p: argparse.ArgumentParser, tolerance: Callable[[str], float])
     p.add_argument(
         "--fmu-dir",
         default=None,
-        help="our FMUs for --write-references/--export, built if missing or stale "
+        help="our FMUs for --write-references/--export and the loop checks' closed loop, "
+        "built if missing or stale "
         "(default: the per-user cache)",
     )
     add_overwrite_option(p)
@@ -122,7 +123,9 @@ def run_command(args: argparse.Namespace) -> int:
             code = lsref_command(args.fmu, args.json)
             if code is not None:
                 return code
-        report = verify(args.fmu, args.component, args.case, args.rtol, args.atol)
+        report = verify(
+            args.fmu, args.component, args.case, args.rtol, args.atol, fmu_dir=args.fmu_dir
+        )
     except VerifyInputError as err:
         if args.json:
             print(json.dumps({"fmu": args.fmu, "passed": False, "exit_code": 2,

@@ -31,6 +31,7 @@ from .cases import (
     load_case,
     read_table,
 )
+from .loop import LoopReport, loop_checks
 from .run import RUNNERS, Run, open_fmu
 
 
@@ -317,6 +318,7 @@ def verify(
     rtol: float | None = None,
     atol: float | None = None,
     root: Path | None = None,
+    fmu_dir: str | Path | None = None,
 ) -> Report:
     """Run the cases of a component on ``fmu`` and compare with the references.
 
@@ -337,6 +339,9 @@ def verify(
         Override every case's tolerances (finite, >= 0).
     root : Path, optional
         Another kit folder (default: the shipped cases).
+    fmu_dir : path, optional
+        Our FMUs for the closed loop of a controller's or estimator's loop checks (run
+        without ``case``: :class:`~glider_cosim.verify.loop.LoopReport`).
 
     Raises
     ------
@@ -361,8 +366,9 @@ def verify(
                 f"{', '.join(names)}"
             )
         names = [case]
+    loop = loop_checks(path, md, component, fmu_dir) if case is None else []
     missing = _missing(md, CORE[component])
-    if missing:
+    if missing and not loop:
         raise VerifyInputError(
             f"FMU {quote(path.name)} ({md.modelName}) lacks the {component} core "
             f"interface: missing {', '.join(missing)}"
@@ -375,7 +381,7 @@ def verify(
             report.skipped.append((name, needs))
         else:
             runnable.append(name)
-    if not runnable:
+    if not runnable and not loop:
         needs = "; ".join(f"{n} needs {', '.join(m)}" for n, m in report.skipped)
         raise VerifyInputError(
             f"FMU {quote(path.name)} ({md.modelName}) can run none of the "
@@ -391,4 +397,4 @@ def verify(
         except ValueError as err:  # e.g. a parameter out of the FMU's declared range
             raise VerifyInputError(f"case {name}: {one_line(err)}") from None
         report.results.append(compare(c, run, rtol, atol))
-    return report
+    return LoopReport.of(report, loop) if loop else report

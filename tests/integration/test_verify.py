@@ -373,9 +373,9 @@ def test_missing_variables_are_named_in_one_line(fmu_dir, broken, capsys):
     assert "missing theta_meas (output)" in capsys.readouterr().err
     assert main(["verify", str(fmu_dir / "GliderPlant.fmu"), "--component", "observer"]) == 2
     assert capsys.readouterr().err == (
-        "glider-cosim verify: error: FMU 'GliderPlant.fmu' (GliderPlant) lacks the observer "
-        "core interface: missing theta_meas (is output, expected input), V_hat (output), "
-        "theta_g_hat (output)\n"
+        "glider-cosim verify: error: FMU 'GliderPlant.fmu' (GliderPlant) lacks what the loop "
+        "requires of the observer: theta_meas (input, rad, is output), theta_g_hat (output, "
+        "rad) (docs/reference/fmu-interfaces.md)\n"
     )
 
 
