@@ -1,12 +1,7 @@
 """A run's start done once (issue 48), on the real FMUs: the CLI checks the cache's set
-once, a run's table is the one it wrote, without reading ``results.csv`` back, and a run
-of the cache's FMI 2 FMUs imports no fmpy, lxml or attrs."""
+once, and a run's table is the one it wrote, without reading ``results.csv`` back."""
 
 from __future__ import annotations
-
-import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -49,28 +44,3 @@ def test_a_run_keeps_the_table_it_writes(tmp_path, monkeypatch, native_dir):
     written = np.loadtxt(tmp_path / "results.csv", delimiter=",", skiprows=1, ndmin=2)
     assert result.data.shape == (251, len(result.columns))
     assert result.data.tobytes() == written.tobytes()
-
-
-#: a whole CLI run in a fresh interpreter, then the modules it imported
-RUN_AND_LIST = """
-import json, sys
-from glider_cosim.cli.main import main
-code = main(sys.argv[1:])
-print(json.dumps(sorted(sys.modules)))
-sys.exit(code)
-"""
-
-
-@pytest.mark.parametrize("flavor", ["native", "python"])
-def test_a_run_of_the_cache_imports_no_fmpy(tmp_path, native_dir, fmu_dir, flavor):
-    # FMI 2 FMUs on our binding, descriptions read with the standard library: fmpy and what
-    # its reader brings (lxml, attrs) cost a run 30-40 ms (issue 48)
-    out = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-c", RUN_AND_LIST, "run", "--no-plots", "--flavor",
-                        flavor, "--stop-time", "5", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert p.returncode == 0, p.stderr[-2000:]
-    modules = {m.split(".")[0] for m in json.loads(p.stdout.splitlines()[-1])}
-    assert modules & {"fmpy", "lxml", "attr", "attrs"} == set()
-    assert "glider_cosim" in modules and (out / "results.csv").is_file()
-    assert (out / "metrics.json").is_file() and "wrote" in p.stdout
