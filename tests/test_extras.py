@@ -108,3 +108,37 @@ def test_a_command_without_its_extra_says_so_in_one_line(tmp_path, modules, argv
                  cache=tmp_path / "cache")  # fmt: skip
     assert (p.returncode, p.stderr, p.stdout) == (3, line + "\n", "")
     assert not out.exists() and not (tmp_path / "cache").exists()  # refused before any build
+
+
+def test_ci_tests_the_lowest_version_of_each_core_range():
+    lowest = {}
+    for line in (ROOT / ".ci" / "lowest.txt").read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, _, version = line.partition("==")
+            lowest[_name(name)[0]] = version.strip()
+    bounds = {_name(d)[0]: re.search(r">=\s*([^,;\s]+)", d).group(1)
+              for d in PROJECT["dependencies"]}  # fmt: skip
+    assert set(lowest) == CORE
+    for name, low in lowest.items():  # 0.17.0 is the range's 0.17
+        assert low == bounds[name] or low.startswith(bounds[name] + "."), (name, low, bounds)
+    assert "-c .ci/lowest.txt" in (ROOT / ".ci" / "run").read_text()
+
+
+EVERY_MODULE = """
+import sys
+for name in sys.argv[1].split(","):
+    sys.modules[name] = None
+import importlib, pkgutil
+for top in ("glider_fmi", "glider_plant", "glider_observer", "glider_controller", "glider_cosim"):
+    pkg = importlib.import_module(top)
+    for m in pkgutil.walk_packages(pkg.__path__, top + "."):
+        importlib.import_module(m.name)
+"""
+
+
+def test_every_module_imports_with_the_core_alone():
+    # as .ci/run's wheel check does in a venv of `pip install glider-cosim`
+    blocked = ",".join(m for modules in EXTRAS.values() for m in modules)
+    p = subprocess.run([sys.executable, "-c", EVERY_MODULE, blocked], capture_output=True,
+                       text=True, timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
