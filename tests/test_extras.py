@@ -118,8 +118,9 @@ def test_ci_tests_the_lowest_version_of_each_core_range():
             lowest[_name(name)[0]] = version.strip()
     bounds = {_name(d)[0]: re.search(r">=\s*([^,;\s]+)", d).group(1)
               for d in PROJECT["dependencies"]}  # fmt: skip
-    assert set(lowest) == CORE
-    for name, low in lowest.items():  # 0.17.0 is the range's 0.17
+    assert CORE <= set(lowest)
+    for name in CORE:  # 0.17.0 is the range's 0.17
+        low = lowest[name]
         assert low == bounds[name] or low.startswith(bounds[name] + "."), (name, low, bounds)
     assert "-c .ci/lowest.txt" in (ROOT / ".ci" / "run").read_text()
 
