@@ -3,8 +3,7 @@
 One rule for every command (:func:`mode`):
 
 - ``"bar"``: stderr is a terminal and no CI is detected (``CI``, ``GITHUB_ACTIONS``, ...
-  unset, ``TERM`` not ``dumb``): a tqdm bar, redrawn in place (tqdm is imported only
-  when a bar is first drawn: ``--help`` and a short run never import it);
+  unset, ``TERM`` not ``dumb``): a tqdm bar, redrawn in place;
 - ``"lines"``: a pipe, a file or CI: plain lines, one per step (``building
   GliderPlant.fmu native x86_64-linux (50 of 60)``), never carriage returns, so a log
   reads top to bottom;
@@ -25,6 +24,8 @@ import threading
 import time
 from collections.abc import Sequence
 from typing import Any, TextIO
+
+from tqdm import tqdm
 
 #: environment variables that mean "running under CI": plain lines, never a bar
 CI_VARIABLES = ("CI", "GITHUB_ACTIONS", "GITLAB_CI", "BUILDKITE", "JENKINS_URL", "TF_BUILD")
@@ -114,8 +115,6 @@ def _columns(stream: TextIO) -> int:
 def _new_bar(stream: TextIO, total: float, desc: str, bar_format: str, leave: bool, n: float,
              started: float, postfix: str = ""):  # fmt: skip
     """A tqdm bar at ``n`` of ``total``, its clock from ``started`` (``time.perf_counter``)."""
-    from tqdm import tqdm  # lazily: about 50 ms, only when a bar is drawn
-
     bar = tqdm(total=total, desc=desc, file=stream, leave=leave, ncols=_columns(stream),
                bar_format=bar_format, postfix=postfix or None, mininterval=BAR_EVERY_S,
                dynamic_ncols=False, delay=1e-9)  # drawn below, at n  # fmt: skip

@@ -310,11 +310,11 @@ def test_builds_into_one_folder_take_turns(tmp_path):
     import subprocess
     import sys
 
-    probe = ("import fcntl, os, sys\nfd = os.open(sys.argv[1], os.O_RDONLY)\n"
-             "try:\n    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)\n"
-             "except BlockingIOError:\n    sys.exit(3)\n")  # fmt: skip
+    probe = ("import sys, filelock\ntry:\n    filelock.FileLock(sys.argv[1]).acquire(timeout=0)\n"
+             "except filelock.Timeout:\n    sys.exit(3)\n")  # fmt: skip
     d = tmp_path / "D"
+    lock = str(record.lock_file(d))
     with record.locked(d):  # what build_all holds while it checks, builds and records
-        held = subprocess.run([sys.executable, "-c", probe, str(d)], timeout=60)
-    free = subprocess.run([sys.executable, "-c", probe, str(d)], timeout=60)
+        held = subprocess.run([sys.executable, "-c", probe, lock], timeout=60)
+    free = subprocess.run([sys.executable, "-c", probe, lock], timeout=60)
     assert (held.returncode, free.returncode) == (3, 0)

@@ -26,7 +26,7 @@ LAYERS = (
     ("glider_fmi",),
     ("glider_plant",),
     ("glider_observer", "glider_controller"),
-    ("inputs", "progress"),
+    ("inputs", "progress", "extras"),
     ("fmus",),
     ("master",),
     ("scenarios",),

@@ -2,14 +2,14 @@
 
 Exit codes: 0 success, 1 the run stopped or failed in an FMU (results up to the failure
 are written), 2 bad input (arguments, scenario, SSP, FMU files; one line), 130
-interrupted by Ctrl-C, 143 terminated by SIGTERM (results so far are written).
+interrupted by Ctrl-C, 143 terminated by SIGTERM (results so far are written), 3 the
+command needs an optional extra that is not installed (one line with the ``pip install``
+that brings it: :mod:`glider_cosim.extras`).
 """
 
 from __future__ import annotations
 
 import argparse
-import atexit
-import contextlib
 import logging
 import os
 import signal
@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Sequence
 from typing import NoReturn
 
+from ..extras import MissingExtra, check_command
 from ..inputs.text import one_line, prefix
 from ..master.errors import Interrupted, MasterError, SystemSpecError
 from ..scenarios.fields import ScenarioError
@@ -128,7 +129,11 @@ def _main(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         old_term = signal.signal(signal.SIGTERM, _terminate)  # cleaned up like Ctrl-C
     try:
+        check_command(args)  # an optional extra it needs: before anything is built
         code = dispatch(args)
+    except MissingExtra as err:
+        print(f"{error}{one_line(err)}", file=sys.stderr)
+        code = 3
     except (ScenarioError, SystemSpecError, ValueError) as err:
         print(f"{error}{one_line(err)}", file=sys.stderr)
         code = 2
@@ -161,30 +166,9 @@ def _main(args: argparse.Namespace) -> int:
     return code
 
 
-def console_main() -> None:
-    """Console script: run :func:`main` and exit with its code (:func:`exit_now`)."""
-    exit_now(main())
-
-
-def exit_now(code: int) -> NoReturn:
-    """End the process with ``code`` after what the interpreter's exit does that matters:
-    the threads that are not daemons joined, the ``atexit`` handlers run (temporary
-    folders removed, FMU instances freed, child processes ended, logging flushed), the
-    standard streams flushed; but without tearing down the ~450 modules one by one,
-    50-90 ms of every command (issue 31). Every file a command writes is closed before
-    :func:`main` returns. A standard output that cannot be flushed (a closed pipe) makes
-    the status 120, as the interpreter's exit does."""
-    for thread in threading.enumerate():
-        if thread is not threading.main_thread() and not thread.daemon:
-            thread.join()
-    atexit._run_exitfuncs()  # the interpreter's own list (registered with atexit.register)
-    try:
-        sys.stdout.flush()
-    except (OSError, ValueError):
-        code = code or 120
-    with contextlib.suppress(OSError, ValueError):
-        sys.stderr.flush()
-    os._exit(code)
+def console_main() -> NoReturn:
+    """Console script: run :func:`main` and exit with its code."""
+    sys.exit(main())
 
 
 if __name__ == "__main__":

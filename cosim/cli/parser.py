@@ -1,7 +1,4 @@
-"""The command line's parser: every subcommand, its options and their defaults.
-
-Light: building it imports argparse and our option modules only (no numpy, fmpy,
-matplotlib or Dask), so ``glider-cosim --help`` answers at once
+"""The command line's parser: every subcommand, its options and their defaults
 (tests/test_cli_light.py)."""
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 run's plots (:mod:`.raster`, :mod:`.strokes`) and its matplotlib renderer for the others
 (:mod:`.mpl`: the sweep's, the report's), the run's plots as specs (:mod:`.plots`), the
 drawing process that draws them while a run runs (:mod:`.drawing`) and the zoomable
-results pages (:mod:`.pages`, :mod:`.page_script`).
+results pages (:mod:`.pages`, built with bokeh).
 
 It knows nothing of a run but the result it is handed: :mod:`glider_cosim.runner` uses it,
 never the other way round.

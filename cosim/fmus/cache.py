@@ -71,6 +71,8 @@ def _describe(version: str, name: str, keys: dict[str, str]) -> str:
         return "native FMUs' variable tables (generated from the Python slaves)"
     if name == "unpacked":
         return "the cache's FMUs unpacked to run (one folder per FMU file)"
+    if name == "locks":
+        return "the build locks of FMU folders (one file per folder)"
     if name == "matplotlib":
         return "matplotlib's font cache (the sweep's and report's figures)"
     kind, only, host = kind.partition("-only-")

@@ -6,11 +6,13 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
-import sys
+import uuid
 import zipfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
+
+import platformdirs
 
 #: the resource naming an FMU's flavor (``python`` or ``native``)
 FLAVOR_FILE = "resources/glider_cosim_flavor.txt"
@@ -80,8 +82,6 @@ def replacing(target: Path) -> Iterator[Path]:
     Two processes building the same FMU at once each write their own file; a reader sees
     the old FMU or a complete new one, never a part.
     """
-    import uuid  # here: 6 ms of every command's start otherwise
-
     part = target.with_name(f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.part")
     try:
         yield part
@@ -96,27 +96,16 @@ CACHE_ENV = "GLIDER_COSIM_CACHE"
 
 def cache_root() -> Path:
     """The per-user cache of built FMUs: ``$GLIDER_COSIM_CACHE`` if set, else
-    ``$XDG_CACHE_HOME/glider-cosim`` (an absolute ``XDG_CACHE_HOME``), else the
-    platform's cache folder: ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS,
-    ``%LOCALAPPDATA%`` on Windows."""
+    ``glider-cosim`` in the platform's cache folder (:func:`user_cache`)."""
     own = os.environ.get(CACHE_ENV)
     return Path(own) if own else user_cache() / "glider-cosim"
 
 
 def user_cache() -> Path:
-    """The platform's per-user cache folder: ``$XDG_CACHE_HOME`` (absolute), else
-    ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows
+    """The platform's per-user cache folder, as platformdirs finds it: ``$XDG_CACHE_HOME``
+    or ``~/.cache`` on Linux, ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows
     (where zig keeps its cache too)."""
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg and os.path.isabs(xdg):
-        base = Path(xdg)
-    elif sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Caches"
-    else:
-        base = Path.home() / ".cache"
-    return base
+    return Path(platformdirs.user_cache_dir())
 
 
 def build_progress(

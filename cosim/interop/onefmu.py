@@ -134,6 +134,10 @@ def export_one_fmu(
         or the container builder failed.
     """
     from fmpy import read_model_description
+
+    from ..extras import require
+
+    require("interop", "fmu_manipulation_toolbox")
     from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
 
     from ..fmus.folders import build_all, fmu_folder

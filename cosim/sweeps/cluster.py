@@ -63,6 +63,9 @@ def make_client(workers: int = 2, scheduler: str | None = None, dashboard: bool 
         it the scheduler's HTTP server takes a free port and serves no dashboard, so no
         "Port 8787 is already in use" warning appears when another cluster runs.
     """
+    from ..extras import require
+
+    require("sweep")
     import dask
     from distributed import Client, LocalCluster
 

@@ -76,15 +76,16 @@ def screenshot(page: Path, png: Path, size: str = "1400,1000") -> None:
         )  # fmt: skip
 
 
-#: per plot: its figure (the ``.glider-figure`` block it is in), its frame's size, a
+#: per plot (not the plot that holds a grid's legend, named ``glider-legend``): its
+#: figure (the ``.glider-figure`` block it is in), its frame's size, a
 #: legend beside it, its tick labels as bokeh lays them out ([lo, hi] px along the
 #: axis, every label of the ticker); per figure block: what is drawn into its
 #: ``glider-figure-N`` element, in order (tag, class, text of a heading, top and bottom px)
 _LAYOUT = """<script>window.addEventListener('load',()=>setTimeout(()=>{let out;try{
 const blocks=[...document.querySelectorAll('.glider-figure')];
 const rects=blocks.map(e=>e.getBoundingClientRect());
-function plots(v,acc){if(v.frame)acc.push(v);for(const c of (v.child_views||[]))plots(c,acc);
-return acc;}
+function plots(v,acc){if(v.frame&&v.model.name!=='glider-legend')acc.push(v);
+for(const c of (v.child_views||[]))plots(c,acc);return acc;}
 function labels(pv,dim){const ax=[...pv.axis_views].find(a=>a.dimension===dim);
 const ticks=ax.tick_coords.major[dim],lab=ax.compute_labels(ticks);
 lab.visuals=ax.visuals.major_label_text.values();

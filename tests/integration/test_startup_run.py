@@ -1,6 +1,5 @@
 """A run's start done once (issue 48), on the real FMUs: the CLI checks the cache's set
-once, a run's table is the one it wrote, without reading ``results.csv`` back, and a run
-of the cache's FMI 2 FMUs imports no fmpy, lxml or attrs."""
+once, and a run's table is the one it wrote, without reading ``results.csv`` back."""
 
 from __future__ import annotations
 
