@@ -2,8 +2,8 @@
 import a drawing process pays before it can draw.
 
 A native run of the default scenario in memory (3001 rows), then, per plot, the best of
-``--repeat`` times of: its spec (``plots.build_specs``) and its PNG (``mpl.draw`` and
-``savefig`` into memory, at the run's 110 dpi); the five in all (``write_plots`` into
+``--repeat`` times of: its spec (``plots.build_specs``) and its PNG (``mpl.draw_png``
+into a file, as the run draws it); the five in all (``write_plots`` into
 files, best of ``--repeat``); and, in new interpreters, the import of what the drawing
 process imports and warms up (matplotlib and the drawing modules, numpy included:
 ``mpl.warm``), against nothing (``pass``) (median of ``--repeat``).
@@ -13,7 +13,6 @@ Usage: python bench/draw_plots.py [--repeat 8] [--native-dir fmus/native] [--jso
 
 from __future__ import annotations
 
-import io
 import statistics
 import subprocess
 import sys
@@ -59,9 +58,7 @@ def main() -> None:
                 lambda stem=stem: plots.build_specs(result, folder, [stem]), args.repeat
             )
             out[f"{stem}_png_ms"] = _best_ms(
-                lambda spec=spec, meta=meta: mpl.draw(spec).savefig(
-                    io.BytesIO(), dpi=spec["dpi"], format="png", metadata=meta
-                ),
+                lambda spec=spec, path=path, meta=meta: mpl.draw_png(spec, path, metadata=meta),
                 args.repeat,
             )
         out["five_pngs_ms"] = _best_ms(lambda: plots.write_plots(result, folder), args.repeat)

@@ -18,7 +18,8 @@ figure's ``size_in``, ``dpi``, ``suptitle`` (``suptitle_pt``, ``suptitle_color``
 each column; ``keys``: lines in the legend alone), a line's ``zorder``,
 ``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` (its marker's
 size in the legend, opaque there) count there),
-``layout`` (``"constrained"``; else tight), ``sharex``, ``sharey``, ``height_ratios``
+``layout`` (``"constrained"``; else ``margins``, figure fractions, if given; else tight),
+``compress_level`` (the PNG's zlib level), ``sharex``, ``sharey``, ``height_ratios``
 (of the rows) and ``caption`` (red, wrapped,
 under the panels).
 """
@@ -170,7 +171,9 @@ def draw(spec: dict[str, Any]) -> Any:
         style = {mpl: spec[key] for key, mpl in keys if key in spec}
         fig.suptitle(spec["suptitle"], **style)
     lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
-    if not layout:
+    if "margins" in spec and not layout:
+        fig.subplots_adjust(**spec["margins"])
+    elif not layout:
         fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
     if lines:
         fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
@@ -204,8 +207,10 @@ def draw_png(
     path = Path(path)
     part = path.with_name(path.name + ".part")
     try:
+        level = {"pil_kwargs": {"compress_level": spec["compress_level"]}} if (
+            "compress_level" in spec) else {}  # fmt: skip
         draw(spec).savefig(part, dpi=spec.get("dpi", dpi), format="png",
-                           metadata=dict(metadata or {}))  # fmt: skip
+                           metadata=dict(metadata or {}), **level)  # fmt: skip
         part.replace(path)
     finally:
         part.unlink(missing_ok=True)
