@@ -34,8 +34,8 @@ SIZES = {"single": (7.0, 3.6), "pair": (7.0, 5.2)}
 #: margins (figure fractions) of the one-panel and the two-panel figures: fixed, as a
 #: layout engine (tight, constrained) measuring every text first took half of a plot's
 #: drawing time
-SINGLE_MARGINS = {"left": 0.11, "right": 0.98, "bottom": 0.13, "top": 0.86}
-PAIR_MARGINS = {"left": 0.11, "right": 0.98, "bottom": 0.09, "top": 0.9, "hspace": 0.1}
+SINGLE_MARGINS = {"left": 0.125, "right": 0.98, "bottom": 0.13, "top": 0.86}
+PAIR_MARGINS = {"left": 0.125, "right": 0.98, "bottom": 0.09, "top": 0.9, "hspace": 0.1}
 #: the run's PNGs: dots per inch (770 px wide), the grid lines' alpha, the subtitle's
 #: size (points) and colour; zlib level 1 (a third of the default's time, files about a
 #: fifth larger)
