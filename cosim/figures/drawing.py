@@ -236,6 +236,13 @@ class _Collect(logging.Handler):
         self.records.append(record)
 
 
+def _end(signum: int, frame: Any) -> None:
+    """SIGTERM in the drawing process: :meth:`Drawer.close` ends a child it does not
+    need, which may still be importing matplotlib (1-2 s on a loaded machine): a clean
+    exit (code 0; its partner dies with it), never a traceback."""
+    raise SystemExit(0)
+
+
 def _child(conn: Any, parents_end: Any) -> None:
     """The drawing process: prepare, wait for ``(result, out)`` (or the pipe's end),
     draw, reply ``("ok", files, records)`` or ``("error", message, records)``.
@@ -243,7 +250,7 @@ def _child(conn: Any, parents_end: Any) -> None:
     the pipe's end, which an idle child reads and exits on."""
     parents_end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, _end)
     collect = _collect_logs()
     partner: Partner | None = None
     try:
