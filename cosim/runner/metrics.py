@@ -114,7 +114,7 @@ def glide_metrics(
         return out
     if len(e) < 2:
         return out
-    o = classify(tt, e_turns, band, period=2.0 * math.pi)
+    o = classify(tt, e_turns, band, period=2.0 * math.pi, wrapped=e)
     out.update(
         settling_time_s=o.settling_time_s,
         outcome=o.status,
