@@ -189,14 +189,12 @@ class CsvRecorder:
         self.path = Path(path)
         self.keep = keep
         self._f: Any = None
-        self._ncol = 0
         self.n_rows = 0
 
     def start(self, columns: Sequence[str]) -> None:
         """Create the file and write its header: the column names."""
         if self.keep is not None:
             self.keep.start(columns)
-        self._ncol = len(columns)
         self._f = open(self.path, "w", encoding="utf-8", newline="", buffering=self.BUFFER)  # noqa: SIM115
         self._f.write(",".join(columns) + "\n")
 
