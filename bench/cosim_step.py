@@ -30,11 +30,11 @@ from _common import emit
 
 from glider_cosim.fmus.folders import build_all
 from glider_cosim.master import CoSimulation
-from glider_cosim.master.fastloop import ENV, FastLoop, library
+from glider_cosim.master.fastloop import ENV, FastLoop
 from glider_cosim.runner import monolithic
 from glider_cosim.runner.monolithic import COLUMNS, simulate_monolithic
 from glider_cosim.runner.parquet import ParquetFormatError, ParquetRecorder, require_pyarrow
-from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
+from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder, csv_lines
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
 
@@ -171,7 +171,7 @@ def new_file(factory: Any, path: Path) -> Any:
 
 
 def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
-    """What the CSV recorder costs per row of ``ncol`` values (the C formatter), s."""
+    """What the CSV recorder costs per row of ``ncol`` values (Python's repr), s."""
     import random
 
     rng = random.Random(1)
@@ -185,36 +185,9 @@ def csv_seconds_per_row(out: Path, n: int = 30000, ncol: int = 17) -> float:
     return (time.perf_counter() - t0) / n
 
 
-class SyncCsvRecorder(CsvRecorder):
-    """The CSV recorder formatting and writing in the caller's thread (no writer thread)."""
-
-    THREADED = False
-
-
-class PyThreadCsvRecorder(CsvRecorder):
-    """The CSV recorder with a Python writer thread (as before ``csvwriter.c``, and where
-    its C thread cannot start): the file opened in the caller's thread."""
-
-    C_THREAD = False
-
-
-class Csv17gRecorder(SyncCsvRecorder):
-    """The CSV recorder as it was: '%.17g' text (``glider_format_rows_17g``) in the
-    caller's thread, for the before-and-after figure in one run."""
-
-    def _write_text(self, values, nrows: int) -> None:
-        need = nrows * self._ncol * 26 + 64
-        if len(self._buf) < need:
-            self._buf = ctypes.create_string_buffer(need)
-        n = self._lib.glider_format_rows_17g(values, nrows, self._ncol, self._buf,
-                                             len(self._buf))  # fmt: skip
-        self._f.write(memoryview(self._buf)[:n])
-
-
-def format_seconds_per_value(native_dir: Path, function: str, repeat: int) -> float:
+def format_seconds_per_value(native_dir: Path, repeat: int) -> float:
     """Best of ``repeat`` formattings of the native default run's rows (3001 x 17 values,
-    in memory) into CSV text by the C helper's ``function`` (``glider_format_rows``:
-    Python's repr; ``glider_format_rows_17g``: '%.17g', the text before), s per value."""
+    in memory) into CSV text (``csv_lines``: Python's repr), s per value."""
     sc = load_scenario(None)
     sim = CoSimulation(system_for(sc, native_dir), step=sc.step, coupling=sc.coupling)
     rec = ArrayRecorder()
@@ -223,12 +196,10 @@ def format_seconds_per_value(native_dir: Path, function: str, repeat: int) -> fl
     finally:
         sim.close()
     rows = rec.array()
-    fn = getattr(library(), function)
-    buf = ctypes.create_string_buffer(rows.size * 25 + 64)
     best = float("inf")
     for _ in range(repeat):
         t0 = time.perf_counter()
-        fn(ctypes.c_void_p(rows.ctypes.data), rows.shape[0], rows.shape[1], buf, len(buf))
+        csv_lines(rows)
         best = min(best, time.perf_counter() - t0)
     return best / rows.size
 
@@ -439,30 +410,19 @@ def main() -> None:
                 "mem": ArrayRecorder,
                 "csv": new_file(CsvRecorder, out / "native.csv"),
                 "csv_replacing": lambda: CsvRecorder(out / "native_replacing.csv"),
-                "csv_sync": new_file(SyncCsvRecorder, out / "native_sync.csv"),
-                "csv_python_thread": new_file(PyThreadCsvRecorder, out / "native_pythread.csv"),
-                "csv_17g": new_file(Csv17gRecorder, out / "native17g.csv"),
             },
             args.repeat * 3,
         )
-        native_mem, native_csv, native_csv_17g = runs["mem"], runs["csv"], runs["csv_17g"]
-        native_csv_sync = runs["csv_sync"]
+        native_mem, native_csv = runs["mem"], runs["csv"]
         native_paired, floor = native_and_floor(native_dir, args.repeat * 6)
         parts = native_breakdown(native_dir, args.repeat * 10)
-        csv_value = format_seconds_per_value(native_dir, "glider_format_rows", args.repeat * 5)
-        csv_17g = format_seconds_per_value(native_dir, "glider_format_rows_17g", args.repeat)
+        csv_value = format_seconds_per_value(native_dir, args.repeat)
         result.update({
             "native_us_per_macro_step": round(native_mem * 1e6, 2),
             "native_csv_us_per_macro_step": round(native_csv * 1e6, 2),
             "native_csv_over_in_memory": round(native_csv / native_mem, 2),
             "native_csv_replacing_us_per_macro_step": round(runs["csv_replacing"] * 1e6, 2),
-            "native_csv_sync_us_per_macro_step": round(native_csv_sync * 1e6, 2),
-            "native_csv_python_thread_us_per_macro_step": round(
-                runs["csv_python_thread"] * 1e6, 2
-            ),
-            "native_csv_17g_us_per_macro_step": round(native_csv_17g * 1e6, 2),
             "csv_us_per_value": round(csv_value * 1e6, 4),
-            "csv_17g_us_per_value": round(csv_17g * 1e6, 4),
             "native_monolithic_us_per_macro_step": round(floor * 1e6, 3),
             "native_paired_us_per_macro_step": round(native_paired * 1e6, 3),
             "native_fmi_overhead_us_per_macro_step": round((native_paired - floor) * 1e6, 3),
@@ -502,14 +462,11 @@ def main() -> None:
         "native_paired: the in-memory run again, alternated with native_monolithic (one of "
         "each per round); native_fmi_overhead: native_paired minus native_monolithic; "
         "native_do_steps_only / exchange_only: the fast loop making only the 3 doSteps / "
-        "only the planned gets and sets and the recorded row; csv_us_per_value: the C "
-        "formatter on the native run's rows, repr text; "
+        "only the planned gets and sets and the recorded row; csv_us_per_value: "
+        "csv_lines (Python's repr) on the native run's rows; "
         "native_csv*: a new file each run (an earlier run's removed before the timer), "
         "native_csv_replacing: written over the previous run's file; "
-        "native_csv_sync: CSV formatted and written in the run's thread (no writer thread); "
-        "native_csv_python_thread: the writer a Python thread (before csvwriter.c); "
-        "csv_17g_us_per_value, native_csv_17g: the same rows as '%.17g' in the run's thread, "
-        "the text before; wasm: the FMI 3 native FMUs' WebAssembly components under "
+        "wasm: the FMI 3 native FMUs' WebAssembly components under "
         "wasmtime, run --flavor wasm, in memory, alternated with native_fmi3: the same FMUs' "
         "native libraries)",
         "cpus": os.cpu_count(),

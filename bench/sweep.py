@@ -38,16 +38,26 @@ The paths run interleaved for ``--rounds`` rounds (the machine's load drifts); t
 scheduler's CPU time is read from /proc: its idle rate (no workers; 2 workers and a client)
 is measured and subtracted from the no-op tasks' figure.
 
+``--per-core``: the per-core figures alone (``runs_per_s_per_core``, ``in_memory_run_ms``,
+``sweep_efficiency``: the local cluster of 1 worker and the in-memory run), no other
+cluster. ``--python PYTHON`` (repeatable): those per-core figures of this script run by
+this interpreter and by each ``PYTHON`` (another install of glider-cosim, e.g. main's),
+in turn within each of ``--rounds`` rounds (the load drifts), on the same FMU folder;
+the medians of each and ``runs_per_s_per_core_ratio`` (each ``PYTHON``'s over this one's
+is ``1 / ratio``: this one's over each other's).
+
 Usage: python bench/sweep.py [--runs 240] [--rounds 3] [--noop 2000] [--repeats 20]
-       [--flavor native|python] [--fmu-dir DIR] [--json]
+       [--flavor native|python] [--fmu-dir DIR] [--per-core] [--python PYTHON] [--json]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import signal
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -124,6 +134,60 @@ def _median(xs: list[float]) -> float:
     return statistics.median(xs)
 
 
+def per_core(args: argparse.Namespace, fmu_dir: Path) -> dict:
+    """The per-core figures (module docstring) of ``args.rounds`` rounds: runs/s of a local
+    cluster of 1 worker, the in-memory run time and the sweep's efficiency."""
+    rates, run_ms, efficiency, loads = [], [], [], []
+    for _ in range(args.rounds):
+        local = make_client(1)
+        try:
+            rates.append(rate(local, 1, args.runs, fmu_dir)["runs_per_s"])
+        finally:
+            local.close()
+            local.cluster.close()
+        wall, _ = in_memory_run_s(fmu_dir, args.repeats)
+        run_ms.append(1e3 * wall)
+        efficiency.append(rates[-1] * wall)
+        loads.append(os.getloadavg()[0])
+    return {
+        "runs": args.runs, "rounds": args.rounds, "flavor": args.flavor,
+        "runs_per_s_per_core": round(_median(rates), 2),
+        "in_memory_run_ms": round(_median(run_ms), 3),
+        "sweep_efficiency": round(_median(efficiency), 3),
+        "runs_per_s_1_worker": [round(x, 2) for x in rates],
+        "sweep_efficiency_per_round": [round(x, 3) for x in efficiency],
+        "load_avg_1min_per_round": [round(x, 2) for x in loads],
+    }  # fmt: skip
+
+
+def compare(args: argparse.Namespace, fmu_dir: Path) -> dict:
+    """:func:`per_core` of this interpreter and of each ``--python``, one round of each in
+    turn, ``args.rounds`` times; their medians and runs/s per core ratios."""
+    pythons = [sys.executable, *args.python]
+    rounds: dict[str, list[dict]] = {p: [] for p in pythons}
+    for _ in range(args.rounds):
+        for py in pythons:
+            cmd = [py, __file__, "--per-core", "--rounds", "1", "--runs", str(args.runs),
+                   "--repeats", str(args.repeats), "--flavor", args.flavor,
+                   "--fmu-dir", str(fmu_dir), "--json"]  # fmt: skip
+            done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+            rounds[py].append(json.loads(done.stdout.strip().splitlines()[-1]))
+    out: dict = {"runs": args.runs, "rounds": args.rounds, "flavor": args.flavor,
+                 "fmu_dir": str(fmu_dir)}  # fmt: skip
+    for k, py in enumerate(pythons):
+        rs = rounds[py]
+        out[f"python_{k}"] = py
+        for key in ("runs_per_s_per_core", "in_memory_run_ms", "sweep_efficiency"):
+            out[f"{key}_{k}"] = round(_median([r[key] for r in rs]), 3)
+            out[f"{key}_{k}_per_round"] = [r[key] for r in rs]
+        if k:
+            out[f"runs_per_s_per_core_ratio_0_over_{k}"] = round(
+                out["runs_per_s_per_core_0"] / out[f"runs_per_s_per_core_{k}"], 3
+            )
+    out["load_avg_1min_per_round"] = [r["load_avg_1min_per_round"][0] for r in rounds[pythons[0]]]
+    return out
+
+
 #: Dask's ``distributed.nanny.pre-spawn-environ`` value of ``MALLOC_TRIM_THRESHOLD_``
 DASK_TRIM = "65536"
 
@@ -140,11 +204,25 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=20, help="in-memory runs per round")
     ap.add_argument("--flavor", choices=FLAVORS, default="native", help="which FMUs")
     ap.add_argument("--fmu-dir", default=None, help="FMU folder (default: the per-user cache)")
+    ap.add_argument(
+        "--per-core",
+        action="store_true",
+        help="the per-core figures alone (1 local worker, the in-memory run)",
+    )
+    ap.add_argument("--python", action="append", default=[],
+                    help="another interpreter whose per-core figures are measured in turn "
+                         "(repeatable)")  # fmt: skip
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     # SIGTERM leaves through the context managers, which kill the cluster's processes
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     fmu_dir = prepare_fmus(args.fmu_dir, args.flavor).resolve()
+    if args.python:
+        emit(compare(args, fmu_dir), args.json)
+        return
+    if args.per_core:
+        emit(per_core(args, fmu_dir), args.json)
+        return
     run_ms: list[float] = []
     efficiency: list[float] = []
     run_cpu_ms: list[float] = []

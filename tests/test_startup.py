@@ -9,14 +9,12 @@ from __future__ import annotations
 import os
 import zipfile
 
-import numpy as np
 import pytest
 
 from glider_cosim.fmus import native, native_vars
 from glider_cosim.fmus.files import package_version
 from glider_cosim.inputs import archives
 from glider_cosim.master import instance
-from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
 
 PLANT = native.NATIVE_COMPONENTS[0]
 
@@ -133,23 +131,6 @@ def test_a_bad_fmu_of_the_cache_leaves_no_folder(tmp_path, monkeypatch):
     with pytest.raises(archives.InputFileError, match="not a readable zip"):
         instance.unpacked_in_cache(fmu)
     assert list((tmp_path / "cache" / package_version() / "unpacked").iterdir()) == []
-
-
-@pytest.mark.parametrize("threaded", [True, False])
-def test_a_csv_recorder_keeps_the_rows_it_writes(tmp_path, monkeypatch, threaded):
-    monkeypatch.setattr(CsvRecorder, "THREADED", threaded)
-    rows = np.random.default_rng(3).normal(size=(300, 4)) * 10.0 ** np.arange(-8, 8, 4)
-    rows[5, 1], rows[7, 2] = -0.0, np.inf
-    rec = CsvRecorder(tmp_path / "r.csv", keep=ArrayRecorder())
-    rec.start(["time", "a", "b", "c"])
-    for r in rows[:130]:  # one by one, then a block
-        rec.row(list(r))
-    block = (np.ctypeslib.as_ctypes_type(np.float64) * rows[130:].size)(*rows[130:].ravel())
-    rec.rows_block(block, len(rows) - 130, 4)
-    rec.close()
-    kept = rec.keep.array()
-    read = np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1, ndmin=2)
-    assert kept.tobytes() == read.tobytes() == rows.tobytes()  # bit for bit
 
 
 def test_a_reference_is_parsed_once():

@@ -55,8 +55,8 @@ def _matplotlib_cache() -> None:
     matplotlib creates it when it first draws), not ``~/.cache/matplotlib``: a command
     writes nothing outside its output folder and our cache (unless the user points
     ``MPLCONFIGDIR`` somewhere). Built once: rebuilt each time, it cost 0.2 s a command.
-    matplotlib draws the sweep's and report's figures (a run's PNGs are Pillow's, without
-    it). Where it cannot be written, the process's temporary folder holds it."""
+    matplotlib draws every PNG (the run's, in its drawing process, which inherits this).
+    Where it cannot be written, the process's temporary folder holds it."""
     if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
         return
     from ..fmus.files import cache_root, package_version
@@ -121,7 +121,7 @@ def _main(args: argparse.Namespace) -> int:
     if command == "run" and not args.no_plots:
         from ..figures.drawing import prestart
 
-        prestart()  # Pillow imported in a child while this process imports the master
+        prestart()  # matplotlib imported in a child while this process imports the master
     from .commands import dispatch  # after parsing: --help imports none of the commands
 
     error = prefix("error", command)

@@ -1,8 +1,7 @@
-"""Everything that draws: the figure spec (:mod:`.spec`), its Pillow rasterizer for the
-run's plots (:mod:`.raster`, :mod:`.strokes`) and its matplotlib renderer for the others
-(:mod:`.mpl`: the sweep's, the report's), the run's plots as specs (:mod:`.plots`), the
-drawing process that draws them while a run runs (:mod:`.drawing`) and the zoomable
-results pages (:mod:`.pages`, built with bokeh).
+"""Everything that draws: the figure spec (:mod:`.spec`), its matplotlib renderer for
+every PNG (:mod:`.mpl`: the run's, the sweep's, the report's), the run's plots as specs
+(:mod:`.plots`), the drawing process that draws them while a run runs (:mod:`.drawing`)
+and the zoomable results pages (:mod:`.pages`, built with bokeh's Python API).
 
 It knows nothing of a run but the result it is handed: :mod:`glider_cosim.runner` uses it,
 never the other way round.

@@ -1,7 +1,7 @@
 """A run's PNG plots and ``plots.html`` drawn off the critical path (issue 31).
 
 :func:`start_drawer` forks a child process at the start of :func:`~.run.simulate`: it
-imports Pillow and the drawing modules, loads the fonts (:func:`~.raster.warm`) and forks
+imports matplotlib and the drawing modules, loads the fonts (:func:`~.mpl.warm`) and forks
 a partner (:class:`Partner`) while the co-simulation runs, then waits. When the run's
 results are in, :meth:`Drawer.draw` sends them over a pipe; the child and its partner
 each draw their share of the PNGs (:func:`shares`) from the plots' specs
@@ -114,9 +114,9 @@ def _write_page(result: Any, out: Path, specs: Sequence[tuple]) -> dict[str, Pat
 def _draw_share(specs: Sequence[tuple], names: Sequence[str] | None) -> dict[str, Path]:
     """Draw the PNGs of ``names`` (all if None) of ``specs`` (:func:`~.plots.build_specs`):
     ``{name: path}``."""
-    from .raster import render_png
+    from .mpl import draw_png
 
-    return {path.stem: render_png(spec, path, metadata) for spec, path, metadata in specs
+    return {path.stem: draw_png(spec, path, metadata=metadata) for spec, path, metadata in specs
             if names is None or path.stem in names}  # fmt: skip
 
 
@@ -236,6 +236,13 @@ class _Collect(logging.Handler):
         self.records.append(record)
 
 
+def _end(signum: int, frame: Any) -> None:
+    """SIGTERM in the drawing process: :meth:`Drawer.close` ends a child it does not
+    need, which may still be importing matplotlib (1-2 s on a loaded machine): a clean
+    exit (code 0; its partner dies with it), never a traceback."""
+    raise SystemExit(0)
+
+
 def _child(conn: Any, parents_end: Any) -> None:
     """The drawing process: prepare, wait for ``(result, out)`` (or the pipe's end),
     draw, reply ``("ok", files, records)`` or ``("error", message, records)``.
@@ -243,13 +250,13 @@ def _child(conn: Any, parents_end: Any) -> None:
     the pipe's end, which an idle child reads and exits on."""
     parents_end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, _end)
     collect = _collect_logs()
     partner: Partner | None = None
     try:
-        from . import pages, plots, raster  # noqa: F401 (imported now, while the run runs)
+        from . import mpl, pages, plots  # noqa: F401 (imported now, while the run runs)
 
-        raster.warm()
+        mpl.warm()
         partner = Partner(close_in_partner=(conn,))
     except Exception:  # noqa: S110 - drawn again below, where the error is reported
         pass

@@ -1,29 +1,25 @@
-"""A figure spec (:mod:`.spec`) drawn as a PNG with matplotlib, for the figures off the
-run's critical path (the sweep's; the report's, Sec. 5.2's and the region of attraction's
-are to follow, issue 49 item 2).
-
-The run's plots are drawn by :mod:`.raster` (Pillow): importing matplotlib costs
-0.38-0.48 s, more than the run's whole ``plots`` budget. A sweep or a report draws a
-handful of figures after minutes of runs, where that import does not count, and its
-figure kinds (colour-mapped scatters, grids of panels, image maps, legends under grids)
-are matplotlib's own: drawing the same spec with matplotlib keeps one spec format
-and one place per figure, without a second rasterizer to keep (see the code-layout page).
+"""A figure spec (:mod:`.spec`) drawn as a PNG with matplotlib: every PNG glider-cosim
+writes (the run's plots, the sweep's, the report's) is drawn here.
 
 What it draws of a spec: each panel at its ``row``/``col`` in a grid, its ``title``
 (``title_pt``), ``ylabel_pt``, ``yticks`` (fixed), ``heading`` (panels of one heading:
 a subfigure of its rows under it, in bold, ``heading_pt``),
 ``xlabel``, ``ylabel``, ``xlim``, ``ylim``, ``inverted``, ``log``, ``grid`` (the grid
-lines' alpha, none if absent), ``colorbar`` (the label of the colour key of the lines
-with ``values``), ``lines`` (a line with ``lines`` false is a scatter of markers of
-``size`` points, a matplotlib scatter if ``scatter`` or ``values``; ``values`` colour
-its markers by ``cmap``), ``images`` and ``texts``; the figure's ``size_in``,
-``suptitle`` (``suptitle_pt``), ``notes`` (colour keys, one row under the panels),
+lines' alpha, none if absent), ``legend_pt`` (its legend's size, where the legend covers
+the fewest points: matplotlib's ``"best"``), ``colorbar`` (the label of the colour key
+of the lines with ``values``), ``lines`` (a line with ``lines`` false is a scatter of
+markers of ``size`` points, a matplotlib scatter if ``scatter`` or ``values``; ``values``
+colour its markers by ``cmap``; ``step``: held values), ``images`` and ``texts``; the
+figure's ``size_in``, ``dpi``, ``suptitle`` (``suptitle_pt``, ``suptitle_color``),
+``notes`` (colour keys, one row under the panels),
 ``legend_below`` (one legend of the panels' lines under them, ``legend_ncol`` columns,
 ``legend_pt``, ``legend_order`` ``"column"``: its names down each column first;
 ``legend_columns``: false, of the first column's lines; true, one under
 each column; ``keys``: lines in the legend alone), a line's ``zorder``,
-``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` count there),
-``layout`` (``"constrained"``; else tight), ``sharex``, ``sharey``, ``height_ratios``
+``clip`` (false: drawn over the axes' edge), ``mew`` and ``legend_size`` (its marker's
+size in the legend, opaque there) count there),
+``layout`` (``"constrained"``; else ``margins``, figure fractions, if given; else tight),
+``compress_level`` (the PNG's zlib level), ``sharex``, ``sharey``, ``height_ratios``
 (of the rows) and ``caption`` (red, wrapped,
 under the panels).
 """
@@ -36,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["draw", "draw_png"]
+__all__ = ["draw", "draw_png", "warm"]
 
 #: matplotlib's line styles by the spec's dash names
 _LINESTYLE = {"solid": "-", "dashed": "--", "dashdot": "-.", "dotted": ":"}
@@ -79,7 +75,11 @@ def _panel(fig: Any, ax: Any, p: dict[str, Any], below: bool) -> None:
     ax.set_xlim(*p["xlim"])
     ax.set_ylim(*(p["ylim"][::-1] if p["inverted"] else p["ylim"]))
     if any(ln["legend"] for ln in p["lines"]) and not below:
-        ax.legend(fontsize=p["legend_pt"])
+        if any("legend_size" in ln for ln in p["lines"]):  # markers sized for the legend
+            keys = _keys(p["lines"])
+            ax.legend(list(keys.values()), list(keys), fontsize=p["legend_pt"])
+        else:
+            ax.legend(fontsize=p["legend_pt"])
     if p.get("grid"):
         ax.grid(alpha=p["grid"])
     if "yticks" in p:  # fixed ticks (a linear axis with its limits marked)
@@ -167,10 +167,13 @@ def draw(spec: dict[str, Any]) -> Any:
         keys = [Patch(color=n["color"], label=n["text"]) for n in spec["notes"]]
         fig.legend(handles=keys, loc="outside lower center", ncol=len(keys), fontsize=8)
     if spec.get("suptitle"):
-        size = {"fontsize": spec["suptitle_pt"]} if "suptitle_pt" in spec else {}
-        fig.suptitle(spec["suptitle"], **size)
+        keys = (("suptitle_pt", "fontsize"), ("suptitle_color", "color"))
+        style = {mpl: spec[key] for key, mpl in keys if key in spec}
+        fig.suptitle(spec["suptitle"], **style)
     lines = textwrap.wrap(spec.get("caption", ""), CAPTION_WIDTH)
-    if not layout:
+    if "margins" in spec and not layout:
+        fig.subplots_adjust(**spec["margins"])
+    elif not layout:
         fig.tight_layout(rect=(0, CAPTION_LINE * len(lines), 1, 1))
     if lines:
         fig.text(0.5, 0.01, "\n".join(lines), ha="center", va="bottom", fontsize=8,
@@ -178,8 +181,11 @@ def draw(spec: dict[str, Any]) -> Any:
     return fig
 
 
-def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
-    """Draw ``spec`` (:mod:`.spec`) as a PNG at ``path`` with matplotlib (Agg).
+def draw_png(
+    spec: dict[str, Any], path: str | Path, dpi: int = 100, metadata: dict[str, str] | None = None
+) -> Path:
+    """Draw ``spec`` (:mod:`.spec`) as a PNG at ``path`` with matplotlib (Agg); the file is
+    complete or absent (written beside it, ``<name>.part``, then renamed).
 
     Parameters
     ----------
@@ -190,11 +196,40 @@ def draw_png(spec: dict[str, Any], path: str | Path, dpi: int = 100) -> Path:
     dpi : int
         Pixels per inch (the spec's ``dpi`` if it has one); the figure is ``size_in``
         inches.
+    metadata : dict of str, optional
+        The PNG's text chunks (keyword: text).
 
     Returns
     -------
     Path
         ``path``.
     """
-    draw(spec).savefig(path, dpi=spec.get("dpi", dpi))
-    return Path(path)
+    path = Path(path)
+    part = path.with_name(path.name + ".part")
+    try:
+        level = {"pil_kwargs": {"compress_level": spec["compress_level"]}} if (
+            "compress_level" in spec) else {}  # fmt: skip
+        draw(spec).savefig(part, dpi=spec.get("dpi", dpi), format="png",
+                           metadata=dict(metadata or {}), **level)  # fmt: skip
+        part.replace(path)
+    finally:
+        part.unlink(missing_ok=True)
+    return path
+
+
+def warm() -> None:
+    """Draw a small figure with every kind of line, marker, legend and text into memory:
+    matplotlib's modules, fonts and caches loaded (the drawing process does this while
+    the run runs)."""
+    import io
+
+    from .spec import figure, line, panel
+
+    t = np.linspace(0.0, 1.0, 20)
+    lines = [line(t, np.sin(t), "a", dash=dash, step=dash == "dashed")
+             for dash in ("solid", *_LINESTYLE)]  # fmt: skip
+    lines += [line(t, t, "b", marker=m, size=3.0) for m in (".", "o", "D", "X")]
+    lines.append(line([0.5], [0.0], "c", color="k", dash="dotted", span="x"))
+    spec = figure("pair", [panel(lines, title="(0)", ylabel="y [deg]"),
+                           panel(lines, xlabel="x [s]", ylabel="y", row=1)], "s")  # fmt: skip
+    draw(spec).savefig(io.BytesIO(), dpi=20, format="png", metadata={"k": "v"})

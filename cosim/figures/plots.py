@@ -1,5 +1,5 @@
 """A run's plots (angles in degrees, time in seconds), each defined once as a spec
-(:mod:`.spec`): :mod:`.raster` draws it as the PNG and :mod:`.pages` as the zoomable
+(:mod:`.spec`): :mod:`.mpl` draws it as the PNG and :mod:`.pages` as the zoomable
 ``plots.html``, so both show the same lines, labels and limits.
 """
 
@@ -13,11 +13,10 @@ from typing import Any
 import numpy as np
 
 from ..fmus.variables import overrides_words, short
-from .spec import COLORS, PAIR_MARGINS, SINGLE_MARGINS, SIZES, figure, line, panel
+from .spec import COLORS, SIZES, figure, line, panel
 
-__all__ = ["COLORS", "EVENT_STYLE", "PAIR_MARGINS", "PLOTS", "SINGLE_MARGINS", "SIZES",
-           "build_specs", "event_lines", "figure", "line", "panel", "read_png_record",
-           "settings_text", "write_plots"]  # fmt: skip
+__all__ = ["COLORS", "EVENT_STYLE", "PLOTS", "SIZES", "build_specs", "event_lines", "figure",
+           "line", "panel", "read_png_record", "settings_text", "write_plots"]  # fmt: skip
 
 _DEG = 180.0 / np.pi
 #: how each marked event is drawn (colour, line style)
@@ -28,6 +27,9 @@ EVENT_STYLE = {
     "discard": ("tab:red", "dashed"),
     "error": ("darkred", "dotted"),
 }
+#: the size (points) of a sample's dot in a legend (drawn 1.2 pt in the panel: too small
+#: and faint to see there)
+LEGEND_DOT = 6.0
 #: the PNG text chunks that carry what a plot marks and which run it shows
 META_EVENTS, META_SETTINGS = "glider-cosim:events", "glider-cosim:settings"
 
@@ -95,7 +97,8 @@ def _pitch(result: Any) -> dict[str, Any]:
     top, below = [], []
     if meas is not None and not same:
         top.append(line(t, meas, f"measured (samples, noise std {std:.2g} deg)",
-                        color="tab:gray", alpha=0.3, marker=".", size=1.2))  # fmt: skip
+                        color="tab:gray", alpha=0.3, marker=".", size=1.2)
+                   | {"legend_size": LEGEND_DOT})  # fmt: skip
     if true is not None:  # drawn over the measured samples
         top.append(line(t, true, "true = measured (noise std 0 deg)" if same else "true",
                         width=1.6))  # fmt: skip
@@ -105,7 +108,7 @@ def _pitch(result: Any) -> dict[str, Any]:
     ref, ref_name = (true, "true") if true is not None else (meas, "measured")
     if meas is not None and true is not None and not same:
         below.append(line(t, meas - true, "measured - true", color="tab:gray", alpha=0.3,
-                          marker=".", size=1.2))  # fmt: skip
+                          marker=".", size=1.2) | {"legend_size": LEGEND_DOT})  # fmt: skip
     if est is not None:
         below.append(line(t, est - ref, f"estimate - {ref_name}", color="tab:orange"))
     return _pair(result, top, below, _title(result, "Pitch"), "theta")
@@ -202,11 +205,11 @@ def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, P
     (those whose columns were recorded). Each marks the run's events and names its
     scenario and overrides; both are also in the PNG's text chunks
     (:func:`read_png_record`). ``keep``: a list that gets the specs drawn."""
-    from .raster import render_png
+    from .mpl import draw_png
 
     files = {}
     for spec, path, metadata in build_specs(result, out):
-        files[path.stem] = render_png(spec, path, metadata)
+        files[path.stem] = draw_png(spec, path, metadata=metadata)
         if keep is not None:
             keep.append(spec)
     return files
@@ -215,7 +218,7 @@ def write_plots(result: Any, out: Path, keep: list | None = None) -> dict[str, P
 def read_png_record(path: Path) -> dict[str, Any]:
     """What a plot written here says about itself: ``{"events": [...], "settings": text}``
     (read back from the PNG's text chunks)."""
-    from PIL import Image
+    from PIL import Image  # Pillow: matplotlib's own dependency, which writes them
 
     with Image.open(path) as im:
         text = dict(getattr(im, "text", {}) or im.info)

@@ -1,11 +1,10 @@
-"""The plain-data spec of a figure: :mod:`.plots` makes a run's, :mod:`.raster` draws
-them as PNGs and :mod:`.pages` as ``plots.html``; :func:`line`, :func:`panel` and
-:func:`figure` build one. A sweep's figures are specs too (:func:`sheet`), drawn by
-:mod:`.mpl` (matplotlib), which also draws a panel's ``grid`` and ``colorbar``, a
-line's ``values`` and ``cmap`` and a figure's ``caption``.
+"""The plain-data spec of a figure: :mod:`.plots` makes a run's, :mod:`.mpl` draws
+every spec as a PNG (matplotlib) and :mod:`.pages` a run's as ``plots.html``;
+:func:`line`, :func:`panel` and :func:`figure` build one. A sweep's and a report's
+figures are specs too (:func:`sheet`).
 
-A spec is ``{"title", "suptitle", "notes", "panels", "size_in", "margins",
-"height_ratios"}``, each panel ``{"title", "xlabel", "ylabel", "xlim", "ylim",
+A spec is ``{"title", "suptitle", "notes", "panels", "size_in", "height_ratios", ...}``
+(the keys :mod:`.mpl` draws), each panel ``{"title", "xlabel", "ylabel", "xlim", "ylim",
 "inverted", "log", "row", "col", "lines", "images", "texts", "legend_pt"}`` and each
 line ``{"x", "y", "name", "legend", "color", "alpha", "width", "dash", "lines",
 "marker", "size", "edge", "step", "span", "gid"}`` (x and y in data units; widths and
@@ -30,12 +29,17 @@ COLORS = {
     "darkred": "#8b0000",
     "k": "#000000",
 }
-#: margins (figure fractions) of the one-panel and the two-panel figures (the left one
-#: grows with the y tick labels: :func:`.raster.render`)
-SINGLE_MARGINS = {"left": 0.1, "right": 0.98, "bottom": 0.13, "top": 0.86}
-PAIR_MARGINS = {"left": 0.1, "right": 0.98, "bottom": 0.09, "top": 0.9, "hspace": 0.1}
 #: figure sizes, inches: one panel, and two panels sharing their time axis
 SIZES = {"single": (7.0, 3.6), "pair": (7.0, 5.2)}
+#: margins (figure fractions) of the one-panel and the two-panel figures: fixed, as a
+#: layout engine (tight, constrained) measuring every text first took half of a plot's
+#: drawing time
+SINGLE_MARGINS = {"left": 0.125, "right": 0.98, "bottom": 0.13, "top": 0.86}
+PAIR_MARGINS = {"left": 0.125, "right": 0.98, "bottom": 0.09, "top": 0.9, "hspace": 0.1}
+#: the run's PNGs: dots per inch (770 px wide), the grid lines' alpha, the subtitle's
+#: size (points) and colour; zlib level 1 (a third of the default's time, files about a
+#: fifth larger)
+RUN_DPI, RUN_GRID, SUBTITLE_PT, SUBTITLE_COLOR = 110, 0.3, 7.5, "#4d4d4d"
 #: autoscaled limits leave this fraction of the data's range on each side
 AXIS_MARGIN = 0.05
 
@@ -113,8 +117,8 @@ def panel(
 ) -> dict[str, Any]:
     """A panel of ``lines`` (drawn in this order), its limits autoscaled from them (the
     span lines count where they stand), then the span lines run across it. ``grid``
-    (the grid lines' alpha) and ``colorbar`` (the label of the key of ``values``) are
-    drawn by :mod:`.mpl`; the run's plots (:mod:`.raster`) always have a grid."""
+    (the grid lines' alpha; none if 0) and ``colorbar`` (the label of the key of
+    ``values``) are drawn by :mod:`.mpl`; a run's figures (:func:`figure`) have a grid."""
     xs = [ln["x"] for ln in lines if ln["span"] != "y"]
     ys = [ln["y"] for ln in lines if ln["span"] != "x"]
     xlim, ylim = _limits(xs), _limits(ys)
@@ -151,15 +155,23 @@ def share_x(panels: Sequence[dict[str, Any]]) -> None:
 
 
 def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:
-    """A figure spec of ``kind`` (``"single"`` or ``"pair"``) with ``subtitle`` above its
-    panels (a run's: its settings)."""
+    """A run's figure spec of ``kind`` (``"single"``, or ``"pair"``: two panels, one time
+    axis) with ``subtitle`` above its panels (a run's: its settings); each panel with a
+    grid (:data:`RUN_GRID`), unless it has one."""
+    for p in panels:
+        p.setdefault("grid", RUN_GRID)
     return {
         "title": next((p["title"] for p in panels if p["title"]), ""),
         "suptitle": subtitle,
+        "suptitle_pt": SUBTITLE_PT,
+        "suptitle_color": SUBTITLE_COLOR,
         "notes": [],
         "panels": list(panels),
         "size_in": SIZES[kind],
+        "dpi": RUN_DPI,
         "margins": PAIR_MARGINS if kind == "pair" else SINGLE_MARGINS,
+        "compress_level": 1,
+        "sharex": kind == "pair",
         "height_ratios": [2.0, 1.0] if kind == "pair" else [1.0],
     }
 

@@ -42,45 +42,6 @@ int glider_step(void *const *fns, void *const *comps, int n, double t, double h,
     return -1;
 }
 
-/* Rows of `ncol` doubles as CSV lines, each value as Python's repr() writes it (the
- * shortest text that reads back to the same double, shortest.c). Returns the number of
- * bytes written to out, or -1 if out is too small. */
-#include <math.h>
-#include <stdio.h>
-
-#include "shortest.h"
-
-long glider_format_rows(const double *values, int nrows, int ncol, char *out, long size) {
-    long used = 0;
-    const double *v = values;
-    for (int r = 0; r < nrows; ++r) {
-        if (size - used < (long)ncol * (GLIDER_REPR_MAX + 1) + GLIDER_REPR_ROOM) return -1;
-        for (int c = 0; c < ncol; ++c) {
-            used += glider_repr(*v++, out + used);
-            out[used++] = ',';
-        }
-        out[used - 1] = '\n';
-    }
-    return used;
-}
-
-/* The same rows as '%.17g' writes them ("nan" for every NaN): the format before
- * glider_format_rows wrote repr, kept for bench/cosim_step.py's before-and-after. */
-long glider_format_rows_17g(const double *values, int nrows, int ncol, char *out, long size) {
-    long used = 0;
-    for (int r = 0; r < nrows; ++r) {
-        for (int c = 0; c < ncol; ++c) {
-            double v = values[(long)r * ncol + c];
-            int n = isnan(v) ? snprintf(out + used, (size_t)(size - used), "nan")
-                             : snprintf(out + used, (size_t)(size - used), "%.17g", v);
-            if (n < 0 || used + n + 1 >= size) return -1;
-            used += n;
-            out[used++] = c + 1 < ncol ? ',' : '\n';
-        }
-    }
-    return used;
-}
-
 /* Up to n whole macro steps from step k (time t0 + k*h): every instance steps, then the
  * planned exchange runs, then the recorded values (read through `record`) go into one row
  * of `rows` (time first, nrec values after it). Returns the number of rows written; when

@@ -27,12 +27,10 @@ from pathlib import Path
 from typing import Any
 
 SOURCE = Path(__file__).with_name("fastloop.c")
-#: the files compiled into the helper (``shortest.c``: the CSV text, Python's repr;
-#: ``csvwriter.c``: the CSV recorder's writer thread; ``glidemetrics.c``: the run's metrics)
-SOURCES = (SOURCE, SOURCE.with_name("shortest.c"), SOURCE.with_name("csvwriter.c"),
-           SOURCE.parent.parent / "runner" / "glidemetrics.c")  # fmt: skip
+#: the files compiled into the helper
+SOURCES = (SOURCE,)
 #: the headers they include (in the build's hash too)
-HEADERS = (SOURCE.with_name("shortest.h"), SOURCE.with_name("shortest_pow10.h"))
+HEADERS: tuple[Path, ...] = ()
 ENV = "GLIDER_COSIM_FASTLOOP"
 #: the helper's compile flags (after the toolchain's shared-library ones)
 FLAGS = ("-O2", "-ffp-contract=off", *(() if os.name == "nt" else ("-pthread",)))
@@ -92,16 +90,7 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
         out = built_library()
         lib = (ctypes.PyDLL if hold_gil else ctypes.CDLL)(str(out))
         lib.glider_exchange.restype = lib.glider_step.restype = ctypes.c_int
-        lib.glider_format_rows.restype = lib.glider_run.restype = ctypes.c_long
-        lib.glider_format_rows_17g.restype = ctypes.c_long
-        lib.glider_csv_open.restype = ctypes.c_void_p
-        lib.glider_csv_open.argtypes = (ctypes.c_char_p, ctypes.c_int)
-        lib.glider_csv_start.argtypes = (ctypes.c_void_p, ctypes.c_char_p, ctypes.c_long,
-                                         ctypes.c_int)  # fmt: skip
-        lib.glider_csv_put.restype = lib.glider_csv_close.restype = ctypes.c_int
-        lib.glider_csv_start.restype = ctypes.c_int
-        lib.glider_csv_put.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int)
-        lib.glider_csv_close.argtypes = (ctypes.c_void_p,)
+        lib.glider_run.restype = ctypes.c_long
         for name in SHIMS.values():
             getattr(lib, name).restype = ctypes.c_int
     except (OSError, subprocess.SubprocessError):

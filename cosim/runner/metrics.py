@@ -29,7 +29,6 @@ an event last changed the controller):
 
 from __future__ import annotations
 
-import ctypes
 import math
 import re
 from collections.abc import Sequence
@@ -38,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 from glider_plant.model import equilibrium
 from glider_plant.params import GliderParams
 
-from .outcome import MIN_HOLD_S, SETTLED, STOPPED, TUMBLING, classify, wrap_angle
+from .outcome import STOPPED, classify, wrap_angle
 from .recorders import Table
 
 if TYPE_CHECKING:
@@ -115,7 +114,7 @@ def glide_metrics(
         return out
     if len(e) < 2:
         return out
-    o = classify(tt, e_turns, band, period=2.0 * math.pi)
+    o = classify(tt, e_turns, band, period=2.0 * math.pi, wrapped=e)
     out.update(
         settling_time_s=o.settling_time_s,
         outcome=o.status,
@@ -187,9 +186,7 @@ def compute_metrics(
     ``status`` other than ``"ok"`` (the run ended early) makes the outcome ``stopped``.
 
     ``data``: the rows, time first (s), as a :class:`~glider_cosim.runner.recorders.Table`
-    or a 2-D numpy array. The metrics are computed by the C helper's kernel
-    (``glidemetrics.c``, no numpy) where it can, else by :func:`glide_metrics` (numpy),
-    to the same bits.
+    or a 2-D numpy array. The metrics are :func:`glide_metrics`'s (numpy).
     """
     n = len(data)
     end = (data.value(-1, 0) if isinstance(data, Table) else float(data[-1, 0])) if n else None
@@ -209,140 +206,21 @@ def compute_metrics(
     theta_ge, v_e = reference_glide(p, ctrl, sim.system.events)
     cols = list(columns)
     which = (0, cols.index("plant.theta_g"), cols.index("controller.delta_cmd"))
-    completed = status == "ok"
-    glide = _glide_metrics_c(data, which, theta_ge, t_on, completed)
-    if glide is None:
-        table = data.array() if isinstance(data, Table) else data
-        # contiguous copies of the columns: numpy runs faster on them (a row-major
-        # table's columns are strided views), to the same values
-        import numpy as np
+    table = data.array() if isinstance(data, Table) else data
+    # contiguous copies of the columns: numpy runs faster on them (a row-major table's
+    # columns are strided views), to the same values
+    import numpy as np
 
-        t, theta_g, delta_cmd = (np.ascontiguousarray(table[:, k]) for k in which)
-        glide = glide_metrics(t, theta_g, delta_cmd, theta_ge, t_on, completed=completed)
+    t, theta_g, delta_cmd = (np.ascontiguousarray(table[:, k]) for k in which)
+    glide = glide_metrics(t, theta_g, delta_cmd, theta_ge, t_on, completed=status == "ok")
     metrics.update(glide)
     metrics["V_e_m_s"] = v_e
     return metrics
 
 
-# the kernel's codes and slots (glidemetrics.c)
-_GM_NUMPY, _GM_NONE, _GM_STOPPED, _GM_SETTLED, _GM_TUMBLING, _GM_FIT_PEAKS, _GM_FIT_WINDOW = (
-    -1, 0, 1, 2, 3, 4, 5)  # fmt: skip
-(_EFFORT, _MAXABS, _RISE, _OVER, _OVER_PCT, _BAND, _FINAL, _SETTLING, _PERIOD, _RATE, _WIN0,
- _WIN1, _HOLD, _IN_BAND, _I0, _AMP, _MINABS, _E0, _NFIT, _TW0, _TW1,
- _SLOTS) = range(22)  # fmt: skip
-_KERNEL: list[Any] = []  # [lib or None], found once
-
-
-def _kernel() -> Any:
-    """The C helper with its metrics kernels' signatures set, or None (no compiler,
-    ``GLIDER_COSIM_FASTLOOP=0``)."""
-    if not _KERNEL:
-        from ..master.fastloop import library
-
-        lib = library()
-        if lib is not None:
-            c_long, c_double, c_int, ptr = (ctypes.c_long, ctypes.c_double, ctypes.c_int,
-                                            ctypes.c_void_p)  # fmt: skip
-            f = lib.glider_glide_metrics
-            f.restype = c_long
-            f.argtypes = (ptr, c_long, c_long, c_long, c_long, c_long, c_double, c_int, c_double,
-                          c_int, c_double, ptr, ptr, ptr)  # fmt: skip
-            g = lib.glider_wrapped_rms
-            g.restype = c_int
-            g.argtypes = (ptr, c_long, c_long, c_long, c_long, ptr)
-        _KERNEL.append(lib)
-    return _KERNEL[0]
-
-
-def _address(data: Table | np.ndarray) -> tuple[int, Any] | None:
-    """Where a table's doubles are, row-major (and what keeps them alive), or None."""
-    if isinstance(data, Table):
-        return data.address(), data
-    flags = getattr(data, "flags", None)
-    if flags is None or not flags.c_contiguous or data.dtype.str != "<f8" or data.ndim != 2:
-        return None
-    return data.ctypes.data, data
-
-
-def _glide_metrics_c(
-    data: Table | np.ndarray, which: tuple[int, int, int], theta_ge: float, t_on: float | None,
-    completed: bool,
-) -> dict[str, Any] | None:  # fmt: skip
-    """:func:`glide_metrics` of the table's columns ``which`` (time, ``plant.theta_g``,
-    ``controller.delta_cmd``) by the C kernel, to the same bits (where a fit decides the
-    outcome, the kernel hands back the points and numpy fits them); None where numpy
-    must compute them all (a value is not finite, no C helper)."""
-    lib = _kernel()
-    where = _address(data) if lib is not None else None
-    if where is None:
-        return None
-    nrows, ncol = len(data), (data.ncol if isinstance(data, Table) else data.shape[1])
-    v = (ctypes.c_double * _SLOTS)()
-    mask = ctypes.c_long(0)
-    fit = (ctypes.c_double * (2 * nrows))()
-    code = lib.glider_glide_metrics(
-        where[0], nrows, ncol, *which, theta_ge, t_on is not None,
-        0.0 if t_on is None else t_on - 1e-9, completed, BAND_FLOOR, v, ctypes.byref(mask), fit,
-    )  # fmt: skip
-    if code == _GM_NUMPY:
-        return None
-    none = mask.value
-
-    def val(slot: int) -> float | None:
-        return None if none >> slot & 1 else v[slot]
-
-    out: dict[str, Any] = {"theta_ge_rad": theta_ge, "t_on_s": t_on, **_OUTCOME_NONE}
-    out["control_effort"] = v[_EFFORT]
-    out["max_abs_delta_cmd_rad"] = v[_MAXABS]
-    if int(v[_I0]) >= nrows:
-        out.update(rise_time_s=None, overshoot_rad=None, overshoot_pct=None, settling_time_s=None)
-        out["outcome"] = None if completed else STOPPED
-        return out
-    out["settling_band_rad"] = v[_BAND]
-    out["final_error_rad"] = v[_FINAL]
-    out.update(rise_time_s=val(_RISE), overshoot_rad=v[_OVER], overshoot_pct=val(_OVER_PCT))
-    out["settling_time_s"] = None
-    if code == _GM_STOPPED:
-        out["outcome"] = STOPPED
-    elif code == _GM_SETTLED:
-        out.update(settling_time_s=v[_SETTLING], outcome=SETTLED, outcome_period_s=val(_PERIOD),
-                   settling_hold_s=v[_HOLD], in_band_s=v[_IN_BAND])  # fmt: skip
-    elif code == _GM_TUMBLING:
-        out.update(outcome=TUMBLING, outcome_period_s=val(_PERIOD), outcome_rate_per_s=v[_RATE],
-                   outcome_window_s=[v[_WIN0], v[_WIN1]], settling_hold_s=MIN_HOLD_S)  # fmt: skip
-    elif code in (_GM_FIT_PEAKS, _GM_FIT_WINDOW):
-        status, sigma = _fitted(code, v, fit, nrows)
-        out.update(outcome=status, outcome_period_s=val(_PERIOD), outcome_amplitude_rad=v[_AMP],
-                   outcome_rate_per_s=sigma, outcome_window_s=[v[_WIN0], v[_WIN1]],
-                   settling_hold_s=v[_HOLD], in_band_s=val(_IN_BAND))  # fmt: skip
-    return out
-
-
-def _fitted(code: int, v: Any, fit: Any, nrows: int) -> tuple[str, float]:
-    """The outcome of an error that neither settled nor tumbled, and its rate [1/s]:
-    numpy's fit of the kernel's points (as :func:`~glider_cosim.runner.outcome.classify`)."""
-    import numpy as np
-
-    from .outcome import _fit_rate, envelope_status, trend_status
-
-    m = int(v[_NFIT])
-    x = np.frombuffer(fit, dtype=float, count=m).copy()
-    sigma = _fit_rate(x, np.frombuffer(fit, dtype=float, count=m, offset=8 * nrows).copy())
-    if code == _GM_FIT_PEAKS:  # the envelope of an oscillation
-        return envelope_status(sigma, v[_PERIOD]), sigma
-    return trend_status(sigma, v[_TW1] - v[_TW0], v[_MINABS], v[_E0]), sigma
-
-
 def wrapped_rms(data: Table | np.ndarray, a: int, b: int) -> float:
-    """``sqrt(mean(wrap_angle(column a - column b) ** 2))`` of a table (rad): by the C
-    kernel where it can, else numpy, to the same bits."""
-    lib = _kernel()
-    where = _address(data) if lib is not None else None
-    if where is not None:
-        rms = ctypes.c_double(0.0)
-        ncol = data.ncol if isinstance(data, Table) else data.shape[1]
-        if lib.glider_wrapped_rms(where[0], len(data), ncol, a, b, ctypes.byref(rms)) == 0:
-            return rms.value
+    """``sqrt(mean(wrap_angle(column a - column b) ** 2))`` of a table's columns ``a`` and
+    ``b`` (angles in rad), in rad."""
     import numpy as np
 
     table = data.array() if isinstance(data, Table) else np.asarray(data, dtype=float)

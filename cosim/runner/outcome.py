@@ -115,7 +115,11 @@ def wrap_angle(angle: Any, period: float = 2.0 * math.pi) -> Any:
     import numpy as np
 
     half = 0.5 * period
-    return np.mod(np.asarray(angle, dtype=float) + half, period) - half
+    # np.mod(x, period), bit for bit (numpy's npy_divmod for period > 0: fmod, then
+    # period added to a negative remainder, -0.0 made +0.0), in half its time
+    m = np.fmod(np.asarray(angle, dtype=float) + half, period)
+    m += np.where(m < 0.0, period, 0.0)
+    return (m + 0.0) - half
 
 
 def _crossings(t: np.ndarray, e: np.ndarray, hyst: float, jump: float = math.inf) -> np.ndarray:
@@ -183,7 +187,10 @@ def _fit_rate(times: np.ndarray, values: np.ndarray) -> float:
     return float(np.polyfit(times, np.log(v), 1)[0])
 
 
-def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = None) -> Outcome:
+def classify(
+    t: np.ndarray, e: np.ndarray, band: float, period: float | None = None,
+    wrapped: np.ndarray | None = None,
+) -> Outcome:  # fmt: skip
     """Classify the error trajectory ``e(t)`` against the band ``|e| <= band``.
 
     Parameters
@@ -235,7 +242,7 @@ def classify(t: np.ndarray, e: np.ndarray, band: float, period: float | None = N
             rate = float((e[-1] - e[i0]) / (t[-1] - t[i0]) / period)  # turns per second
             return Outcome(TUMBLING, None, MIN_HOLD_S, 1.0 / abs(rate) if rate else None,
                            None, rate, (float(t[i0]), float(t[-1])))  # fmt: skip
-        e = wrap_angle(e, period)
+        e = wrap_angle(e, period) if wrapped is None else np.asarray(wrapped, dtype=float)
         jump = 0.5 * period
     p_osc = oscillation_period(t, e, band, jump)
     hold = max(MIN_HOLD_S, HOLD_PERIODS * (p_osc or 0.0))

@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 import ctypes
-import os
-import queue
-import threading
-import weakref
 from array import array
 from collections.abc import Sequence
 from pathlib import Path
@@ -134,9 +130,7 @@ def csv_lines(data: Any) -> bytes:
     """Rows of doubles as CSV lines, each value as Python's ``repr`` writes it.
 
     The text every CSV writer of the project uses (``results.csv``, ``sweep.csv``'s
-    trajectories, the reference CSVs): formatted by the C helper of
-    :mod:`glider_cosim.master.fastloop` (``shortest.c``, about 0.04 us a value) where it is
-    available, else in Python, to the same bytes.
+    trajectories, the reference CSVs), by :func:`repr_row`.
 
     Parameters
     ----------
@@ -147,248 +141,100 @@ def csv_lines(data: Any) -> bytes:
     -------
     bytes
         The lines, each ending with a newline; empty for no rows.
-    """
-    from ..master.fastloop import library
 
-    if isinstance(data, Table):  # its doubles as they are: no numpy
-        nrows, ncol, table = data.nrows, data.ncol, data
-        address = data.address
+    Raises
+    ------
+    ValueError
+        ``data`` is not a 2-D table.
+    """
+    if isinstance(data, Table):
+        ncol, values = data.ncol, data.values.tolist()
+        rows = [values[k : k + ncol] for k in range(0, len(values), ncol)] if ncol else []
+        rows += [[]] * (data.nrows - len(rows))
     else:
         import numpy as np
 
-        table = np.ascontiguousarray(data, dtype=float)
+        table = np.asarray(data, dtype=float)
         if table.ndim != 2:
             raise ValueError(
                 f"csv_lines needs a 2-D table of numbers, got {table.ndim} dimension(s)"
             )
-        nrows, ncol = table.shape
-        address = lambda: table.ctypes.data  # noqa: E731
-    if nrows == 0 or ncol == 0:
-        return b"\n" * nrows if ncol == 0 else b""
-    lib = library()
-    if lib is None:
-        values = table.values.tolist() if isinstance(table, Table) else table.ravel().tolist()
-        return "".join(repr_row(values[k : k + ncol]) for k in range(0, len(values), ncol)).encode()
-    buf = ctypes.create_string_buffer(nrows * ncol * 25 + 64)
-    n = lib.glider_format_rows(ctypes.c_void_p(address()), nrows, ncol, buf, len(buf))
-    return ctypes.string_at(buf, n)
-
-
-class _NativeWriter:
-    """csvwriter.c's writer thread: its handle, its file, and whether the recorder has
-    started (written the header): the one record of that state, read by
-    :meth:`CsvRecorder.close` and by the finalizer that ends the thread if the recorder
-    is dropped (it holds this, never the recorder)."""
-
-    def __init__(self, lib: Any, handle: int, path: Path) -> None:
-        self.lib, self.handle, self.path = lib, handle, path
-        self.started = False
-
-    def end(self) -> int:
-        """End the thread (what was handed over written): its errno, or 0. One never
-        started leaves no file: the empty one it made is removed."""
-        err = self.lib.glider_csv_close(self.handle)
-        if not self.started:
-            self.path.unlink(missing_ok=True)
-        return err
+        rows = table.tolist()
+    return "".join([repr_row(r) for r in rows]).encode()
 
 
 class CsvRecorder:
     """Streams rows to a CSV file (constant memory); ``close`` flushes.
 
-    Every value is written as Python's ``repr`` writes it: the shortest text that reads
-    back to the same double (``0.1``, ``1e-05``, ``-0.0``, ``inf``, ``nan``). Where the C
-    helper of :mod:`glider_cosim.master.fastloop` is available, rows are collected in
-    blocks (of :attr:`BLOCK` rows handed one by one, or the fast loop's blocks) and a
-    writer thread formats them (``shortest.c``: the same bytes, about 0.024 us a value
-    against 0.25-0.5 us for ``%.17g``) and writes them, in order, while the next block
-    steps, on another core; at most :attr:`QUEUED` blocks wait for it. That thread is C's
-    own (``csvwriter.c``: handing a block over is a copy, the GIL never changes hands),
-    started when the recorder is made, when it creates the file (so that both overlap
-    the FMUs' initialisation; closed before :meth:`start`, the recorder removes that
-    empty file); where it cannot start (Windows) it is a Python thread calling the C
-    formatter with the GIL released, and :meth:`start` opens the file.
-    :attr:`THREADED` False: formatted and written in the caller's thread. Without the
-    helper, rows are formatted in Python in the caller's thread. An
-    error of the writer (a full disk) is raised by the next call that hands rows over,
-    else by ``close``.
+    Every value is written as Python's ``repr`` writes it (:func:`repr_row`): the
+    shortest text that reads back to the same double (``0.1``, ``1e-05``, ``-0.0``,
+    ``inf``, ``nan``). The file is created by :meth:`start` (a recorder closed before it
+    leaves none) and written through a buffer of :attr:`BUFFER` bytes; :meth:`close`
+    writes what the buffer holds, so a run that fails keeps every row handed over
+    before the failure. An error of a write (a full disk) is raised by the call that
+    made it, or by ``close``, as an :class:`OSError` naming the file.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file (replaced if it exists).
+    keep : ArrayRecorder, optional
+        Also handed every row (the run's table for its metrics, without reading the
+        file back: the same doubles, as the file holds each value exactly).
     """
 
-    BLOCK = 128  # rows handed one by one, formatted at once by the C helper
-    QUEUED = 4  # blocks handed to the writer thread and not written yet, at most
-    THREADED = True  # False: formatted and written in the caller's thread
-    C_THREAD = True  # False: the writer thread is a Python thread (as where C's cannot start)
+    BUFFER = 1 << 16  # bytes written at once
 
     def __init__(self, path: Path, keep: ArrayRecorder | None = None) -> None:
         self.path = Path(path)
-        #: also handed every row (the run's table for its metrics, without reading the
-        #: file back: the same doubles, as the file holds each value exactly)
         self.keep = keep
-        self._f = None
+        self._f: Any = None
         self.n_rows = 0
-        self._lib = None
-        self._pending = 0
-        self._queue: queue.Queue | None = None
-        self._writer: threading.Thread | None = None
-        self._native: _NativeWriter | None = None  # csvwriter.c's writer, while it runs
-        self._closer: weakref.finalize | None = None  # ends it if the recorder is dropped
-        self._error: BaseException | None = None  # the writer's, raised once
-        self._reported = False
-        if self.THREADED and self.C_THREAD:
-            self._open_native()
-
-    def _open_native(self) -> None:
-        """Start csvwriter.c's thread, which creates the file now: while the FMUs
-        initialise, not in the run (0.3-0.6 ms here: the thread's start and ext4's
-        create). Where it cannot start, :meth:`start` opens the file."""
-        from ..master.fastloop import library
-
-        lib = library(release_gil=True)
-        handle = lib.glider_csv_open(os.fsencode(self.path), self.QUEUED) if lib else None
-        if handle:
-            self._lib, self._native = lib, _NativeWriter(lib, handle, self.path)
-            self._closer = weakref.finalize(self, self._native.end)
-
-    def _close_native(self) -> int:
-        """End csvwriter.c's thread (:meth:`_NativeWriter.end`): its errno, or 0."""
-        err = self._closer() if self._closer is not None else 0
-        self._native = self._closer = None
-        return err or 0
 
     def start(self, columns: Sequence[str]) -> None:
-        from ..master.fastloop import library
-
+        """Create the file and write its header: the column names."""
         if self.keep is not None:
             self.keep.start(columns)
-        header = (",".join(columns) + "\n").encode()
-        self._ncol = len(columns)
-        if self._native is not None and columns:  # the C thread made the file: its header
-            self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
-            err = self._lib.glider_csv_start(self._native.handle, header, len(header), self._ncol)
-            if not err:  # started: its file stays, even if the recorder is dropped
-                self._native.started = True
-                return
-            self._close_native()
-            raise self._os_error(err)
-        if self._native is not None:  # no columns: the header alone, written here
-            self._close_native()
-        self._lib = library(release_gil=True) if columns else None
-        if self._lib is not None:
-            self._block = (ctypes.c_double * (self.BLOCK * self._ncol))()
-            self._buf = ctypes.create_string_buffer(self.BLOCK * self._ncol * 25 + 64)
-        self._f = open(self.path, "wb", buffering=1 << 16)  # noqa: SIM115
-        self._f.write(header)
+        self._f = open(self.path, "w", encoding="utf-8", newline="", buffering=self.BUFFER)  # noqa: SIM115
+        self._f.write(",".join(columns) + "\n")
 
     def row(self, values: Sequence[float]) -> None:
+        """Write one row (time first)."""
         if self.keep is not None:
-            self.keep.row(list(values))
-        if self._lib is None:
-            self._f.write(repr_row(values).encode())
-        else:
-            i = self._pending * self._ncol
-            self._block[i : i + self._ncol] = values
-            self._pending += 1
-            if self._pending == self.BLOCK:
-                self._flush()
+            self.keep.row(values)
+        self._write(repr_row(values))
         self.n_rows += 1
 
     def rows_block(self, values: Any, nrows: int, ncol: int) -> None:
         """``nrows`` rows of ``ncol`` doubles from a ctypes buffer (the fast loop's, reused
-        after the call: copied), after the rows handed one by one before them."""
-        if self._lib is None:
-            for j in range(nrows):
-                self.row(values[j * ncol : (j + 1) * ncol])
-            return
+        after the call: copied)."""
+        block = array("d", ctypes.string_at(values, nrows * ncol * 8)).tolist()
         if self.keep is not None:
             self.keep.rows_block(values, nrows, ncol)
-        self._flush()
-        self._hand_over(values, nrows)
+        self._write("".join([repr_row(block[k : k + ncol]) for k in range(0, nrows * ncol, ncol)]))
         self.n_rows += nrows
 
-    def _flush(self) -> None:
-        if self._pending:
-            self._hand_over(self._block, self._pending)
-            self._pending = 0
+    def _write(self, text: str) -> None:
+        try:
+            self._f.write(text)
+        except OSError as err:
+            raise self._named(err) from None
 
-    def _hand_over(self, values: Any, nrows: int) -> None:
-        """A copy of ``nrows`` rows of ``values`` to the writer thread (started at the
-        first block)."""
-        if self._error is not None:
-            self._reported = True
-            raise self._error
-        if not self.THREADED:
-            self._write_text(values, nrows)
-            return
-        if self._native is not None:  # copied by the C thread's glider_csv_put
-            err = self._lib.glider_csv_put(self._native.handle, values, nrows)
-            if err:
-                self._error = self._os_error(err)
-                self._reported = True
-                raise self._error
-            return
-        if self._writer is None:
-            self._queue = queue.Queue(self.QUEUED)
-            self._writer = threading.Thread(target=self._write_blocks, name="csv-writer",
-                                            daemon=True)  # fmt: skip
-            self._writer.start()
-        size = nrows * self._ncol
-        copy = (ctypes.c_double * size)()
-        ctypes.memmove(copy, values, size * ctypes.sizeof(ctypes.c_double))
-        self._queue.put((copy, nrows))
-
-    def _write_blocks(self) -> None:
-        """The writer thread: format and write each block handed over, until None."""
-        while (item := self._queue.get()) is not None:
-            if self._error is None:
-                try:
-                    self._write_text(*item)
-                except BaseException as err:  # noqa: BLE001 - raised again in the caller
-                    self._error = err
-
-    def _write_text(self, values: Any, nrows: int) -> None:
-        """Format ``nrows`` rows of the ctypes doubles ``values`` in C and write them."""
-        need = nrows * self._ncol * 25 + 64  # 25 bytes a value and 64 suffice
-        if len(self._buf) < need:
-            self._buf = ctypes.create_string_buffer(need)
-        n = self._lib.glider_format_rows(values, nrows, self._ncol, self._buf, len(self._buf))
-        if n < 0:  # cannot happen, but never lose rows
-            rows = values[: nrows * self._ncol]
-            text = "".join(repr_row(rows[k : k + self._ncol])
-                           for k in range(0, len(rows), self._ncol))  # fmt: skip
-            self._f.write(text.encode())
-        else:
-            self._f.write(memoryview(self._buf)[:n])  # no copy
-
-    def _os_error(self, err: int) -> OSError:
-        """The writer's failure ``err`` (an errno) as the OSError a write would raise."""
-        return OSError(err, os.strerror(err), str(self.path))
+    def _named(self, err: OSError) -> OSError:
+        """``err`` (a write's, which names no file) naming the file."""
+        return OSError(err.errno, err.strerror, str(self.path)) if err.filename is None else err
 
     def close(self) -> None:
-        """Write what is left (wait for the writer thread) and close the file.
+        """Write what is left and close the file (once; again: nothing).
 
         Raises
         ------
         OSError
-            Writing failed (in the writer thread too).
+            Writing failed.
         """
-        if self._f is None and self._native is None:
-            return
-        try:
-            if self._lib is not None and self._error is None:
-                self._flush()
-        finally:
-            if self._native is not None:
-                started = self._native.started
-                err = self._close_native()  # never started: its empty file removed
-                if err and started and self._error is None:
-                    self._error = self._os_error(err)
-            if self._writer is not None:
-                self._queue.put(None)
-                self._writer.join()
-                self._writer = None
-            if self._f is not None:
-                self._f.close()
-                self._f = None
-        if self._error is not None and not self._reported:
-            self._reported = True
-            raise self._error
+        f, self._f = self._f, None
+        if f is not None:
+            try:
+                f.close()
+            except OSError as err:
+                raise self._named(err) from None

@@ -288,8 +288,8 @@ def simulate(
         options = {k: v for k, v in (("coupling", coupling), ("step", step),
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
     record = run_record(scenario, sim, options)
-    # the plots' process forks now, before the recorder's writer thread: it imports
-    # Pillow while the run runs and draws when the results are in (drawing.py)
+    # the plots' process forks now: it imports matplotlib while the run runs and draws
+    # when the results are in (drawing.py)
     drawer = start_drawer() if plots and out is not None else None
     try:
         files: dict[str, Path] = {}

@@ -12,9 +12,9 @@ calls), against 2.6 ms for the 3000 steps of the default run.
 
 What a task pays once rather than per run: the FMUs' local paths and the cache key
 (:func:`run_many`). What a run pays: its parameter set, the reset, the steps (only the
-columns the metrics need are recorded unless ``trajectories``), the metrics (the C
-helper's kernel, ``glidemetrics.c``; numpy where a fit decides the outcome:
-:mod:`glider_cosim.runner.outcome`) and its result row. The
+columns the metrics need are recorded unless ``trajectories``), the metrics (numpy:
+:mod:`glider_cosim.runner.metrics`, :mod:`glider_cosim.runner.outcome`) and its result
+row. The
 results are bit for bit those of separate runs (tested, reuse included: A, B, A in one
 task).
 """
@@ -25,16 +25,19 @@ import copy
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..master.cosimulation import CoSimulation
 from ..master.errors import FMUCallError, FMUStopped, MasterError
 from ..runner.metrics import compute_metrics, wrapped_rms
-from ..runner.recorders import ArrayRecorder, Table, csv_lines
+from ..runner.recorders import ArrayRecorder, csv_lines
 from ..scenarios.sampling import has_our_observer, with_sampling
 from ..scenarios.scenario import Scenario
 from ..scenarios.system import system_for
 from .cluster import DIST, FmuBlob, SweepClusterError, local_fmu, package_version
+
+if TYPE_CHECKING:
+    import numpy as np
 
 #: the metrics of a sweep's row, in ``sweep.csv``'s order
 METRIC_KEYS = (
@@ -58,9 +61,10 @@ def _full_parameters(scenario: Scenario, run: dict[str, Any]) -> dict[str, dict[
     return with_sampling(params, scenario.step, scenario.source, has_our_observer(scenario))
 
 
-def _csv_text(columns: Sequence[str], data: Table) -> bytes:
-    """A trajectory as the CSV bytes ``run`` writes (each value as ``repr``)."""
-    return (",".join(columns) + "\n").encode() + (csv_lines(data) if len(data) else b"")
+def _csv_text(columns: Sequence[str], data: np.ndarray | None) -> bytes:
+    """A trajectory (None: no rows) as the CSV bytes ``run`` writes (each value as
+    ``repr``)."""
+    return (",".join(columns) + "\n").encode() + (b"" if data is None else csv_lines(data))
 
 
 def _local(
@@ -140,7 +144,7 @@ def _run(
         _SIMS[key] = sim  # reuse (a stop is an fmi2Discard, which fmi2Reset clears)
     elif sim is not None:
         sim.close()  # frees what is not fatal; a fatal instance is never called again
-    cols, data = rec.columns, rec.table() if len(rec) else None
+    cols, data = rec.columns, rec.array() if len(rec) else None  # numpy: the metrics'
     row.update(status=status, message=message)
     if data is not None and len(data) and sim is not None:
         m = compute_metrics(cols, data, scenario, sim, status)
@@ -150,7 +154,7 @@ def _run(
             )
         row.update({k: m.get(k) for k in METRIC_KEYS})
     if trajectories and cols:  # recording started: the rows up to a failure too
-        row["trajectory"] = _csv_text(cols, data if data is not None else ArrayRecorder().table())
+        row["trajectory"] = _csv_text(cols, data)
     return row
 
 

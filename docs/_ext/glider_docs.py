@@ -161,14 +161,14 @@ def draw_readme_picture() -> bytes:
     scenario, Python flavor, in memory), as the run draws it (``figures.plots``)."""
     import tempfile
 
+    from glider_cosim.figures.mpl import draw_png
     from glider_cosim.figures.plots import build_specs
-    from glider_cosim.figures.raster import render_png
     from glider_cosim.runner import simulate
 
     result = simulate("default", out=None, plots=False)
     with tempfile.TemporaryDirectory(prefix="glider_docs_") as tmp:
         ((spec, path, meta),) = build_specs(result, Path(tmp), names=("glide_angle",))
-        return Path(render_png(spec, path, meta)).read_bytes()
+        return Path(draw_png(spec, path, metadata=meta)).read_bytes()
 
 
 def write_readme_picture(app: Sphinx) -> None:

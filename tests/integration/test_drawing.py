@@ -8,7 +8,6 @@ from __future__ import annotations
 import multiprocessing
 import os
 import re
-import shutil
 import signal
 from pathlib import Path
 
@@ -62,7 +61,7 @@ def test_the_child_writes_what_the_process_writes(result, tmp_path):
 
 
 def test_the_child_draws_after_its_warm_up_what_the_process_draws(result, tmp_path):
-    """A child given time to import Pillow, load the fonts and fork its partner writes
+    """A child given time to import matplotlib, load the fonts and fork its partner writes
     what the process writes."""
     import time
 
@@ -89,14 +88,16 @@ while not Path(f"/proc/{child}/task/{child}/children").read_text().split():
     assert time.monotonic() < deadline, "no partner forked"
     time.sleep(0.02)
 print(Path(f"/proc/{child}/maps").read_text())
+assert "matplotlib" not in sys.modules
 drawer.close()
 """
 
 
-def test_the_drawing_process_never_loads_matplotlib():
-    """The point of drawing with Pillow (issue 31): matplotlib's import alone (0.55 s)
-    outlasted a native run without plots. A fresh interpreter starts a drawing process
-    and the libraries mapped into it, once it is ready, are read from /proc."""
+def test_the_drawing_process_loads_matplotlib_while_the_run_runs():
+    """The drawing process imports matplotlib (0.4-0.6 s) and warms it up while the run
+    runs, not after it: a fresh interpreter starts a drawing process and the libraries
+    mapped into it, once it has forked its partner (after the warm-up), are read from
+    /proc; the main process has not imported matplotlib."""
     import subprocess
     import sys
 
@@ -104,8 +105,7 @@ def test_the_drawing_process_never_loads_matplotlib():
                           check=True, timeout=120).stdout  # fmt: skip
     libraries = {line.split()[-1] for line in maps.splitlines() if line.endswith(".so")
                  or ".so." in line or ".cpython-" in line}  # fmt: skip
-    assert any("/PIL/_imaging" in lib for lib in libraries), sorted(libraries)
-    assert not [lib for lib in libraries if "/matplotlib/" in lib]
+    assert any("/matplotlib/ft2font" in lib for lib in libraries), sorted(libraries)
 
 
 def test_a_failure_in_the_child_is_one_plot_error(result, tmp_path):
@@ -216,16 +216,19 @@ def test_the_partner_dies_with_the_drawing_process():
     drawer.close()
 
 
-@pytest.mark.skipif(shutil.which("pngcheck") is None, reason="pngcheck is installed by .ci/run")
-def test_pngcheck_finds_the_runs_pngs_valid(result, tmp_path):
-    """glider-cosim writes its PNGs itself (``raster.png_bytes``): a PNG checker we did
-    not write reads every chunk, its CRC and the image data."""
-    import subprocess
+def test_every_png_says_what_it_shows(result, tmp_path):
+    """Each of the run's five PNGs (matplotlib's) carries its events and settings in its
+    text chunks, read back by ``read_png_record``, at 110 dpi, 770 px wide."""
+    from PIL import Image
+
+    from glider_cosim.figures.plots import read_png_record, settings_text
 
     files = drawing.draw_plots(result, tmp_path)
-    pngs = [str(p) for p in files.values() if p.suffix == ".png"]
+    pngs = [p for p in files.values() if p.suffix == ".png"]
     assert len(pngs) == 5
-    done = subprocess.run(["pngcheck", "-v", *pngs], capture_output=True, text=True)
-    assert done.returncode == 0, done.stdout + done.stderr
-    assert done.stdout.count("No errors detected") == 5
-    assert done.stdout.count("keyword: glider-cosim:settings") == 5
+    for png in pngs:
+        record = read_png_record(png)
+        assert record["settings"] == settings_text(result.metrics), png.name
+        assert record["events"] == result.metrics["events"], png.name
+        with Image.open(png) as im:
+            assert im.width == 770 and round(im.info["dpi"][0]) == 110, png.name

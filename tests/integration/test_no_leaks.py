@@ -167,11 +167,15 @@ def test_extractions_are_reused_within_a_process(fmu_dir, tmp_path):
     assert Path(kept).parent.name == "unpacked" and Path(kept).is_relative_to(cache_root())
 
 
+def _zig() -> str:
+    """zig's own cache folder (the master's C loop may be compiled)."""
+    return os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
+
+
 def _draw_with_matplotlib(tmp_path: Path, fmu_dir: Path, env: dict[str, str], out: str):
-    """A command drawing with matplotlib: a two-run sweep (its figures; a run's PNGs are
-    Pillow's, no matplotlib); zig's own cache (the master's C loop may be compiled)."""
-    zig = os.environ.get("ZIG_GLOBAL_CACHE_DIR") or str(Path.home() / ".cache" / "zig")
-    env = env | {"ZIG_GLOBAL_CACHE_DIR": zig}
+    """A command drawing with matplotlib: a two-run sweep (its figures); zig's own cache
+    (the master's C loop may be compiled)."""
+    env = env | {"ZIG_GLOBAL_CACHE_DIR": _zig()}
     p = subprocess.run([sys.executable, "-c", CLI, "sweep", "--param", "controller.K_c=6,8",
                         "--workers", "1", "--stop-time", "2", "--fmu-dir", str(fmu_dir),
                         "--out", str(tmp_path / out)], capture_output=True, text=True, env=env,
@@ -199,6 +203,14 @@ def test_cli_keeps_matplotlibs_font_cache_in_our_cache_only(fmu_dir, tmp_path):
     assert len(fonts) == 1, sorted(cache.rglob("*"))
     before = fonts[0].stat().st_mtime_ns
     _draw_with_matplotlib(tmp_path, fmu_dir, env, "o2")
+    assert fonts[0].stat().st_mtime_ns == before
+    # a run's PNGs: matplotlib's too, in the run's drawing process, with the same cache
+    p = subprocess.run([sys.executable, "-c", CLI, "run", "--stop-time", "2", "--fmu-dir",
+                        str(fmu_dir), "--out", str(tmp_path / "o3")], capture_output=True,
+                       text=True, env=env | {"ZIG_GLOBAL_CACHE_DIR": _zig()},
+                       timeout=300)  # fmt: skip
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "o3" / "glide_angle.png").is_file()
     assert fonts[0].stat().st_mtime_ns == before
     assert list(home.rglob("*")) == []
     assert list((tmp_path / "t").iterdir()) == []

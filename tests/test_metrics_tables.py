@@ -1,35 +1,22 @@
-"""The run's metrics without numpy (issue 48): the C kernel (cosim/runner/glidemetrics.c)
-against the numpy code (:func:`glide_metrics`, :func:`classify`), bit for bit, on a few
-hundred synthetic trajectories of every outcome; and the run's recorder and metrics path
-in a process where numpy cannot be imported."""
+"""The run's metrics on numpy arrays (``runner/metrics.py``, ``runner/outcome.py``): every
+outcome met on a few hundred synthetic trajectories; the recorders' tables (row-major,
+the columns strided) give the same bits as numpy arrays; the run's table is a numpy
+array on access."""
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
 from array import array
-from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
-import pytest
 
-from glider_cosim.master import fastloop
 from glider_cosim.runner import metrics as metrics_module
-from glider_cosim.runner.metrics import _glide_metrics_c, glide_metrics, wrapped_rms
+from glider_cosim.runner.metrics import compute_metrics, glide_metrics, wrapped_rms
 from glider_cosim.runner.outcome import OUTCOMES, wrap_angle
 from glider_cosim.runner.recorders import ArrayRecorder, Table
 
-ROOT = Path(__file__).resolve().parents[1]
 THETA_GE = -0.3940432938639892  # the default glide's equilibrium, rad
-
-
-@pytest.fixture(scope="module", autouse=True)
-def lib():
-    if fastloop.library() is None:
-        pytest.skip("no C compiler for the helper library")
 
 
 def bits(value):
@@ -113,52 +100,33 @@ def trajectories(rng: np.random.Generator):
     yield "pi boundary, cycle", t, THETA_GE + e, zero, 0.0, True
 
 
-def test_the_kernel_gives_the_numpy_metrics_bit_for_bit():
-    """Every float of the metrics of every trajectory, and each outcome met: the kernel
-    computes them all, numpy fitting the points it hands back where a fit decides
-    (not settled, limit cycle, diverging)."""
+def test_every_outcome_is_met_and_a_table_gives_the_arrays_bits(monkeypatch):
+    """Every outcome met on the synthetic trajectories; the metrics of a recorded table
+    (:func:`compute_metrics`: a :class:`Table` or a 2-D array, its columns strided) are
+    :func:`glide_metrics`' of the columns, bit for bit."""
     seen: dict[str, int] = {}
+    sim = SimpleNamespace(coupling="gauss-seidel", step_size=0.02,
+                          system=SimpleNamespace(parameters={"plant": {}, "controller": {}},
+                                                 events=[]))  # fmt: skip
+    scenario = SimpleNamespace(name="t", source="<test>")
+    columns = ["time", "a", "plant.theta_g", "b", "controller.delta_cmd"]
     for kind, t, theta_g, delta_cmd, t_on, completed in trajectories(np.random.default_rng(48)):
         theta_ge = 0.0 if kind == "pi boundary, held" and theta_g[0] == theta_g[-1] else THETA_GE
         want = glide_metrics(t, theta_g, delta_cmd, theta_ge, t_on, completed=completed)
         seen[str(want["outcome"])] = seen.get(str(want["outcome"]), 0) + 1
-        got = _glide_metrics_c(table_of(t, theta_g, delta_cmd), WHICH, theta_ge, t_on, completed)
-        assert got is not None, (kind, want)
-        same_bits(got, want)
-        # a numpy table (what the API may hand over) gives the same
-        rows = np.column_stack([t, t, theta_g, t, delta_cmd])
-        same_bits(_glide_metrics_c(rows, WHICH, theta_ge, t_on, completed), want)
+        # the scenario's glide and takeover: this trajectory's
+        monkeypatch.setattr(metrics_module, "reference_glide", lambda *a, g=theta_ge: (g, 0.5))
+        monkeypatch.setattr(metrics_module, "takeover_time", lambda *a, on=t_on: on)
+        status = "ok" if completed else "stopped"
+        for data in (table_of(t, theta_g, delta_cmd),
+                     np.column_stack([t, t, theta_g, t, delta_cmd])):  # fmt: skip
+            got = compute_metrics(columns, data, scenario, sim, status)
+            same_bits({k: got[k] for k in want}, want)
     assert set(seen) == {*OUTCOMES, "None"}, seen
     assert min(seen.values()) >= 8 and seen["settled"] >= 50, seen
 
 
-def test_a_value_not_finite_is_left_to_numpy():
-    t = np.arange(3001) * 0.02
-    e = 0.2 * np.exp(-t)
-    theta = THETA_GE + e
-    theta[-1] = math.nan
-    assert _glide_metrics_c(table_of(t, theta, e), WHICH, THETA_GE, 0.0, False) is None
-    t2 = t.copy()
-    t2[7] = t2[6]  # time not strictly increasing: numpy raises
-    assert _glide_metrics_c(table_of(t2, THETA_GE + e, e), WHICH, THETA_GE, 0.0, True) is None
-
-
-def test_where_a_fit_decides_numpy_fits_the_kernels_points(monkeypatch):
-    """A limit cycle: the fit is numpy's (np.polyfit, called once), on the peaks."""
-    from glider_cosim.runner import outcome
-
-    t = np.arange(3001) * 0.02
-    e = 0.2 * np.cos(2 * t)
-    fits = []
-    real = outcome._fit_rate
-    monkeypatch.setattr(outcome, "_fit_rate", lambda x, y: fits.append(len(x)) or real(x, y))
-    got = _glide_metrics_c(table_of(t, THETA_GE + e, e), WHICH, THETA_GE, 0.0, True)
-    assert got["outcome"] == "limit cycle" and len(fits) == 1 and 10 < fits[0] < 30, fits
-    monkeypatch.undo()
-    same_bits(got, glide_metrics(t, THETA_GE + e, e, THETA_GE, 0.0))
-
-
-def test_the_estimation_rms_is_numpys_bit_for_bit():
+def test_the_estimation_rms_of_a_table_is_numpys():
     rng = np.random.default_rng(5)
     for n in (1, 2, 7, 8, 9, 127, 128, 129, 300, 3001, 10000):
         a = rng.normal(0, 2.0, n) * rng.choice([1e-6, 1.0, 4.0])
@@ -169,18 +137,6 @@ def test_the_estimation_rms_is_numpys_bit_for_bit():
         table = Table(array("d", rows.tobytes()), n, 3)
         assert wrapped_rms(table, 1, 2).hex() == want.hex(), n
         assert wrapped_rms(rows, 1, 2).hex() == want.hex(), n
-
-
-def test_without_the_c_helper_numpy_gives_the_metrics(monkeypatch):
-    t = np.arange(3001) * 0.02
-    e = 0.2 * np.exp(-t)
-    table = table_of(t, THETA_GE + e, e)
-    with_c = _glide_metrics_c(table, WHICH, THETA_GE, 0.0, True)
-    monkeypatch.setattr(metrics_module, "_KERNEL", [None])
-    assert _glide_metrics_c(table, WHICH, THETA_GE, 0.0, True) is None
-    want = float(np.sqrt(np.mean(wrap_angle((THETA_GE + e) - e) ** 2)))
-    assert wrapped_rms(table, 2, 4).hex() == want.hex()
-    assert with_c["outcome"] == "settled"
 
 
 def test_the_recorder_keeps_the_rows_it_is_handed():
@@ -201,82 +157,10 @@ def test_the_recorder_keeps_the_rows_it_is_handed():
     assert ArrayRecorder().array(3).shape == (0, 3)
 
 
-BLOCK_NUMPY = r"""
-import builtins, importlib.abc, sys
-
-class NoNumpy(importlib.abc.MetaPathFinder):
-    def find_spec(self, name, path=None, target=None):
-        if name == "numpy" or name.startswith("numpy."):
-            raise ImportError(f"numpy is blocked (imported as {name})")
-        return None
-
-sys.meta_path.insert(0, NoNumpy())
-"""
-
-NO_NUMPY_RUN = r"""
-import ctypes, json, math, sys
-from pathlib import Path
-from types import SimpleNamespace
-
-from glider_cosim.runner.metrics import compute_metrics, wrapped_rms
-from glider_cosim.runner.recorders import ArrayRecorder, CsvRecorder
-
-out = Path(sys.argv[1])
-columns = ["time", "plant.theta_g", "observer.theta_g_hat", "controller.delta_cmd"]
-rec = CsvRecorder(out / "results.csv", keep=ArrayRecorder())
-rec.start(columns)
-theta_ge = -0.3940432938639892
-rows = []
-for k in range(3001):
-    t = 0.02 * k
-    e = 0.3 * math.exp(-0.8 * t) * math.cos(1.7 * t)
-    rows.append((t, theta_ge + e, theta_ge + 1.01 * e, -0.5 * e))
-for r in rows[:200]:
-    rec.row(r)
-block = (ctypes.c_double * (len(rows[200:]) * 4))(*[v for r in rows[200:] for v in r])
-rec.rows_block(block, len(rows) - 200, 4)
-rec.close()
-table = rec.keep.table()
-plant = {}
-sim = SimpleNamespace(coupling="gauss-seidel", step_size=0.02,
-                      system=SimpleNamespace(parameters={"plant": plant, "controller": {}},
-                                             events=[]))
-scenario = SimpleNamespace(name="no-numpy", source="<test>")
-m = compute_metrics(columns, table, scenario, sim)
-m["estimation_rms_rad"] = wrapped_rms(table, 2, 1)
-print(json.dumps({"numpy": "numpy" in sys.modules, "metrics": m}))
-"""
-
-
-def test_the_runs_recorders_and_metrics_need_no_numpy(tmp_path):
-    """The CLI run's path after the loop: the CSV recorder (keeping the rows) and the
-    metrics of the kept table, in a process where importing numpy fails; the same
-    metrics as numpy's."""
-    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
-    proc = subprocess.run(
-        [sys.executable, "-c", BLOCK_NUMPY + NO_NUMPY_RUN, str(tmp_path)],
-        capture_output=True, text=True, env=env, timeout=120,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    got = json.loads(proc.stdout)
-    assert got["numpy"] is False
-    m = got["metrics"]
-    assert m["outcome"] == "settled" and m["rows"] == 3001, m
-    data = np.loadtxt(tmp_path / "results.csv", delimiter=",", skiprows=1)
-    want = glide_metrics(data[:, 0].copy(), data[:, 1].copy(), data[:, 3].copy(),
-                         m["theta_ge_rad"], 0.0)  # fmt: skip
-    for k, v in want.items():
-        assert bits(m[k]) == bits(v), (k, m[k], v)
-    rms = float(np.sqrt(np.mean(wrap_angle(data[:, 2] - data[:, 1]) ** 2)))
-    assert m["estimation_rms_rad"].hex() == rms.hex()
-
-
-@pytest.mark.parametrize("helper", ["1", "0"])
-def test_a_tables_csv_lines_are_the_arrays(helper, monkeypatch):
-    """The sweep's trajectories: a Table's CSV text without numpy, the same bytes."""
+def test_a_tables_csv_lines_are_the_arrays():
+    """The sweep's trajectories: a Table's CSV text is the array's, the same bytes."""
     from glider_cosim.runner.recorders import csv_lines
 
-    monkeypatch.setenv("GLIDER_COSIM_FASTLOOP", helper)
     rows = np.random.default_rng(3).normal(size=(40, 3)) * 1e3
     rows[2, 1], rows[5, 0], rows[7, 2] = -0.0, math.inf, 1e-310
     table = Table(array("d", rows.tobytes()), 40, 3)
@@ -295,3 +179,25 @@ def test_a_run_results_data_is_a_numpy_array_made_on_access():
     assert result.column("b").tolist() == [2.0, 5.0, 8.0, 11.0]
     same = RunResult(None, ["time", "a", "b"], rows, {})
     assert same.data is rows and same == RunResult(None, ["time", "a", "b"], rows, {})
+
+
+def test_the_angle_wrap_is_numpys_mod_bit_for_bit():
+    """``wrap_angle`` (fmod and a correction, for speed) gives ``np.mod``'s bits: random
+    values of every magnitude, the multiples of the period and their neighbours, zeros,
+    the smallest subnormals, NaN and the infinities; degrees too."""
+    rng = np.random.default_rng(53)
+    for period in (2.0 * math.pi, 360.0):
+        half = 0.5 * period
+        x = np.concatenate(
+            [rng.normal(size=20000) * s for s in (1e-300, 1e-9, 1.0, 4.0, 1e3, 1e9, 1e17)]
+            + [np.arange(-6, 7) * half + d for d in (0.0, 1e-12, -1e-12)]
+            + [np.array([0.0, -0.0, 5e-324, -5e-324, np.nextafter(half, 0), -half, half])]
+        )  # fmt: skip
+        with np.errstate(invalid="ignore"):
+            want = np.mod(x + half, period) - half
+        got = wrap_angle(x, period)
+        assert got.view(np.uint64).tolist() == want.view(np.uint64).tolist()
+        with np.errstate(invalid="ignore"):
+            special = wrap_angle(np.array([np.nan, np.inf, -np.inf]), period)
+        assert np.isnan(special).all()
+    assert float(wrap_angle(math.pi)) == -math.pi and float(wrap_angle(-math.pi)) == -math.pi
