@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import errno
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.master import fastloop
 from glider_cosim.runner.recorders import repr_row
@@ -98,8 +98,7 @@ def test_a_full_disk_is_reported_by_the_next_put_and_by_close(asan):
 
 
 def test_the_writer_is_clean_under_valgrind(tmp_path):
-    if shutil.which("valgrind") is None:
-        pytest.fail("valgrind is not installed (.ci/run installs it)")
+    require_tool("valgrind")
     exe = build(tmp_path, "harness", [])
     csv, raw = tmp_path / "rows.csv", tmp_path / "rows.bin"
     p = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full",
@@ -113,9 +112,7 @@ def test_the_writer_is_clean_under_valgrind(tmp_path):
 
 
 def test_the_windows_stub_compiles_warning_free(tmp_path):
-    cc = shutil.which("x86_64-w64-mingw32-gcc")
-    if cc is None:
-        pytest.fail("mingw-w64 is not installed (.ci/run installs it)")
+    cc = require_tool("x86_64-w64-mingw32-gcc", install="apt-get install gcc-mingw-w64-x86-64")
     source = fastloop.SOURCE.with_name("csvwriter.c")
     obj = tmp_path / "csvwriter.o"
     subprocess.run([cc, "-std=gnu11", "-O2", *WARNINGS, "-c", str(source), "-I",

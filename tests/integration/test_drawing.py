@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import shutil
 import signal
 from pathlib import Path
 
@@ -203,7 +202,7 @@ def test_the_partner_dies_with_the_drawing_process():
     drawer.close()
 
 
-@pytest.mark.skipif(shutil.which("pngcheck") is None, reason="pngcheck is installed by .ci/run")
+@pytest.mark.requires_tool("pngcheck")
 def test_pngcheck_finds_the_runs_pngs_valid(result, tmp_path):
     """glider-cosim writes its PNGs itself (``raster.png_bytes``): a PNG checker we did
     not write reads every chunk, its CRC and the image data."""

@@ -5,12 +5,12 @@ Python flavor for three (settled, stopped, limit cycle)."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from system_tools import require_tool, tool_missing
 
 from glider_cosim.runner import metrics as metrics_module
 from glider_cosim.runner import simulate
@@ -85,9 +85,7 @@ print("checked", M._KERNEL[0] is lib)
 def test_the_kernel_is_warning_free_and_clean_under_asan_and_ubsan(tmp_path):
     """gcc -Wall -Wextra -Werror; then the bit-for-bit tests with the kernel built with
     AddressSanitizer and UndefinedBehaviorSanitizer (both runtimes preloaded into Python)."""
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        pytest.skip("no gcc")
+    gcc = require_tool("gcc")
     so = tmp_path / "glidemetrics_asan.so"
     subprocess.run([gcc, "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Werror",
                     "-ffp-contract=off", "-fsanitize=address,undefined", "-fno-omit-frame-pointer",
@@ -100,7 +98,7 @@ def test_the_kernel_is_warning_free_and_clean_under_asan_and_ubsan(tmp_path):
         for n in ("libasan.so", "libubsan.so")
     ]
     if not all(Path(r).is_file() for r in runtimes):
-        pytest.skip("no ASan/UBSan runtime")
+        tool_missing("gcc's ASan/UBSan runtimes are not installed (libasan, libubsan)")
     env = {**os.environ, "LD_PRELOAD": " ".join(runtimes), "ASAN_OPTIONS": "detect_leaks=0",
            "UBSAN_OPTIONS": "halt_on_error=1:print_stacktrace=1"}  # fmt: skip
     tests = Path(__file__).resolve().parents[1]

@@ -7,6 +7,7 @@ import math
 import re
 
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.scenarios.overrides import apply_overrides
 from glider_cosim.scenarios.scenario import load_scenario
@@ -176,14 +177,13 @@ def test_report_html_renders_every_figure(report):
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from chromium_page import chromium, load
+    from chromium_page import load
 
     _, _, out = report
     page = out / "report.html"
     text = page.read_text()
     assert not re.search(r"<script[^>]+src=", text)
-    if chromium() is None:
-        pytest.skip("needs Debian's chromium (.ci/run installs it)")
+    require_tool("chromium", "chromium-browser")
     found = load(page)
     assert found["errors"] == [] and found["console"] == [] and found["fetched"] == []
     # every figure of report.md, the region-of-attraction map (one panel per case) last

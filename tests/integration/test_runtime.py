@@ -7,7 +7,6 @@ from __future__ import annotations
 import ctypes
 import gc
 import math
-import shutil
 import subprocess
 import sys
 import threading
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from raw_fmi import Loop, RawFMU
+from system_tools import require_tool, tool_missing
 
 from glider_fmi import compile as runtime
 
@@ -445,8 +445,9 @@ def test_our_python_declarations_are_pythons(tmp_path):
     import sysconfig
 
     include = Path(sysconfig.get_paths()["include"])
-    if not (include / "Python.h").is_file() or shutil.which("gcc") is None:
-        pytest.skip("this Python's headers or gcc are not installed")
+    require_tool("gcc")
+    if not (include / "Python.h").is_file():
+        tool_missing(f"this Python's headers are not installed ({include / 'Python.h'})")
     here = Path(runtime.__file__).parent
     src = tmp_path / "check.c"
     src.write_text('#define Py_LIMITED_API 0x030B0000\n#include <Python.h>\n'
