@@ -302,6 +302,8 @@ def dispatch(args: argparse.Namespace) -> int:
     # asked; verify builds ours only for --write-references/--export
     if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
+    if args.command == "sweep":  # up front, as run's: before any build and before Dask
+        _check_out_dir(Path(args.out), "--out")
     if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
         return code
     if uses_fmu_options(args):  # analyze only with --from-fmu, verify builds its own
