@@ -256,6 +256,7 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from ..inputs.text import command_line
     from ..studies.report import build_report
 
     try:
@@ -270,7 +271,8 @@ def _report(args: argparse.Namespace) -> int:
     written: list[Path] = []
     path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
                         roa_grid=grid, workers=args.workers, scheduler=args.scheduler,
-                        page=not args.no_plots, written=written)  # fmt: skip
+                        page=not args.no_plots, written=written,
+                        command=command_line(args.argv))  # fmt: skip
     print(f"wrote {path}")
     page = next((f for f in written if f.name == "report.html"), None)
     if page is not None:
