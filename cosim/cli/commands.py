@@ -256,13 +256,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from ..inputs.text import command_line
+    from ..studies.analysis import analyze
     from ..studies.report import build_report
-
-    try:
-        from ..studies.analysis import analyze
-    except ImportError:  # pragma: no cover - analysis is part of the package
-        analyze = None
     from ..studies.roa import parse_grid
 
     grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)

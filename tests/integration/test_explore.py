@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import re
 import subprocess
 import sys
@@ -65,7 +66,9 @@ def page(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("explore")
     p = cli("explore", "--out", str(out))
     assert p.returncode == 0, p.stderr
-    assert p.stdout.strip() == f"wrote {out / 'explore.html'}"
+    assert p.stdout.strip() == (
+        f"wrote {out / 'explore.html'} (open this file in a browser; no server needed)"
+    )
     return out / "explore.html"
 
 
@@ -165,6 +168,41 @@ def test_a_change_is_simulated_and_drawn_and_its_time_shown(page):
     assert all(s["total_ms"] > 0 for s in seen), seen
     assert re.fullmatch(r"3000 macro steps simulated in [\d.]+ ms and drawn in [\d.]+ ms: "
                         r"[\d.]+ ms \(target 50 ms\)", seen[-1]["timing"])  # fmt: skip
+
+
+FORM = """window.glider.ready.then(() => new Promise(done => setTimeout(() => {
+  const law = document.getElementById('f-law'), state = {};
+  const label = (k) => document.getElementById('f-' + k).parentElement.textContent;
+  for (const name of ['passivity', 'P', 'PI', 'open loop']) {
+    law.value = name; law.dispatchEvent(new Event('input'));
+    state[name] = ['K_c', 'K_P', 'K_I'].filter(k => !document.getElementById('f-' + k).disabled);
+  }
+  done(JSON.stringify({state, K_c: label('K_c'), ticks: window.glider.ticks,
+                       text: document.body.innerText}));
+}, 300)))"""
+
+
+def test_the_form_says_how_k_c_acts_greys_unused_gains_and_has_round_ticks(page):
+    """Issue 54: the law divides by K_c (a larger K_c is gentler), and the page says so;
+    a law's unused gains are disabled; every axis is labelled at round values; the page
+    says it needs no server."""
+    (found,), errors = evaluate(page, [FORM])
+    assert errors == []
+    assert found["state"] == {"passivity": ["K_c"], "P": ["K_P"], "PI": ["K_P", "K_I"],
+                              "open loop": []}  # fmt: skip
+    assert "divides by K_c: larger is gentler" in found["K_c"]
+    assert "Open this file in a browser; no server needed" in found["text"]
+    assert set(found["ticks"]) == {"glide", "pitch", "tail", "speed"}
+    for plot, axes in found["ticks"].items():
+        for axis, labels in axes.items():
+            values = [float(v.removesuffix(" s")) for v in labels]
+            assert len(values) >= 3, (plot, axis, labels)
+            steps = {round(b - a, 9) for a, b in zip(values, values[1:])}
+            assert len(steps) == 1, (plot, axis, labels)  # evenly spaced
+            (step,) = steps
+            mant = step / 10 ** math.floor(math.log10(step))
+            assert round(mant, 6) in (1.0, 2.0, 5.0), (plot, axis, labels)  # 1, 2 or 5 x 10^k
+            assert all(abs(v / step - round(v / step)) < 1e-6 for v in values), (plot, labels)
 
 
 def test_never_writes_over_a_file_not_its_own(tmp_path):
