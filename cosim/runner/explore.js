@@ -432,7 +432,7 @@
     const tEnd = t.length ? Math.max(t[t.length - 1], D.step) : 1;
     const X = (x) => L + (W - L - R) * x / tEnd, Y = (y) => T + (H - T - B) * (hi - y) / (hi - lo);
     ctx.strokeStyle = "#ccc"; ctx.fillStyle = "#333"; ctx.font = "11px sans-serif"; ctx.lineWidth = 1;
-    const yt = niceTicks(lo, hi, 4), xt = niceTicks(0, tEnd, 4);
+    const yt = niceTicks(lo, hi, 5), xt = niceTicks(0, tEnd, 4);
     const shown = { y: [], x: [] };
     for (const y of yt.ticks) {
       ctx.beginPath(); ctx.moveTo(L, Y(y)); ctx.lineTo(W - R, Y(y)); ctx.stroke();
