@@ -40,6 +40,8 @@ def unzip(fmu: Path, where: Path) -> Path:
 
 def compile_host(compiler: str | list[str], out: Path, extra: list[str]) -> Path:
     start = [compiler] if isinstance(compiler, str) else list(compiler)
+    if not Path(start[0]).is_absolute():  # a system compiler (zig's is a path)
+        require_tool(start[0])
     p = subprocess.run([*start, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1",
                         f"-I{HEADERS}", "-o", str(out), str(HOST_C), *extra],
                        capture_output=True, text=True)  # fmt: skip
@@ -184,6 +186,7 @@ def qemu_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.nd
                      ".ci/run installs it)")  # fmt: skip
     zig = [*toolchain.zig_command(), "-target", toolchain.PLATFORMS["aarch64-linux"].zig_target]
     host = compile_host(zig, tmp_path / host_name, [*extra, *GCC_FLAGS])
+    require_tool("readelf", install="apt-get install binutils")
     machine = subprocess.run(["readelf", "-h", str(host)], capture_output=True, text=True,
                              check=True).stdout  # fmt: skip
     assert "AArch64" in machine  # really an aarch64 program

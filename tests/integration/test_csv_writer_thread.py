@@ -27,6 +27,7 @@ WARNINGS = ["-Wall", "-Wextra", "-Werror"]
 
 def build(tmp_path: Path, name: str, flags: list[str]) -> Path:
     out = tmp_path / name
+    require_tool("gcc")
     subprocess.run(["gcc", "-std=gnu11", "-g", "-O1", *WARNINGS, *flags, str(HARNESS), *SOURCES,
                     "-pthread", "-lm", "-o", str(out)], check=True)  # fmt: skip
     return out
@@ -117,6 +118,7 @@ def test_the_windows_stub_compiles_warning_free(tmp_path):
     obj = tmp_path / "csvwriter.o"
     subprocess.run([cc, "-std=gnu11", "-O2", *WARNINGS, "-c", str(source), "-I",
                     str(source.parent), "-o", str(obj)], check=True)  # fmt: skip
+    require_tool("x86_64-w64-mingw32-nm", install="apt-get install binutils-mingw-w64-x86-64")
     symbols = subprocess.run(["x86_64-w64-mingw32-nm", str(obj)],
                              capture_output=True, text=True, check=True).stdout  # fmt: skip
     assert all(f" T glider_csv_{f}" in symbols for f in ("open", "start", "put", "close")), symbols

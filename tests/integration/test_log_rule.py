@@ -153,6 +153,7 @@ def test_the_forwarder_writes_by_the_rule_under_asan(tmp_path):
 
     c_file.write_text(HARNESS)
     exe = tmp_path / "h"
+    require_tool("gcc")
     p = subprocess.run(["gcc", "-std=gnu11", "-g", "-Wall", "-Wextra", "-Werror",
                         "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
                         f"-I{fmi_headers()}", f"-I{onefmu.QUIET_SOURCE.parent}", str(c_file),

@@ -58,6 +58,8 @@ def test_native_fmu_is_valid_and_self_contained(native_dir, tmp_path, name):
     d = unzip(fmu, tmp_path / name)
     assert folder_flavor(native_dir) == "native"
     so = d / "binaries" / "linux64" / f"{name}.so"
+    require_tool("readelf", install="apt-get install binutils")
+    require_tool("objdump", install="apt-get install binutils")
     needed = subprocess.run(["readelf", "-d", str(so)], capture_output=True, text=True,
                             check=True).stdout  # fmt: skip
     libs = {line.split("[")[1].rstrip("]") for line in needed.splitlines() if "NEEDED" in line}
@@ -366,6 +368,7 @@ def test_mingw_chosen_builds_win64_and_zig_the_rest(tmp_path):
     d = unzip(tmp_path / "GliderPlant.fmu", tmp_path / "p")
     bins = sorted(str(p.relative_to(d)) for p in (d / "binaries").rglob("*.*"))
     assert [b.split("/")[1] for b in bins] == ["aarch64-linux", "darwin64", "linux64", "win64"]
+    require_tool("objdump", install="apt-get install binutils")
     dump = subprocess.run(["objdump", "-p", str(d / "binaries/win64/GliderPlant.dll")],
                           capture_output=True, text=True, check=True).stdout  # fmt: skip
     imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}

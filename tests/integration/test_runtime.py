@@ -430,6 +430,7 @@ def test_runtime_compiles_warning_free_and_links_no_python(tmp_path):
     printed = runtime.compile_runtime(out)
     assert printed == ""  # -Wall -Wextra: no warning
     assert {"-Wall", "-Wextra"} <= set(runtime.CFLAGS)
+    require_tool("nm", install="apt-get install binutils")
     nm = subprocess.run(["nm", "-D", "--undefined-only", str(out)], capture_output=True,
                         text=True, check=True).stdout  # fmt: skip
     assert "Py" not in nm  # every Python function is resolved at run time

@@ -107,6 +107,7 @@ def rebuilt(shipped, header_sets, tmp_path_factory) -> dict:
                 src = sources_of(fmu, out / f"{name}_src")
                 so = out / f"{name}.so"
                 printed[name] = build(compiler, src, header_sets[fmi], so)
+                require_tool("objdump", install="apt-get install binutils")
                 dis = subprocess.run(["objdump", "-d", str(so)], capture_output=True,
                                      text=True, check=True).stdout  # fmt: skip
                 fma[name] = len(FMA.findall(dis))
