@@ -30,6 +30,7 @@ def tools_required() -> bool:
 
 def tool_missing(reason: str) -> NoReturn:
     """Skip the current test with ``reason``, or fail it when CI requires every tool."""
+    __tracebackhide__ = True  # the skip is reported at the test's line, not here
     if tools_required():
         pytest.fail(f"{reason} ({REQUIRE_TOOLS_ENV} is set: every system tool is required)")
     pytest.skip(reason)
@@ -46,6 +47,7 @@ def require_tool(*names: str, install: str | None = None) -> str:
     install
         how to get it, named in the reason (default: the Debian package of the same name)
     """
+    __tracebackhide__ = True
     for name in names:
         if found := shutil.which(name):
             return found

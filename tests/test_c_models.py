@@ -106,7 +106,7 @@ class CPI(ctypes.Structure):
 @pytest.fixture(scope="module")
 def build(tmp_path_factory):
     """(library, compiler stderr)."""
-    cc = require_tool("cc", "gcc", "clang")
+    cc = require_tool("cc", "gcc", "clang", install="apt-get install gcc")
     out = tmp_path_factory.mktemp("cmodels") / "libglider_models.so"
     inc = [f"-I{SRC / d}" for d in ("plant", "observer", "controller", "fmi")]
     cmd = [cc, *CFLAGS, "-fPIC", "-shared", *inc, *map(str, C_FILES), "-o", str(out), "-lm"]
