@@ -64,7 +64,7 @@ from .spec import (
     parse_param,
     run_id,
 )
-from .store import SHOWN_FAILURES, SweepStore, describe_failures, write_atomically
+from .store import SHOWN_FAILURES, SweepStore, _short, describe_failures, write_atomically
 from .worker import METRIC_KEYS, _csv_text, run_many, run_one  # noqa: F401 (re-exported)
 
 #: runs per Dask task at most (:func:`run_sweep`'s ``chunk``): about 0.1 s of native runs
@@ -245,13 +245,6 @@ def outcome_summary(path: Path, param_names: Sequence[str], shown: int = SHOWN_U
     return line
 
 
-def _short(text: str) -> str:
-    try:
-        return f"{float(text):.6g}"
-    except ValueError:
-        return text
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
@@ -331,8 +324,8 @@ __all__ = [
     "expand",
     "main",
     "make_client",
-    "outcome_summary",
     "nominal_values",
+    "outcome_summary",
     "parse_param",
     "run_id",
     "run_many",
