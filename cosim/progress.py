@@ -4,9 +4,9 @@ One rule for every command (:func:`mode`):
 
 - ``"bar"``: stderr is a terminal and no CI is detected (``CI``, ``GITHUB_ACTIONS``, ...
   unset, ``TERM`` not ``dumb``): a tqdm bar, redrawn in place;
-- ``"lines"``: a pipe, a file or CI: plain lines, one per step (``building
-  GliderPlant.fmu native x86_64-linux (50 of 60)``), never carriage returns, so a log
-  reads top to bottom;
+- ``"lines"``: a pipe, a file, CI or a terminal that reports a size of 0x0: plain lines,
+  one per step (``building GliderPlant.fmu native x86_64-linux (50 of 60)``), never
+  carriage returns, so a log reads top to bottom;
 - ``"off"``: ``--quiet`` (:func:`set_quiet`): nothing.
 
 :class:`Progress` counts the steps of a task (FMU builds, ``report``, ``sweep``, the
@@ -69,7 +69,16 @@ def mode(stream: TextIO | None = None) -> str:
         tty = bool(stream.isatty())
     except (AttributeError, ValueError):  # closed or not a file
         tty = False
-    return "bar" if tty and not in_ci() else "lines"
+    return "bar" if tty and not in_ci() and not _no_size(stream) else "lines"
+
+
+def _no_size(stream: TextIO) -> bool:
+    """True for a terminal that reports no columns (a size of 0x0: ``script(1)``, some CI
+    ptys), where tqdm draws nothing: such a terminal gets plain lines."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns <= 0
+    except (AttributeError, OSError, ValueError):  # no size to read: the bar's own default
+        return False
 
 
 def say(text: str, stream: TextIO | None = None) -> None:

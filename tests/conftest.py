@@ -9,7 +9,10 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from system_tools import require_tool
 
+#: pytester runs small sessions of their own (tests/test_system_tools.py)
+pytest_plugins = ["pytester"]
 HERE = Path(__file__).parent
 #: the session's FMU cache, in its temporary folder (see :func:`pytest_configure`)
 CACHE_FOLDER = "glider-cosim-cache"
@@ -27,6 +30,11 @@ def pytest_configure(config):
     is one folder of it too, so that the session never writes into the user's cache and
     builds each flavor once, for the fixtures and for runs without ``--fmu-dir`` alike.
     """
+    config.addinivalue_line(
+        "markers",
+        "requires_tool(*names): needs one of these programs on PATH; skipped when absent, "
+        "failed when GLIDER_COSIM_REQUIRE_TOOLS=1 (tests/system_tools.py)",
+    )
     base = tempfile.mkdtemp(prefix="glider-tests-")
     config._glider_tmp = (
         base,
@@ -59,6 +67,13 @@ def _leaked_temp_files(config) -> list[str]:
             os.environ[name] = old
     shutil.rmtree(base, ignore_errors=True)
     return leaked
+
+
+def pytest_runtest_setup(item):
+    """``@pytest.mark.requires_tool("a", "b")``: skip (or, under CI, fail) the test when
+    none of the programs is on ``PATH`` (see :mod:`system_tools`)."""
+    for mark in item.iter_markers("requires_tool"):
+        require_tool(*mark.args, **mark.kwargs)
 
 
 @pytest.fixture(scope="session")

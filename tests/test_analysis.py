@@ -14,6 +14,7 @@ import pytest
 from glider_cosim.studies.analysis import (
     analyze,
     closed_loop_matrix,
+    format_report,
     observer_analysis,
     reduced_model_test,
     sampled_loop_eigenvalues,
@@ -40,12 +41,37 @@ def result():
 def test_analyze_shows_its_steps(result):
     """``glider-cosim analyze`` takes about 3 s: its steps show as they start (issue 45)."""
     assert SHOWN[0].splitlines() == [
-        "analyze: the closed loop at 9 gains K_c (1 of 5)",
-        "analyze: the stable K_c ranges at K_Fdelta = 15 (2 of 5)",
-        "analyze: the stable K_c ranges at K_Fdelta = 29.5 (3 of 5)",
-        "analyze: the stable K_c ranges at K_Fdelta = 45 (4 of 5)",
-        "analyze: the stable K_c ranges at K_Fdelta = 29.5 (the model's) (5 of 5)",
+        "analyze: the closed loop at 9 gains K_c (1 of 4)",
+        "analyze: the stable K_c ranges at K_Fdelta = 29.5 (the model's) (2 of 4)",
+        "analyze: the stable K_c ranges at K_Fdelta = 15 (3 of 4)",
+        "analyze: the stable K_c ranges at K_Fdelta = 45 (4 of 4)",
     ]
+
+
+def test_each_case_is_computed_once(monkeypatch):
+    """The model's K_Fdelta (29.5) is one of the sensitivity study's: computed once."""
+    from glider_cosim.studies import analysis
+
+    seen = []
+    real = analysis.stable_kc_ranges
+    monkeypatch.setattr(analysis, "stable_kc_ranges",
+                        lambda p, *a, **k: seen.append(p.K_Fdelta) or real(p, *a, **k))  # fmt: skip
+    with contextlib.redirect_stderr(io.StringIO()):
+        found = analyze(K_c_list=[10.0])
+    assert sorted(seen) == [15.0, 29.5, 45.0]
+    model = found["stable_K_c"]
+    assert found["K_Fdelta_sensitivity"]["29.5"] == {k: model[k] for k in ("continuous", "sampled")}
+
+
+def test_the_table_explains_its_columns(result):
+    text = format_report(result)
+    header = next(line for line in text.splitlines() if line.lstrip().startswith("K_c "))
+    legend = text.split("\ncolumns:\n", 1)[1].splitlines()
+    named = [line.split(": ", 1)[0].strip() for line in legend]
+    assert named[:6] == ["K_c", "cont. max Re", "A22", "Schur", "|z| sampled", "|z| +observer"]
+    for name in named[:6]:
+        assert name in header
+    assert "a larger K_c is gentler" in legend[0] and "Schur complement" in legend[3]
 
 
 def test_json_object_with_the_contract_keys(result):

@@ -12,12 +12,12 @@ import csv
 import ctypes
 import math
 import random
-import shutil
 import struct
 import subprocess
 from pathlib import Path
 
 import pytest
+from system_tools import require_tool
 
 from glider_controller.laws import PIController, passivity_law, passivity_output
 from glider_observer.filter import ButterworthFilter, butterworth_coefficients
@@ -103,20 +103,10 @@ class CPI(ctypes.Structure):
     _fields_ = [("K_P", D), ("K_I", D), ("delta_max", D), ("integral", D)]
 
 
-def _compiler() -> str | None:
-    for cc in ("cc", "gcc", "clang"):
-        path = shutil.which(cc)
-        if path:
-            return path
-    return None
-
-
 @pytest.fixture(scope="module")
 def build(tmp_path_factory):
     """(library, compiler stderr)."""
-    cc = _compiler()
-    if cc is None:
-        pytest.skip("no C compiler (cc, gcc or clang) on PATH")
+    cc = require_tool("cc", "gcc", "clang", install="apt-get install gcc")
     out = tmp_path_factory.mktemp("cmodels") / "libglider_models.so"
     inc = [f"-I{SRC / d}" for d in ("plant", "observer", "controller", "fmi")]
     cmd = [cc, *CFLAGS, "-fPIC", "-shared", *inc, *map(str, C_FILES), "-o", str(out), "-lm"]

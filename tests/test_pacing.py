@@ -23,7 +23,8 @@ def test_points_start_on_their_deadlines_and_an_overrun_is_counted():
     assert time.monotonic() - t0 >= 0.05 - 1e-3
     rt = p.summary()
     assert rt["overruns"] >= 1 and rt["points"] == 6
-    assert rt["rtf_target"] == 2.0 and 1.0 < rt["rtf_achieved"] <= 2.01
+    # never faster than the target (a busy machine may make it slower: no lower bound)
+    assert rt["rtf_target"] == 2.0 and 0.0 < rt["rtf_achieved"] <= 2.01
     assert rt["lateness_ms"]["max"] >= 0.0
     assert "overruns" in describe(rt) and "target 2" in describe(rt)
 

@@ -172,11 +172,11 @@ def test_sweep_lines():
     ]
 
 
-def _on_a_terminal(code: str) -> str:
+def _on_a_terminal(code: str, rows: int = 24, columns: int = 80) -> str:
     """What ``code``, run in a new interpreter whose stderr is a terminal (a pty of 80
-    columns), writes there."""
+    columns, or the size given), writes there."""
     master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
     env = {k: v for k, v in os.environ.items() if k not in progress.CI_VARIABLES}
     env["TERM"] = "xterm"
     proc = subprocess.Popen([sys.executable, "-c", code], stderr=slave, stdout=subprocess.PIPE,
@@ -212,6 +212,36 @@ def test_a_terminal_gets_a_bar():
     assert "build: 100%|" in text and "2/2" in text
     assert "\r" in text.removeprefix("building 2 FMUs\r\n")  # redrawn in place, not new lines
     assert "(1 of 2)" not in text  # no plain lines
+
+
+def test_a_terminal_of_size_0x0_gets_plain_lines():
+    """``script(1)`` and some CI ptys report 0 rows and 0 columns: tqdm would draw
+    nothing there, so the steps and a run's progress come as plain lines."""
+    text = _on_a_terminal(
+        "from glider_cosim import progress\n"
+        "with progress.Progress(2, 'build', 'building 2 FMUs') as bar:\n"
+        "    bar.step('building GliderPlant.fmu python')\n"
+        "    bar.step('building GliderObserver.fmu python')\n"
+        "progress.SHOW_AFTER_S = 0.0\n"
+        "class R:\n"
+        "    def start(self, c): pass\n"
+        "    def row(self, v): pass\n"
+        "    def close(self): pass\n"
+        "rec = progress.RunProgress(R(), rows=256, stop_time=5.12)\n"
+        "rec.start(['time'])\n"
+        "for k in range(256): rec.row([k])\n"
+        "rec.close()\n",
+        rows=0,
+        columns=0,
+    )
+    lines = text.replace("\r\n", "\n").splitlines()
+    assert lines[:3] == [
+        "building 2 FMUs",
+        "building GliderPlant.fmu python (1 of 2)",
+        "building GliderObserver.fmu python (2 of 2)",
+    ]
+    assert lines[3].startswith("run: t = ") and lines[-1].startswith("run: t = 5.1 / 5.12 s")
+    assert "%|" not in text
 
 
 def test_a_run_on_a_terminal_gets_a_bar_cleared_at_the_end():

@@ -254,12 +254,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from ..studies.analysis import analyze
     from ..studies.report import build_report
-
-    try:
-        from ..studies.analysis import analyze
-    except ImportError:  # pragma: no cover - analysis is part of the package
-        analyze = None
     from ..studies.roa import parse_grid
 
     grid = None if args.roa_grid.lower() == "none" else parse_grid(args.roa_grid)
@@ -268,7 +264,8 @@ def _report(args: argparse.Namespace) -> int:
     written: list[Path] = []
     path = build_report(args.out, args.fmu_dir, analysis=analyze, progress=not args.no_progress,
                         roa_grid=grid, workers=args.workers, scheduler=args.scheduler,
-                        page=not args.no_plots, written=written)  # fmt: skip
+                        page=not args.no_plots, written=written,
+                        command=command_line(args.argv))  # fmt: skip
     print(f"wrote {path}")
     page = next((f for f in written if f.name == "report.html"), None)
     if page is not None:
@@ -300,6 +297,8 @@ def dispatch(args: argparse.Namespace) -> int:
     # asked; verify builds ours only for --write-references/--export
     if args.command in EXPORT_SUFFIX:  # before any FMU is built for it
         _check_out_file(Path(args.out), "OUT", EXPORT_SUFFIX[args.command])
+    if args.command == "sweep":  # up front, as run's: before any build and before Dask
+        _check_out_dir(Path(args.out), "--out")
     if (code := webassembly.dispatch(args, _check_out_dir)) is not None:  # wasm, explore
         return code
     if uses_fmu_options(args):  # analyze only with --from-fmu, verify builds its own

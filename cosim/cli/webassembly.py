@@ -40,5 +40,6 @@ def explore(args: argparse.Namespace, check_out_dir: Callable[[Path, str], None]
     folder = None if args.fmu_dir is None else Path(args.fmu_dir)
     fmus = prepare_fmus(folder, "native", 3, host_only=folder is None,
                         overwrite=getattr(args, "overwrite_fmus", False))  # fmt: skip
-    print(f"wrote {write_page(out, scenario, fmus)}")
+    page = write_page(out, scenario, fmus)
+    print(f"wrote {page} (open this file in a browser; no server needed)")
     return 0

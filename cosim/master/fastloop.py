@@ -171,7 +171,7 @@ def build_helper(
         out = new_temp_dir(f"{stem}_") / f"{stem}{suffix}"
         part = out
     try:
-        toolchain.run([*cmd, *map(str, sources), "-o", str(part)], what, timeout=120)
+        toolchain.run([*cmd, *map(str, sources), "-o", str(part)], what)
         if part != out:
             os.replace(part, out)
     finally:

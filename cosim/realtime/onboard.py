@@ -68,7 +68,7 @@ def build_onboard(out: Path, target: str | None = None, component: str = "contro
                toolchain.PLATFORMS[target].zig_target, *CFLAGS,
                "-D_POSIX_C_SOURCE=200112L", f"-I{stage}", *sources, "-o",
                str(stage / name), *libs]  # fmt: skip
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        p = subprocess.run(cmd, capture_output=True, text=True)  # no time limit: slow is not failed
         if p.returncode != 0 or p.stderr.strip():
             first = " ".join((p.stderr or p.stdout).split())[:400]
             raise OnboardBuildError(f"build-onboard ({target}): the compiler says: {first}")

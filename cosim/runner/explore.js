@@ -405,6 +405,20 @@
     { id: "speed", title: "speed V (m/s)", series: [["plant.V", "#9467bd", "V"]], deg: false },
   ];
 
+  /** Round ticks covering [lo, hi]: about n steps of 1, 2 or 5 times a power of ten;
+   * (values, decimals to print them with). */
+  function niceTicks(lo, hi, n) {
+    const raw = (hi - lo) / Math.max(n, 1);
+    const p = Math.pow(10, Math.floor(Math.log10(raw)));
+    const step = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw * (1 - 1e-9));
+    const decimals = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+    const ticks = [];
+    for (let i = Math.ceil(lo / step - 1e-9); i * step <= hi + step * 1e-9; i++) {
+      ticks.push(Number((i * step).toFixed(decimals)) + 0);  // + 0: no "-0"
+    }
+    return { ticks, decimals };
+  }
+
   function draw(canvas, plot, r, ge) {
     const ctx = canvas.getContext("2d");
     const W = canvas.width, H = canvas.height, L = 56, R = 10, T = 22, B = 26;
@@ -418,13 +432,17 @@
     const tEnd = t.length ? Math.max(t[t.length - 1], D.step) : 1;
     const X = (x) => L + (W - L - R) * x / tEnd, Y = (y) => T + (H - T - B) * (hi - y) / (hi - lo);
     ctx.strokeStyle = "#ccc"; ctx.fillStyle = "#333"; ctx.font = "11px sans-serif"; ctx.lineWidth = 1;
-    for (let i = 0; i <= 4; i++) {
-      const y = lo + (hi - lo) * i / 4;
+    const yt = niceTicks(lo, hi, 5), xt = niceTicks(0, tEnd, 4);
+    const shown = { y: [], x: [] };
+    for (const y of yt.ticks) {
       ctx.beginPath(); ctx.moveTo(L, Y(y)); ctx.lineTo(W - R, Y(y)); ctx.stroke();
-      ctx.fillText(y.toPrecision(3), 4, Y(y) + 4);
-      const x = tEnd * i / 4;
-      ctx.fillText(`${x.toFixed(0)} s`, Math.min(X(x) - 10, W - R - 30), H - 8);
+      shown.y.push(y.toFixed(yt.decimals)); ctx.fillText(shown.y[shown.y.length - 1], 4, Y(y) + 4);
     }
+    for (const x of xt.ticks) {
+      shown.x.push(`${x.toFixed(xt.decimals)} s`);
+      ctx.fillText(shown.x[shown.x.length - 1], Math.min(X(x) - 10, W - R - 30), H - 8);
+    }
+    if (window.glider) (window.glider.ticks = window.glider.ticks || {})[plot.id] = shown;
     ctx.fillText(plot.title, L, 14);
     if (plot.ref) {
       ctx.setLineDash([4, 4]); ctx.strokeStyle = "#888";
@@ -444,13 +462,28 @@
 
   /* ------------------------------------------------------------ the page */
   const FIELDS = [
-    ["law", "law", null], ["K_c", "K_c (passivity gain)", 1], ["K_P", "K_P", 1], ["K_I", "K_I (1/s)", 1],
+    ["law", "law", null], ["K_c", "K_c (passivity law; it divides by K_c: larger is gentler)", 1],
+    ["K_P", "K_P (P and PI laws)", 1], ["K_I", "K_I (1/s, PI law)", 1],
     ["noise_std", "pitch noise (deg)", 180 / Math.PI], ["tau_servo", "servo time constant (s)", 1],
     ["f_cutoff", "filter cutoff (Hz)", 1], ["theta_g_0", "initial glide angle (deg)", 180 / Math.PI],
     ["coupling", "coupling", null], ["stop_time", "stop time (s)", 1],
   ];
   const RANGES = { K_c: [0.5, 30, 0.1], K_P: [0, 5, 0.05], K_I: [0, 2, 0.01], noise_std: [0, 2, 0.01],
     tau_servo: [0, 1, 0.005], f_cutoff: [0.5, 24, 0.1], theta_g_0: [-80, -5, 0.5], stop_time: [5, 200, 1] };
+
+  /** The gains each law uses: the others' sliders are disabled under it. */
+  const USES = { "open loop": [], passivity: ["K_c"], P: ["K_P"], PI: ["K_P", "K_I"] };
+  const GAINS = ["K_c", "K_P", "K_I"];
+
+  function enableGains() {
+    const used = USES[document.getElementById("f-law").value] || [];
+    for (const key of GAINS) {
+      const el = document.getElementById("f-" + key), on = used.includes(key);
+      el.disabled = !on;
+      el.parentElement.style.opacity = on ? "1" : "0.45";
+      el.title = on ? "" : "not used by this law";
+    }
+  }
 
   function settingsFromForm() {
     const s = {};
@@ -463,6 +496,7 @@
   }
 
   function rerun() {
+    enableGains();
     const s = settingsFromForm();
     for (const [key, , scale] of FIELDS) {
       const out = document.getElementById("v-" + key);

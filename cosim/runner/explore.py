@@ -200,9 +200,12 @@ canvas {{ border: 1px solid #ddd; }}
 #metrics {{ margin-top: 10px; font-weight: bold; }} #timing {{ color: #555; font-size: 13px; }}
 </style></head><body>
 <h1 style="font-size:20px">{title}</h1>
-<p style="max-width:1200px;font-size:14px">The glider's plant, observer and controller FMUs run
+<p style="max-width:1200px;font-size:14px"><b>Open this file in a browser; no server needed</b>
+(a copy of it works anywhere, offline). The glider's plant, observer and controller FMUs run
 in this page as WebAssembly (the core modules of their FMI-LS-WASM components), under a
-co-simulation master in JavaScript. Every change re-simulates the whole run.
+co-simulation master in JavaScript. Every change re-simulates the whole run. The
+passivity law divides by K_c: a larger K_c is a gentler controller (K_c = 5 swings in a
+limit cycle, 10 settles). A law's unused gains are greyed out.
 API: <code>await window.glider.ready; window.glider.simulate({{law: "PI", K_P: 0.5}})</code>
 with any of <code>law</code> ("passivity", "P", "PI", "open loop"), <code>K_c</code>,
 <code>K_P</code>, <code>K_I</code>, <code>noise_std</code> (rad), <code>tau_servo</code> (s),

@@ -144,17 +144,12 @@ def reduced_model_test(
     return {
         "schur_matrix": S.tolist(),
         # the paper's dominant-term approximation of that matrix (Sec. 3.2)
-        "paper_dominant_terms": [
-            [-2.0, -k * math.cos(e.theta_g)],
-            [k * math.cos(e.theta_g), k * math.sin(e.theta_g)],
-        ],
-        "A22_eigenvalues": _cplx(ev22),
-        "schur_eigenvalues": _cplx(evS),
-        "A22_hurwitz": bool(np.all(ev22.real < 0)),
-        "schur_hurwitz": bool(np.all(evS.real < 0)),
-        "mu": ts["mu"],
-        "full_nondimensional_eigenvalues": _cplx(np.linalg.eigvals(A)),
-    }
+        "paper_dominant_terms": [[-2.0, -k * math.cos(e.theta_g)],
+                                 [k * math.cos(e.theta_g), k * math.sin(e.theta_g)]],
+        "A22_eigenvalues": _cplx(ev22), "schur_eigenvalues": _cplx(evS),
+        "A22_hurwitz": bool(np.all(ev22.real < 0)), "schur_hurwitz": bool(np.all(evS.real < 0)),
+        "mu": ts["mu"], "full_nondimensional_eigenvalues": _cplx(np.linalg.eigvals(A)),
+    }  # fmt: skip
 
 
 def _filter_step(hist: Sequence[float], x: float, coef: Sequence[float]):
@@ -218,14 +213,9 @@ def observer_analysis(
     obs = np.vstack([C @ np.linalg.matrix_power(A, k) for k in range(4)])
     H = np.array(observer_gain(p, R, Q))
     ev = np.linalg.eigvals(A - H[:, None] @ C)
-    return {
-        "observability_rank": int(np.linalg.matrix_rank(obs)),
-        "observable": bool(np.linalg.matrix_rank(obs) == 4),
-        "H_o": [float(v) for v in H],
-        "error_eigenvalues": _cplx(ev),
-        "R": R,
-        "Q": list(Q),
-    }
+    return {"observability_rank": int(np.linalg.matrix_rank(obs)),
+            "observable": bool(np.linalg.matrix_rank(obs) == 4), "H_o": [float(v) for v in H],
+            "error_eigenvalues": _cplx(ev), "R": R, "Q": list(Q)}  # fmt: skip
 
 
 def stable_kc_range(
@@ -255,28 +245,34 @@ def stable_kc_ranges(
     jacobian: PlantJacobian | None = None,
 ) -> dict[str, list[float | None]]:  # fmt: skip
     """Stable K_c ranges of the continuous loop and of the sampled loops."""
-    return {
-        "continuous": stable_kc_range(
-            lambda k: bool(np.all(np.linalg.eigvals(closed_loop_matrix(p, k, jacobian)).real < 0))
-        ),
-        "sampled": stable_kc_range(
-            lambda k: bool(
-                np.all(np.abs(sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo)) < 1)
-            )
-        ),  # fmt: skip
-        "sampled_with_observer": stable_kc_range(
-            lambda k: bool(
-                np.all(
-                    np.abs(sampled_loop_eigenvalues(p, k, h=h, tau_servo=tau_servo, observer=True))
-                    < 1
-                )
-            )
-        ),  # fmt: skip
-    }
+
+    def sampled(observer: bool) -> Callable[[float], bool]:
+        return lambda k: bool(np.all(np.abs(sampled_loop_eigenvalues(
+            p, k, h=h, tau_servo=tau_servo, observer=observer)) < 1))  # fmt: skip
+
+    cont = lambda k: bool(np.all(np.linalg.eigvals(closed_loop_matrix(p, k, jacobian)).real < 0))  # noqa: E731
+    return {"continuous": stable_kc_range(cont), "sampled": stable_kc_range(sampled(False)),
+            "sampled_with_observer": stable_kc_range(sampled(True))}  # fmt: skip
 
 
 def _cplx(ev: np.ndarray) -> list[list[float]]:
     return [[float(z.real), float(z.imag)] for z in sorted(ev, key=lambda z: (z.real, z.imag))]
+
+
+#: the K_Fdelta values (N/rad) of the sensitivity study (Sec. 5: the CFD value's spread)
+SENSITIVITY_K_FDELTA = (15.0, 29.5, 45.0)
+
+#: the closed-loop table's columns, explained under it (``glider-cosim analyze``)
+TABLE_LEGEND = (
+    "K_c: the passivity law's gain; the law divides by it: a larger K_c is gentler",
+    "cont. max Re: the largest real part of the continuous closed loop's eigenvalues, 1/s "
+    "(stable below 0)",
+    "A22: the reduced-model test of Sec. 3.2: the fast block (alpha, omega) of the "
+    "nondimensional Jacobian is Hurwitz",
+    "Schur: its slow block, the Schur complement A11 - A12 A22^-1 A21, is Hurwitz",
+    "|z| sampled: the spectral radius of the loop sampled at h with the servo (stable below 1)",
+    "|z| +observer: the same with the observer and its pre-filter in the loop",
+)
 
 
 def analyze(
@@ -287,13 +283,16 @@ def analyze(
     plant_fmu: Path | str | None = None,
 ) -> dict[str, Any]:
     """Everything ``glider-cosim analyze`` reports, as a JSON-serialisable dict (about 3 s:
-    its five steps shown on stderr, :mod:`glider_cosim.progress`); with ``plant_fmu`` the
+    its steps shown on stderr, :mod:`glider_cosim.progress`: the closed loop at each
+    gain, then the stable K_c ranges at each K_Fdelta, once each); with ``plant_fmu`` the
     continuous-time Jacobian is that FMU's (:func:`fmu_plant_jacobian`) and
     ``linearization`` says so."""
     from ..progress import Progress
 
-    with Progress(5, "analyze") as bar:
-        return _analyze(p or GliderParams(), K_c_list, h, tau_servo, bar, plant_fmu)
+    p = p or GliderParams()
+    steps = 2 + sum(kf != p.K_Fdelta for kf in SENSITIVITY_K_FDELTA)
+    with Progress(steps, "analyze") as bar:
+        return _analyze(p, K_c_list, h, tau_servo, bar, plant_fmu)
 
 
 def _analyze(
@@ -317,14 +316,16 @@ def _analyze(
             "sampled_spectral_radius": float(np.abs(zs).max()),
             "sampled_with_observer_spectral_radius": float(np.abs(zo).max()),
         })  # fmt: skip
+    bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {p.K_Fdelta:g} (the model's)")
+    ours = stable_kc_ranges(p, h, tau_servo, jac)
     sens = {}
-    for kf in (15.0, 29.5, 45.0):
-        bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {kf:g}")
+    for kf in SENSITIVITY_K_FDELTA:  # the model's value is not computed again
+        if kf != p.K_Fdelta:
+            bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {kf:g}")
         pk = GliderParams(**{**p.as_dict(), "K_Fdelta": kf})
-        r = stable_kc_ranges(pk, h, tau_servo, jac)
+        r = ours if kf == p.K_Fdelta else stable_kc_ranges(pk, h, tau_servo, jac)
         sens[f"{kf:g}"] = {"continuous": r["continuous"], "sampled": r["sampled"]}
     ol = np.linalg.eigvals(closed_loop_matrix(p, None, jac))
-    bar.step(f"analyze: the stable K_c ranges at K_Fdelta = {p.K_Fdelta:g} (the model's)")
     source = {} if jac is None else {"linearization": {
         "plant_fmu": str(plant_fmu), "residual": jac.residual(p)}}  # fmt: skip
     return {
@@ -333,7 +334,7 @@ def _analyze(
         "open_loop_eigenvalues": _cplx(ol),
         "closed_loop": per_kc,
         "observer": observer_analysis(p),
-        "stable_K_c": stable_kc_ranges(p, h, tau_servo, jac),
+        "stable_K_c": ours,
         "K_Fdelta_sensitivity": sens,
         "settings": {"h": h, "tau_servo": tau_servo, "K_Fdelta": p.K_Fdelta},
         **source,
@@ -378,6 +379,7 @@ def format_report(a: dict[str, Any]) -> str:
             f"{c['sampled_spectral_radius']:12.5f} "
             f"{c['sampled_with_observer_spectral_radius']:14.5f}"
         )
+    out += ["", "columns:", *(f"  {line}" for line in TABLE_LEGEND)]
     o = a["observer"]
     out += [
         "",

@@ -73,11 +73,14 @@ def report_provenance(
     options: dict[str, Any],
     roa_grid: tuple[int, int] | None,
     maps: list[Any],
+    command: str | None = None,
 ) -> dict[str, Any]:
     """How a report was made: its options (as ``glider-cosim report`` takes them), the
     region-of-attraction grid or that it was skipped, the FMUs' flavor and FMI version
     (as the runs' FMUs record them), the package and Python versions and the SHA-256 of
-    every scenario run (``metrics.json``'s ``run.scenario_sha256``)."""
+    every scenario run (``metrics.json``'s ``run.scenario_sha256``). ``command``: the
+    command as the user typed it (the CLI's arguments as given); by default one made
+    from ``options``."""
     import platform
 
     from ..fmus.files import package_version
@@ -103,7 +106,7 @@ def report_provenance(
         if rec.get("scenario") and rec.get("scenario_sha256"):
             scenarios.setdefault(rec["scenario"], rec["scenario_sha256"])
     return {
-        "command": f"glider-cosim report {words}".strip(),
+        "command": command or f"glider-cosim report {words}".strip(),
         "region of attraction": roa,
         "flavor": seen("flavor"),
         "FMI version": seen("fmi_version"),
@@ -123,6 +126,7 @@ def build_report(
     scheduler: str | None = None,
     page: bool = True,
     written: list[Path] | None = None,
+    command: str | None = None,
 ) -> Path:
     """Run everything and write ``report.md`` (returns its path).
 
@@ -132,6 +136,9 @@ def build_report(
     ``page``: also write ``report.html``, the figures interactive (zoom, hover, legend).
     ``written``: a list that gets the paths of the documents written: ``report.md``,
     ``report.html`` (if it was written) and ``report.json``.
+    ``command``: the command as the user typed it, recorded in "How this report was
+    made" (the CLI gives its arguments as given, not the cache's absolute path of the
+    FMUs); by default one made from these arguments.
     ``progress``: each step on stderr as it starts (:mod:`glider_cosim.progress`: a bar
     on a terminal, plain lines otherwise; nothing after ``--quiet``).
     """
@@ -150,7 +157,8 @@ def build_report(
     total = sum(len(f.runs) for f in FIGURES) + 4 + roa + drawings
     header = f"report: {total} steps into {home(out.absolute())}"
     with Progress(total, "report", header, quiet=not progress) as bar:
-        return _build(out, fmu_dir, analysis, roa_grid, workers, scheduler, page, bar, written)
+        return _build(out, fmu_dir, analysis, roa_grid, workers, scheduler, page, bar, written,
+                      command)  # fmt: skip
 
 
 def _build(
@@ -163,6 +171,7 @@ def _build(
     page: bool,
     bar: Progress,
     written: list[Path] | None,
+    command: str | None = None,
 ) -> Path:
     """:func:`build_report`'s work, each step announced on ``bar``."""
     results: dict[str, list[tuple[Run, RunResult]]] = {}
@@ -207,7 +216,7 @@ def _build(
                "--no-plots": not page}  # fmt: skip
     every_run = [r for runs in results.values() for _, r in runs]
     every_run += [study["literal"], *(x.result for x in sec52)]
-    made = report_provenance(every_run, options, roa_grid, maps)
+    made = report_provenance(every_run, options, roa_grid, maps, command)
     pngs, specs = {}, []  # specs: the figures' PNGs and the page are drawn from them
     for fig in FIGURES:
         bar.step(f"report: drawing {fig.key}")

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,21 +17,14 @@ from ..scenarios.scenario import Scenario
 from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
 from .kc_map import kc_map_markdown, stop_reason
 
-#: the docs folder of the source checkout this package runs from (absent in a wheel)
-DOCS = Path(__file__).resolve().parents[2] / "docs"
 
-
-def docs_link(out: Path, page: str, section: str, words: str) -> str:
-    """A markdown link from a file in ``out`` to ``section`` (a heading) of the docs page
-    ``page`` (under ``docs/``), relative to ``out``, anchored by the heading's
-    GitHub-style slug; ``words`` alone where the docs are not on this machine (the
-    package installed from a wheel): report.md never holds a link that does not resolve."""
-    target = DOCS / page
-    if not target.is_file():
-        return f"{words} (docs: {page}, '{section}')"
-    slug = "".join(c for c in section.lower() if c.isalnum() or c in " -_").replace(" ", "-")
-    rel = Path(os.path.relpath(target, Path(out).resolve())).as_posix()
-    return f"[{words}]({rel}#{slug})"
+def docs_reference(page: str, section: str, words: str) -> str:
+    """A pointer to ``section`` (a heading) of the docs page ``page`` (under ``docs/``)
+    that travels with the report: plain text naming the page and the section, never a
+    path into the clone or the cache (a report is read where it was copied to, on
+    another machine, from a wheel's install): ``the metrics' definitions (docs:
+    reference/results.md, section 'Metrics')``."""
+    return f"{words} (docs: {page}, section '{section}')"
 
 
 def _metrics_row(label: str, r: RunResult) -> str:
@@ -52,8 +43,7 @@ def _metrics_row(label: str, r: RunResult) -> str:
 def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> str:
     """The whole ``report.md`` from the runs, the analysis and the studies (``pngs``: the
     figures' files, in the report's folder)."""
-    metrics = docs_link(Path(pngs["steps"]).parent, "reference/results.md", "Metrics",
-                        "the metrics' definitions")  # fmt: skip
+    metrics = docs_reference("reference/results.md", "Metrics", "the metrics' definitions")
     lines = [
         "# glider-cosim report",
         "",

@@ -64,7 +64,7 @@ from .spec import (
     parse_param,
     run_id,
 )
-from .store import SHOWN_FAILURES, SweepStore, describe_failures, write_atomically
+from .store import SHOWN_FAILURES, SweepStore, _short, describe_failures, write_atomically
 from .worker import METRIC_KEYS, _csv_text, run_many, run_one  # noqa: F401 (re-exported)
 
 #: runs per Dask task at most (:func:`run_sweep`'s ``chunk``): about 0.1 s of native runs
@@ -211,6 +211,40 @@ def interrupted(
     return stop
 
 
+#: the runs that did not settle named by the sweep's summary line at most
+SHOWN_UNSETTLED = 8
+
+
+def outcome_summary(path: Path, param_names: Sequence[str], shown: int = SHOWN_UNSETTLED) -> str:
+    """The sweep's last line: how many runs of ``sweep.csv`` (``path``) settled, and the
+    parameter values (and seed) of those that did not, with their outcome (``error`` and
+    such for a run that failed): ``sweep: 13 of 15 runs settled; not settled:
+    controller.K_c=2 (limit cycle), controller.K_c=3 (diverged)``; at most ``shown`` of
+    them, then how many more."""
+    import csv
+
+    from ..runner.outcome import SETTLED
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    others = []
+    for row in rows:
+        outcome = row.get("outcome") or ""
+        if row.get("status") == "ok" and outcome == SETTLED:
+            continue
+        what = [f"{k}={_short(row[k])}" for k in param_names if row.get(k, "") != ""]
+        if row.get("seed", "") != "":
+            what.append(f"seed {row['seed']}")
+        why = outcome if row.get("status") == "ok" else (row.get("status") or "failed")
+        others.append(f"{' '.join(what) or 'run ' + row.get('run_id', '?')} ({why})")
+    line = f"sweep: {len(rows) - len(others)} of {len(rows)} runs settled"
+    if others:
+        line += "; not settled: " + ", ".join(others[:shown])
+        if len(others) > shown:
+            line += f" and {len(others) - shown} more (in {path.name})"
+    return line
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
     call or an earlier one recorded in ``sweep.csv``)."""
@@ -273,6 +307,7 @@ def main(args: argparse.Namespace) -> int:
     for line in describe_failures(res.failures, res.failed_total, res.path,
                                   [s.target for s in specs]):  # fmt: skip
         print(line)
+    print(outcome_summary(res.path, [s.target for s in specs]))
     return 1 if res.failed_total else 0
 
 
@@ -290,6 +325,7 @@ __all__ = [
     "main",
     "make_client",
     "nominal_values",
+    "outcome_summary",
     "parse_param",
     "run_id",
     "run_many",

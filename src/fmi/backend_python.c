@@ -804,7 +804,8 @@ static fmi2Status store_value(Ctx *x, PyObject *o, char type, void *out, size_t 
         long v = pPyLong_AsLong(o);
         if (v == -1 && pPyErr_Occurred()) return py_error(x);
         if (v < INT_MIN || v > INT_MAX)
-            return FAIL(x, "%s = %ld does not fit an fmi2Integer", p->var_names[vr], v);
+            return FAIL(x, "%s = %ld does not fit an fmi%c%s", p->var_names[vr], v,
+                        x->inst->logger.fmi3 ? '3' : '2', glider_type_name(x, T_INTEGER));
         ((fmi2Integer *)out)[i] = (fmi2Integer)v;
         return fmi2OK;
     }

@@ -62,12 +62,13 @@ static pthread_mutex_t g_lock = PTHREAD_MUTEX_INITIALIZER;
 const CallSpec GLIDER_CALLS[C_COUNT] = {CALL_TABLE(CALL_SPEC)};
 #undef CALL_SPEC
 
-static const char *state_name(unsigned s) {
+/* A state's name; fmi3: in the FMI 3.0 front end's words (fmi3Discard, not fmi2Discard). */
+static const char *state_name(unsigned s, int fmi3) {
     switch (s) {
     case S_INSTANTIATED: return "instantiated";
     case S_INIT: return "initialization mode";
     case S_STEP_COMPLETE: return "step complete";
-    case S_STEP_FAILED: return "step failed (after fmi2Discard)";
+    case S_STEP_FAILED: return fmi3 ? "step failed (after fmi3Discard)" : "step failed (after fmi2Discard)";
     case S_TERMINATED: return "terminated";
     case S_ERROR: return "error";
     default: return "fatal";
@@ -292,10 +293,12 @@ static Status begin(Ctx *x, void *c, int call) {
     }
     if (!(GLIDER_CALLS[call].allowed & inst->state)) {
         if (!GLIDER_CALLS[call].allowed) return FAIL(x, "not supported by this FMU");
-        if (inst->state == S_ERROR)
+        if (inst->state == S_ERROR) /* the calls named as the front end that was called */
             return FAIL(x, "not allowed after an error: only getters, FMU-state functions, "
-                           "fmi2Reset and fmi2FreeInstance are");
-        return FAIL(x, "not allowed in state '%s'", state_name(inst->state));
+                           "%s and %s are allowed then",
+                        GLIDER_CALLS[C_RESET].name[inst->logger.fmi3 ? 1 : 0],
+                        GLIDER_CALLS[C_FREE].name[inst->logger.fmi3 ? 1 : 0]);
+        return FAIL(x, "not allowed in state '%s'", state_name(inst->state, inst->logger.fmi3));
     }
     if (calls_logged(inst)) glider_add_msg(x, ST_OK, inst->cat_calls, "%s", glider_call_name(x));
     return ST_OK;
@@ -563,7 +566,7 @@ int glider_op_reset(void *c) {
 /* ------------------------------------------------------------------ values */
 /* A type's name in the instance's FMI version (FMI 3's other types, which our models
  * have none of, come with codes of their own from fmi3_layer.c). */
-static const char *type_name(const Ctx *x, char t) {
+const char *glider_type_name(const Ctx *x, char t) {
     static const struct {
         char code;
         const char *name[2];
@@ -593,7 +596,7 @@ static Status check_refs(Ctx *x, const unsigned vr[], size_t nvr, const void *va
         if (is_time(inst, vr[i])) {
             if (type != T_REAL)
                 return FAIL(x, "value reference %u (time) is %s, not %s", vr[i],
-                            type_name(x, T_REAL), type_name(x, type));
+                            glider_type_name(x, T_REAL), glider_type_name(x, type));
             if (set)
                 return FAIL(x, "value reference %u (time) is the independent variable: it "
                                "cannot be set", vr[i]);
@@ -604,8 +607,8 @@ static Status check_refs(Ctx *x, const unsigned vr[], size_t nvr, const void *va
                         (unsigned long)(inst->nvars + (inst->has_time ? 1 : 0) - 1));
         if (inst->var_type[vr[i]] != type)
             return FAIL(x, "value reference %u (%s) is %s, not %s", vr[i],
-                        inst->var_names[vr[i]], type_name(x, inst->var_type[vr[i]]),
-                        type_name(x, type));
+                        inst->var_names[vr[i]], glider_type_name(x, inst->var_type[vr[i]]),
+                        glider_type_name(x, type));
     }
     return ST_OK;
 }

@@ -188,6 +188,8 @@ typedef struct {
 
 /* The call's name in the instance's FMI version. */
 const char *glider_call_name(const Ctx *x);
+/* A variable type's name in the instance's FMI version (Real or Float64, Integer or Int32, ...). */
+const char *glider_type_name(const Ctx *x, char t);
 
 /* A message of this call: kept, and passed to the host's logger when the call ends if
  * the logging rules let it through (errors always). */

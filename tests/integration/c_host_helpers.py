@@ -9,7 +9,6 @@ Used by test_c_host.py, test_native.py and test_fmi3.py (FMI 3: ``-DGLIDER_HOST_
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import zipfile
@@ -19,6 +18,7 @@ import fmpy
 import numpy as np
 import pytest
 from fmpy import read_model_description
+from system_tools import require_tool, tool_missing
 
 from glider_cosim.fmus.native import MINGW
 from glider_cosim.master import CoSimulation
@@ -40,6 +40,8 @@ def unzip(fmu: Path, where: Path) -> Path:
 
 def compile_host(compiler: str | list[str], out: Path, extra: list[str]) -> Path:
     start = [compiler] if isinstance(compiler, str) else list(compiler)
+    if not Path(start[0]).is_absolute():  # a system compiler (zig's is a path)
+        require_tool(start[0])
     p = subprocess.run([*start, "-std=c99", "-Wall", "-Wextra", "-Werror", "-O1",
                         f"-I{HEADERS}", "-o", str(out), str(HOST_C), *extra],
                        capture_output=True, text=True)  # fmt: skip
@@ -107,8 +109,7 @@ def python_places() -> list[str]:
 def hidden_run(host: Path, plan: Path, tmp_path: Path) -> subprocess.CompletedProcess:
     """``host plan`` under unshare -m with tmpfs over every Python folder and /dev/null over
     every libpython, after checking that no Python can start there."""
-    if shutil.which("unshare") is None:
-        pytest.skip("unshare is not installed: cannot hide Python from the host")
+    require_tool("unshare", install="apt-get install util-linux")
     probe = subprocess.run(["unshare", "-m", "true"], capture_output=True, text=True)
     if probe.returncode != 0:
         pytest.skip(f"unshare -m is not permitted here: {probe.stderr.strip()}")
@@ -146,8 +147,7 @@ def hidden_rows(system, tmp_path: Path, host_name: str, extra: list[str], thread
 
 
 def wine_env(tmp_path: Path) -> dict[str, str]:
-    if shutil.which("wine") is None:
-        pytest.fail("wine is not installed (.ci/run installs wine64 and wine)")
+    require_tool("wine", install="apt-get install wine64 wine")
     (tmp_path / "winetmp").mkdir()
     return {**os.environ, "WINEPREFIX": str(tmp_path / "wineprefix"), "WINEDEBUG": "-all",
             "TMPDIR": str(tmp_path / "winetmp"),
@@ -157,8 +157,7 @@ def wine_env(tmp_path: Path) -> dict[str, str]:
 def wine_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.ndarray:
     """The rows of the host cross-compiled with mingw-w64 (``extra`` flags) run under wine
     on ``system``'s win64 DLLs; the run must succeed."""
-    if shutil.which(MINGW) is None:
-        pytest.fail(f"{MINGW} is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    require_tool(MINGW, install="apt-get install gcc-mingw-w64-x86-64")
     host = compile_host(MINGW, tmp_path / host_name, list(extra))
     plan = write_plan(system, tmp_path, dir_of=lambda p: "Z:" + str(p))
     env = wine_env(tmp_path)
@@ -181,11 +180,13 @@ def qemu_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.nd
     qemu-user on ``system``'s ``binaries/aarch64-linux`` libraries; the run must succeed."""
     from glider_fmi import toolchain
 
-    if shutil.which(QEMU) is None or not Path(AARCH64_SYSROOT, "lib").is_dir():
-        pytest.fail(f"{QEMU} or {AARCH64_SYSROOT} missing (.ci/run installs qemu-user and "
-                    "libc6-arm64-cross)")  # fmt: skip
+    require_tool(QEMU, install="apt-get install qemu-user")
+    if not Path(AARCH64_SYSROOT, "lib").is_dir():
+        tool_missing(f"{AARCH64_SYSROOT} is missing (apt-get install libc6-arm64-cross; "
+                     ".ci/run installs it)")  # fmt: skip
     zig = [*toolchain.zig_command(), "-target", toolchain.PLATFORMS["aarch64-linux"].zig_target]
     host = compile_host(zig, tmp_path / host_name, [*extra, *GCC_FLAGS])
+    require_tool("readelf", install="apt-get install binutils")
     machine = subprocess.run(["readelf", "-h", str(host)], capture_output=True, text=True,
                              check=True).stdout  # fmt: skip
     assert "AArch64" in machine  # really an aarch64 program
@@ -199,8 +200,7 @@ def qemu_rows(system, tmp_path: Path, host_name: str, extra: list[str]) -> np.nd
 def valgrind_run(system, tmp_path: Path, host_name: str, extra: list[str]):
     """The host (gcc -g, ``extra`` flags) run under valgrind memcheck on ``system``, one
     thread per step."""
-    if shutil.which("valgrind") is None:
-        pytest.fail("valgrind is not installed (.ci/run installs it)")
+    require_tool("valgrind")
     host = compile_host("gcc", tmp_path / host_name, [*extra, "-D_DEFAULT_SOURCE", "-g", "-ldl",
                                                       "-lm", "-lpthread"])  # fmt: skip
     plan = write_plan(system, tmp_path, threads=True)

@@ -155,6 +155,7 @@ class Fuzzer3(FuzzerBase):
     STATE = "FMUState"
     DESERIALIZE = "DeserializeFMUState"
     ERROR = "fmi3Error"
+    FOREIGN = b"fmi2"
 
     # ------------------------------------------------------------ arguments
     def n_values(self, n: int) -> int:

@@ -33,6 +33,9 @@ class FuzzerBase:
     DESERIALIZE = "DeSerializeFMUstate"
     #: the name of the error status in the summary line
     ERROR = "fmi2Error"
+    #: what no message of this front end may hold: the other FMI version's function
+    #: names (an FMI 3 instance's messages name fmi3 functions alone), or None
+    FOREIGN: bytes | None = None
 
     def __init__(self, raw, rng: random.Random):
         self.raw, self.rng = raw, rng
@@ -202,6 +205,12 @@ def main(argv: list[str], raw_class, fuzzer_class, seed_tag: str = "") -> int:
         for i in range(count):
             print(f"sequence {Path(fmu).stem} {i} {seed}", flush=True)
             problem = fuzzer.sequence()
+            foreign = fuzzer_class.FOREIGN
+            if not problem and foreign:
+                bad = [m for _, m in raw.messages if foreign in m]
+                problem = (
+                    f"a message names another FMI version's function: {bad[0]!r}" if bad else None
+                )
             if problem:
                 print(f"FAILED {Path(fmu).stem} sequence {i} seed {seed}: {problem}", flush=True)
                 return 1

@@ -28,6 +28,7 @@ from c_host_helpers import (
     master_jacobi_run,
     write_plan,
 )
+from system_tools import require_tool
 
 from glider_cosim.interop.hostenv import host_env, libpython
 from glider_cosim.scenarios.scenario import load_scenario
@@ -39,9 +40,7 @@ EMPTY_ENV = {"PATH": "/usr/bin:/bin"}
 
 @pytest.fixture(scope="module")
 def host(tmp_path_factory) -> Path:
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        pytest.fail("gcc is needed to compile the C host")
+    gcc = require_tool("gcc")
     assert (HEADERS / "fmi2Functions.h").is_file()
     return compile_host(gcc, tmp_path_factory.mktemp("c_host") / "host", GCC_FLAGS)
 

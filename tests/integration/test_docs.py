@@ -14,7 +14,8 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 import pytest
-from docs_browser import Browser, chromium, pixel_spread
+from docs_browser import Browser, pixel_spread
+from system_tools import require_tool
 
 from glider_cosim.cli import build_parser
 
@@ -181,8 +182,7 @@ def test_the_fmu_interface_page_is_the_model_descriptions(tmp_path):
 
 @pytest.fixture(scope="module")
 def browser():
-    if chromium() is None:
-        pytest.fail("headless Chromium is needed: apt-get install chromium")
+    require_tool("chromium", "chromium-browser")
     with Browser() as b:
         yield b
 

@@ -8,7 +8,6 @@ import json
 import socket
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -77,9 +76,7 @@ def test_a_silent_endpoint_stops_the_run_with_one_line(native_dir, tmp_path):
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))  # bound, never answers
     url = f"udp://127.0.0.1:{s.getsockname()[1]}"
-    t = time.monotonic()
     r = _run(native_dir, stop_time=1.0, external={"controller": Endpoint(url, timeout=0.5)})
-    assert time.monotonic() - t < 30
     s.close()
     assert r.status == "error"
     assert (

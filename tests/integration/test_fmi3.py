@@ -175,6 +175,33 @@ def test_invalid_start_value_ends_an_fmpy_fmi3_host_with_fmi3error(fmi3_dirs, tm
     s.freeInstance()
 
 
+@pytest.mark.parametrize("flavor", FLAVORS)
+def test_after_an_error_the_messages_name_fmi3_functions_in_whole_sentences(
+    fmi3_dirs, tmp_path, flavor
+):
+    """Issue 54: the FMI 3.0 front end's messages name FMI 3.0 functions (the layer knows
+    which front end was called), and the sentence after an error is whole."""
+    log: list = []
+    s = slave3(fmi3_dirs[flavor] / "GliderController.fmu", tmp_path, log=log)
+    vr = {v.name: v.valueReference for v in s.md.modelVariables}
+    s.enterInitializationMode(startTime=0.0)
+    s.setFloat64([vr["K_c"]], [-1.0])
+    with pytest.raises(fmpy.fmi1.FMICallException):
+        s.exitInitializationMode()
+    for call in (lambda: s.enterInitializationMode(startTime=0.0),
+                 lambda: s.doStep(0.0, 0.02), lambda: s.terminate()):  # fmt: skip
+        with pytest.raises(fmpy.fmi1.FMICallException):
+            call()
+    texts = [msg.decode() for _, msg in log]
+    assert texts[-3:] == [
+        f"x: {name}: not allowed after an error: only getters, FMU-state functions, "
+        "fmi3Reset and fmi3FreeInstance are allowed then"
+        for name in ("fmi3EnterInitializationMode", "fmi3DoStep", "fmi3Terminate")
+    ]
+    assert not [t for t in texts if "fmi2" in t], texts
+    s.freeInstance()
+
+
 def _plant_steps(s: FMU3Slave, vrs: list[int], t0: float, n: int) -> list[list[float]]:
     out = []
     for k in range(n):

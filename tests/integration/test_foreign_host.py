@@ -22,7 +22,6 @@ from __future__ import annotations
 import glob
 import os
 import shlex
-import shutil
 import subprocess
 import sys
 import zipfile
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy import read_model_description
+from system_tools import require_tool, tool_missing
 from test_c_host import EMPTY_ENV, STOP, host, loop, master_jacobi  # noqa: F401
 
 from glider_fmi.compile import libpython
@@ -72,15 +72,13 @@ def hidden_folders() -> list[str]:
 @pytest.fixture(scope="module")
 def foreign():
     """A function running a command in the foreign namespace (skips with the reason)."""
-    unshare = shutil.which("unshare")
-    if unshare is None:
-        pytest.skip("unshare (util-linux) is not installed: cannot build the foreign machine")
+    unshare = require_tool("unshare", install="apt-get install util-linux")
     p = subprocess.run([unshare, "-m", "true"], capture_output=True, text=True, timeout=30)
     if p.returncode != 0:
         pytest.skip(f"unshare -m is not permitted here: {p.stderr.strip()}")
     if not DEBIAN_PYTHON.is_file() or not glob.glob("/usr/lib/*/libpython3.1[1-9].so.1.0"):
-        pytest.skip("Debian's python3 and libpython3.11 are not installed "
-                    "(.ci/run installs them: apt-get install python3 libpython3.11)")  # fmt: skip
+        tool_missing("Debian's python3 and libpython3.11 are not installed "
+                     "(apt-get install python3 libpython3.11; .ci/run installs them)")  # fmt: skip
     folders = hidden_folders()
     mounts = " && ".join(f"mount -t tmpfs tmpfs {shlex.quote(f)}" for f in folders)
     checks = (

@@ -18,6 +18,7 @@ from ctypes import c_bool, c_char_p, c_double, c_uint
 from pathlib import Path
 
 import pytest
+from system_tools import require_tool
 
 sys.path.insert(0, str(Path(__file__).parent))
 from fmi3_fuzz import Raw3  # noqa: E402
@@ -152,6 +153,7 @@ def test_the_forwarder_writes_by_the_rule_under_asan(tmp_path):
 
     c_file.write_text(HARNESS)
     exe = tmp_path / "h"
+    require_tool("gcc")
     p = subprocess.run(["gcc", "-std=gnu11", "-g", "-Wall", "-Wextra", "-Werror",
                         "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
                         f"-I{fmi_headers()}", f"-I{onefmu.QUIET_SOURCE.parent}", str(c_file),
@@ -269,14 +271,13 @@ def test_the_native_layers_messages_under_valgrind(native_dir, fmi3_dirs, tmp_pa
     """The layer's rewriting of each message (every '#' doubled; '%' too for FMI 2's
     printf-style logger) in a native FMU's binary, called from a C host under valgrind
     memcheck: no error, no leak, every line by the rule."""
-    import shutil
 
     from fmpy import read_model_description
 
     from glider_cosim.master.instance import _extracted
 
-    if shutil.which("valgrind") is None:
-        pytest.fail("valgrind is not installed (.ci/run installs it)")
+    require_tool("valgrind")
+    require_tool("gcc")
     c_file, exe = tmp_path / "host.c", tmp_path / "host"
     c_file.write_text(VALGRIND_HOST)
     p = subprocess.run(["gcc", "-std=gnu11", "-g", "-Wall", "-Wextra", "-Werror", str(c_file),

@@ -39,6 +39,7 @@ from c_host_helpers import (
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 from raw_fmi import RawFMU
+from system_tools import require_tool
 
 from glider_cosim.fmus.folders import folder_flavor
 from glider_cosim.fmus.native import NATIVE_COMPONENTS
@@ -57,6 +58,8 @@ def test_native_fmu_is_valid_and_self_contained(native_dir, tmp_path, name):
     d = unzip(fmu, tmp_path / name)
     assert folder_flavor(native_dir) == "native"
     so = d / "binaries" / "linux64" / f"{name}.so"
+    require_tool("readelf", install="apt-get install binutils")
+    require_tool("objdump", install="apt-get install binutils")
     needed = subprocess.run(["readelf", "-d", str(so)], capture_output=True, text=True,
                             check=True).stdout  # fmt: skip
     libs = {line.split("[")[1].rstrip("]") for line in needed.splitlines() if "NEEDED" in line}
@@ -158,8 +161,7 @@ def test_win64_dlls_under_wine_equal_linux64(native_system, master_rows, tmp_pat
 def test_rebuilt_from_sources_with_fmpy_runs_equal(native_dir, tmp_path):
     from fmpy.build import build_platform_binary
 
-    if shutil.which("cmake") is None:
-        pytest.fail("cmake is not installed (.ci/run installs it)")
+    require_tool("cmake")
     rebuilt = tmp_path / "rebuilt"
     rebuilt.mkdir()
     for name in NAMES:
@@ -324,8 +326,7 @@ def test_a_system_compiler_builds_its_platform_bit_equal_and_says_what_is_left_o
     from glider_cosim.fmus import native
     from glider_fmi import toolchain
 
-    if shutil.which("gcc") is None:
-        pytest.skip("gcc is not installed")
+    require_tool("gcc")
     monkeypatch.setattr(toolchain, "zig_available", lambda: False)
     with caplog.at_level("WARNING", logger="glider_cosim.fmus.native"):
         native.build_native(tmp_path, compiler="gcc")
@@ -362,12 +363,12 @@ def test_mingw_chosen_builds_win64_and_zig_the_rest(tmp_path):
     UCRT), every other platform zig's."""
     from glider_cosim.fmus import native
 
-    if shutil.which("x86_64-w64-mingw32-gcc") is None:
-        pytest.fail("mingw-w64 is not installed (.ci/run installs gcc-mingw-w64-x86-64)")
+    require_tool("x86_64-w64-mingw32-gcc", install="apt-get install gcc-mingw-w64-x86-64")
     native.build_native(tmp_path, compiler="x86_64-w64-mingw32-gcc")
     d = unzip(tmp_path / "GliderPlant.fmu", tmp_path / "p")
     bins = sorted(str(p.relative_to(d)) for p in (d / "binaries").rglob("*.*"))
     assert [b.split("/")[1] for b in bins] == ["aarch64-linux", "darwin64", "linux64", "win64"]
+    require_tool("objdump", install="apt-get install binutils")
     dump = subprocess.run(["objdump", "-p", str(d / "binaries/win64/GliderPlant.dll")],
                           capture_output=True, text=True, check=True).stdout  # fmt: skip
     imports = {line.split(":")[1].strip() for line in dump.splitlines() if "DLL Name" in line}

@@ -6,13 +6,13 @@ bad parameter as the FMU does."""
 
 from __future__ import annotations
 
-import shutil
 import socket
 import subprocess
 
 import numpy as np
 import pytest
 from c_host_helpers import AARCH64_SYSROOT, QEMU, wine_env
+from system_tools import require_tool
 
 from glider_cosim.master.instance import Instance
 from glider_cosim.realtime import protocol as p
@@ -48,8 +48,7 @@ def test_x86_64_program_equals_the_fmu_bit_for_bit_under_valgrind(native_dir, re
     prog = build_onboard(tmp_path / "x86", "x86_64-linux")
     r, code, _ = _served_run([str(prog)], native_dir)
     assert r.status == "ok" and code == 0 and np.array_equal(r.data, reference)
-    if shutil.which("valgrind") is None:
-        pytest.fail("valgrind missing (.ci/run installs it)")
+    require_tool("valgrind")
     vg = ["valgrind", "--error-exitcode=9", "--leak-check=full", "-q", str(prog)]
     r, code, err = _served_run(vg, native_dir, stop=1.0)
     assert r.status == "ok" and code == 0, err

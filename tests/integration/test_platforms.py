@@ -30,6 +30,7 @@ from c_host_helpers import (
     qemu_rows,
 )
 from elftools.elf.elffile import ELFFile
+from system_tools import require_tool, tool_missing
 
 from glider_cosim.scenarios.scenario import load_scenario
 from glider_cosim.scenarios.system import system_for
@@ -70,8 +71,7 @@ def test_glibc_check_can_fail(tmp_path):
     """The reader sees a binary that needs a newer glibc: this machine's own build."""
     src = tmp_path / "x.c"
     src.write_text("#include <math.h>\ndouble f(double x) { return exp(x) + log(x); }\n")
-    if shutil.which("gcc") is None:
-        pytest.skip("no gcc to build a binary against this machine's glibc")
+    require_tool("gcc")
     subprocess.run(["gcc", "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp_path / "x.so"),
                     "-lm"], check=True)  # fmt: skip
     assert max(glibc_versions((tmp_path / "x.so").read_bytes())) > toolchain.GLIBC_MAX
@@ -163,7 +163,7 @@ def test_universal_file_agrees_with_llvm_lipo(native_dir, tmp_path):
         (str(p) for p in sorted(Path("/usr/bin").glob("llvm-lipo-*"))), None
     )
     if lipo is None:
-        pytest.skip("llvm-lipo is not installed (Debian's llvm package)")
+        tool_missing("llvm-lipo is not installed (apt-get install llvm; .ci/run installs it)")
     with zipfile.ZipFile(native_dir / "GliderPlant.fmu") as z:
         (tmp_path / "p.dylib").write_bytes(z.read("binaries/darwin64/GliderPlant.dylib"))
     p = subprocess.run([lipo, "-info", str(tmp_path / "p.dylib")], capture_output=True, text=True)

@@ -34,6 +34,8 @@ def _committed(path: Path) -> bytes:
     """The file as committed (HEAD), or as on disk outside a git checkout (the docs build
     may have redrawn the working copy; the commit is what a reader of the README sees)."""
     rel = path.relative_to(ROOT).as_posix()
+    if shutil.which("git") is None:  # no git, no checkout to read: the file as on disk
+        return path.read_bytes()
     proc = subprocess.run(["git", "-C", str(ROOT), "show", f"HEAD:{rel}"], capture_output=True,
                           check=False)  # fmt: skip
     return proc.stdout if proc.returncode == 0 else path.read_bytes()

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.interop.ssp_export import export_ssp
 from glider_cosim.runner import run_ssp, simulate
@@ -120,8 +121,7 @@ def test_the_fmpy_loop_check_sees_one_changed_bit(tmp_path):
 
 
 def test_the_c_host_equals_run_jacobi_bit_for_bit(native_dir, tmp_path):
-    if shutil.which("gcc") is None:
-        pytest.fail("gcc is needed to compile the C host")
+    require_tool("gcc")
     (tmp_path / "fmus").mkdir()
     (tmp_path / "fmus" / "native").symlink_to(native_dir, target_is_directory=True)
     (tmp_path / "tests" / "integration").mkdir(parents=True)  # as in a clone

@@ -7,6 +7,7 @@ import math
 import re
 
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.scenarios.overrides import apply_overrides
 from glider_cosim.scenarios.scenario import load_scenario
@@ -176,14 +177,13 @@ def test_report_html_renders_every_figure(report):
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from chromium_page import chromium, load
+    from chromium_page import load
 
     _, _, out = report
     page = out / "report.html"
     text = page.read_text()
     assert not re.search(r"<script[^>]+src=", text)
-    if chromium() is None:
-        pytest.skip("needs Debian's chromium (.ci/run installs it)")
+    require_tool("chromium", "chromium-browser")
     found = load(page)
     assert found["errors"] == [] and found["console"] == [] and found["fetched"] == []
     # every figure of report.md, the region-of-attraction map (one panel per case) last
@@ -235,7 +235,8 @@ def test_the_report_wraps_the_estimation_error_and_tells_divergence_from_stall(r
 
 def test_the_command_names_its_pages_and_every_link_of_report_md_resolves(fmu_dir, tmp_path):
     """``glider-cosim report`` prints report.md and report.html (issue 45, item 6); each
-    link of report.md (the figures, the metrics' definitions in the docs) resolves."""
+    link of report.md (the figures) resolves and none leaves its folder; the command is
+    recorded as typed (issue 54)."""
     import subprocess
     import sys
     from pathlib import Path
@@ -245,15 +246,22 @@ def test_the_command_names_its_pages_and_every_link_of_report_md_resolves(fmu_di
 
     out = tmp_path / "rep"
     proc = subprocess.run([sys.executable, "-m", "glider_cosim.cli", "report", "--roa-grid",
-                           "none", "--out", str(out), "--fmu-dir", str(fmu_dir),
-                           "--no-progress"], capture_output=True, text=True, timeout=600,
-                          check=False)  # fmt: skip
+                           "none", "--out", str(out), "--no-progress"], capture_output=True,
+                          text=True, timeout=600, check=False)  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert f"wrote {out / 'report.md'}\n" in proc.stdout
     assert f"wrote {out / 'report.html'} " in proc.stdout
     md = out / "report.md"
     assert "README" not in md.read_text()  # its 'Metrics' section moved to the docs
     targets = links(md)
-    assert any(t.endswith("docs/reference/results.md#metrics") for t in targets)
+    # links that travel (issue 54): the figures beside it, the docs named by page only
+    assert all(not t.startswith(("../", "/")) and t.endswith(".png") for t in targets), targets
+    assert "the metrics' definitions (docs: reference/results.md, section 'Metrics')" in (
+        md.read_text()
+    )
     assert sum(t.endswith(".png") for t in targets) >= 6
     assert broken_links(md) == []
+    # the command as typed, not the FMUs' folder as the cache resolved it
+    typed = f"glider-cosim report --roa-grid none --out {out} --no-progress"
+    assert json.loads((out / "report.json").read_text())["made"]["command"] == typed
+    assert f"- command: `{typed}`" in md.read_text()

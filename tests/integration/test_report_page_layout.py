@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from chromium_page import chromium, layout
+from chromium_page import layout
 from report_fakes import THETA_E, FakeRun
 
 from glider_cosim.figures.mpl import draw_png
@@ -22,7 +22,7 @@ from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
 
 pytestmark = [
     pytest.mark.integration,
-    pytest.mark.skipif(chromium() is None, reason="needs Debian's chromium (.ci/run installs it)"),
+    pytest.mark.requires_tool("chromium", "chromium-browser"),
 ]
 
 #: the narrowest plot frame that still shows a curve's shape, px

@@ -9,11 +9,11 @@ import subprocess
 import sys
 
 import pytest
-from chromium_page import chromium, load
+from chromium_page import load
 
 pytestmark = [
     pytest.mark.integration,
-    pytest.mark.skipif(chromium() is None, reason="needs Debian's chromium (.ci/run installs it)"),
+    pytest.mark.requires_tool("chromium", "chromium-browser"),
 ]
 
 

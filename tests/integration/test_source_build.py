@@ -26,6 +26,7 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.runner import simulate
 
@@ -84,8 +85,7 @@ def sources_of(fmu: Path, where: Path) -> Path:
 
 def build(compiler: list[str], src: Path, headers: Path, out: Path) -> str:
     """Compile ``src/*.c`` with only ``headers`` on the include path; what it printed."""
-    if not shutil.which(compiler[0]):
-        pytest.fail(f"{compiler[0]} is not installed")
+    require_tool(compiler[0])
     cmd = [*compiler, *IMPORTER_FLAGS, f"-I{headers}", *map(str, sorted(src.glob("*.c"))),
            "-o", str(out), "-lm"]  # fmt: skip
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
@@ -107,6 +107,7 @@ def rebuilt(shipped, header_sets, tmp_path_factory) -> dict:
                 src = sources_of(fmu, out / f"{name}_src")
                 so = out / f"{name}.so"
                 printed[name] = build(compiler, src, header_sets[fmi], so)
+                require_tool("objdump", install="apt-get install binutils")
                 dis = subprocess.run(["objdump", "-d", str(so)], capture_output=True,
                                      text=True, check=True).stdout  # fmt: skip
                 fma[name] = len(FMA.findall(dis))

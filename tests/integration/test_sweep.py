@@ -229,6 +229,10 @@ def test_the_exit_code_after_a_resume_counts_earlier_failures(fmu_dir, tmp_path,
     # the console names the failed run and why (issue 28)
     assert re.search(r"^  failed: controller.K_c=0.05: stopped: observer: fmi2DoStep at "
                      r"t = 2.58 s returned fmi2Discard: .*stalled", out, re.M), out  # fmt: skip
+    # the last line: how many settled (none in 3 s), and which values did not, and how
+    assert re.fullmatch(r"sweep: 0 of 2 runs settled; not settled: controller.K_c=10 "
+                        r"\([a-z ]+\), controller.K_c=0.05 \(stopped\)",
+                        out.splitlines()[-1]), out  # fmt: skip
     assert cli_main(args) == 1  # nothing run now, the failure is in sweep.csv
     assert "(2 already done), 0 run now, 0 failed, 0.00 runs/s; 1 of 2 failed overall" in (
         capsys.readouterr().out

@@ -7,7 +7,6 @@ import hashlib
 import json
 import shutil
 import tempfile
-import time
 import zipfile
 from pathlib import Path
 
@@ -288,9 +287,7 @@ def test_outputs_computed_in_do_step_are_named_one_step_late(broken, capsys):
 
 
 def test_cli_table_and_exit_codes(fmu_dir, broken, capsys):
-    t0 = time.perf_counter()
     assert main(["verify", str(fmu_dir / "GliderPlant.fmu"), "--kit"]) == 0
-    assert time.perf_counter() - t0 < 30
     out = capsys.readouterr().out.splitlines()
     # the header says what was verified: file and SHA-256, flavor, FMI version, binary
     sha = file_sha256(fmu_dir / "GliderPlant.fmu")

@@ -24,6 +24,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from system_tools import require_tool
 
 from glider_cosim.fmus import wasm
 from glider_cosim.fmus.folders import prepare_fmus
@@ -214,13 +215,12 @@ def _glue_sources(tmp: Path) -> list[str]:
 def test_the_glue_under_memory_checks(tmp_path, check):
     """The glue built natively (warning-free), every function of the world called by
     tests/integration/wasm_glue_harness.c, clean under ASan + UBSan and valgrind memcheck."""
-    import shutil
 
     from glider_fmi.compile import fmi_headers
 
     tools = {"asan": "gcc", "valgrind": "valgrind"}
-    if shutil.which(tools[check]) is None or shutil.which("gcc") is None:
-        pytest.fail(f"{tools[check]} is not installed (.ci/run installs it)")
+    require_tool("gcc")
+    require_tool(tools[check])
     sanitize = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
     flags = ["-g", "-O1", "-std=c99", "-Wall", "-Wextra", "-Werror", "-Wno-attributes",
              "-ffp-contract=off", *(sanitize if check == "asan" else [])]  # fmt: skip
