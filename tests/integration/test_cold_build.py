@@ -50,6 +50,7 @@ def test_a_run_builds_this_machines_binary_alone_and_an_export_every_platforms(
         "native-src",
         "native-vars",  # the variable tables, made once (issue 48)
         "unpacked",  # the FMUs the run loaded, unpacked once (issue 48)
+        "locks",  # the build lock's files (filelock), never in an FMU folder (issue 53)
     }  # no full set: nothing can take this one for it
     for name in NAMES:
         assert binaries(host / f"{name}.fmu") == [f"binaries/linux64/{name}.so"]
