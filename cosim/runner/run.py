@@ -175,7 +175,8 @@ def simulate(
     coupling, step, stop_time : optional
         Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
     plots : bool
-        Write the PNG plots (with ``out``).
+        Write the PNG plots and ``plots.html`` (with ``out``), in this process, after
+        ``results.csv`` and ``metrics.json`` (:func:`draw_plots`).
     max_steps : int
         Most communication steps; a longer run is refused before it starts.
     results_format : {"csv", "parquet"}
@@ -209,6 +210,9 @@ def simulate(
         and stop time, ``overrides``): raised before any FMU is instantiated.
     OSError
         ``out`` cannot be created or written.
+    PlotError
+        A PNG plot cannot be written (an OSError; the results and ``metrics.json`` are
+        written).
     glider_cosim.master.Interrupted
         A KeyboardInterrupt (SIGINT or SIGTERM during the run), raised after the results
         so far are written (status ``"interrupted"``).
