@@ -1,12 +1,12 @@
 """The run's PNG plots, drawn with matplotlib: each plot's spec and its PNG, and the
-import a drawing process pays before it can draw.
+import a run with plots pays before it can draw.
 
 A native run of the default scenario in memory (3001 rows), then, per plot, the best of
 ``--repeat`` times of: its spec (``plots.build_specs``) and its PNG (``mpl.draw_png``
 into a file, as the run draws it); the five in all (``write_plots`` into
-files, best of ``--repeat``); and, in new interpreters, the import of what the drawing
-process imports and warms up (matplotlib and the drawing modules, numpy included:
-``mpl.warm``), against nothing (``pass``) (median of ``--repeat``).
+files, best of ``--repeat``); and, in new interpreters, the import of the drawing
+modules (matplotlib and bokeh with them, numpy included), against nothing (``pass``)
+(median of ``--repeat``).
 
 Usage: python bench/draw_plots.py [--repeat 8] [--native-dir fmus/native] [--json]
 """
@@ -51,7 +51,6 @@ def main() -> None:
     out: dict[str, object] = {"rows": int(len(result.data))}
     with tempfile.TemporaryDirectory(prefix="glider-bench-draw-") as name:
         folder = Path(name)
-        mpl.warm()
         for spec, path, meta in plots.build_specs(result, folder):
             stem = path.stem
             out[f"{stem}_spec_ms"] = _best_ms(
@@ -63,7 +62,7 @@ def main() -> None:
             )
         out["five_pngs_ms"] = _best_ms(lambda: plots.write_plots(result, folder), args.repeat)
     out["import_drawing_s"] = _import_s(
-        "from glider_cosim.figures import mpl, plots, pages; mpl.warm()", args.repeat
+        "from glider_cosim.figures import mpl, plots, pages", args.repeat
     )
     out["import_nothing_s"] = _import_s("pass", args.repeat)
     emit(out, args.json)

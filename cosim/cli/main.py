@@ -55,7 +55,7 @@ def _matplotlib_cache() -> None:
     matplotlib creates it when it first draws), not ``~/.cache/matplotlib``: a command
     writes nothing outside its output folder and our cache (unless the user points
     ``MPLCONFIGDIR`` somewhere). Built once: rebuilt each time, it cost 0.2 s a command.
-    matplotlib draws every PNG (the run's, in its drawing process, which inherits this).
+    matplotlib draws every PNG (the run's, the sweep's, the report's).
     Where it cannot be written, the process's temporary folder holds it."""
     if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
         return
@@ -118,10 +118,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     command = getattr(args, "command", None)
-    if command == "run" and not args.no_plots:
-        from ..figures.drawing import prestart
-
-        prestart()  # matplotlib imported in a child while this process imports the master
     from .commands import dispatch  # after parsing: --help imports none of the commands
 
     error = prefix("error", command)
@@ -159,10 +155,6 @@ def _main(args: argparse.Namespace) -> int:
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
-        if command == "run":
-            from ..figures.drawing import discard_prestarted
-
-            discard_prestarted()
     return code
 
 

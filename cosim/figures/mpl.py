@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["draw", "draw_png", "warm"]
+__all__ = ["draw", "draw_png"]
 
 #: matplotlib's line styles by the spec's dash names
 _LINESTYLE = {"solid": "-", "dashed": "--", "dashdot": "-.", "dotted": ":"}
@@ -215,21 +215,3 @@ def draw_png(
     finally:
         part.unlink(missing_ok=True)
     return path
-
-
-def warm() -> None:
-    """Draw a small figure with every kind of line, marker, legend and text into memory:
-    matplotlib's modules, fonts and caches loaded (the drawing process does this while
-    the run runs)."""
-    import io
-
-    from .spec import figure, line, panel
-
-    t = np.linspace(0.0, 1.0, 20)
-    lines = [line(t, np.sin(t), "a", dash=dash, step=dash == "dashed")
-             for dash in ("solid", *_LINESTYLE)]  # fmt: skip
-    lines += [line(t, t, "b", marker=m, size=3.0) for m in (".", "o", "D", "X")]
-    lines.append(line([0.5], [0.0], "c", color="k", dash="dotted", span="x"))
-    spec = figure("pair", [panel(lines, title="(0)", ylabel="y [deg]"),
-                           panel(lines, xlabel="x [s]", ylabel="y", row=1)], "s")  # fmt: skip
-    draw(spec).savefig(io.BytesIO(), dpi=20, format="png", metadata={"k": "v"})

@@ -15,8 +15,9 @@ import numpy as np
 from ..fmus.variables import overrides_words, short
 from .spec import COLORS, SIZES, figure, line, panel
 
-__all__ = ["COLORS", "EVENT_STYLE", "PLOTS", "SIZES", "build_specs", "event_lines", "figure",
-           "line", "panel", "read_png_record", "settings_text", "write_plots"]  # fmt: skip
+__all__ = ["COLORS", "EVENT_STYLE", "PLOTS", "SIZES", "PlotError", "build_specs",
+           "event_lines", "figure", "line", "panel", "read_png_record", "settings_text",
+           "write_plots"]  # fmt: skip
 
 _DEG = 180.0 / np.pi
 #: how each marked event is drawn (colour, line style)
@@ -32,6 +33,10 @@ EVENT_STYLE = {
 LEGEND_DOT = 6.0
 #: the PNG text chunks that carry what a plot marks and which run it shows
 META_EVENTS, META_SETTINGS = "glider-cosim:events", "glider-cosim:settings"
+
+
+class PlotError(OSError):
+    """A run's PNG plots could not be written (its results and metrics.json are kept)."""
 
 
 def settings_text(metrics: dict[str, Any]) -> str:

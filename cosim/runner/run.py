@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..figures.drawing import draw_plots, start_drawer
+from ..figures.plots import PlotError, write_plots
 from ..fmus.folders import build_all, fmu_folder
 from ..inputs.check import check_system_values
 from ..inputs.ssp_files import ssp_name
-from ..inputs.text import quote
+from ..inputs.text import one_line, quote
 from ..interop.ssp_import import load_ssp
 from ..master.cosimulation import CoSimulation
 from ..master.errors import (
@@ -175,7 +175,8 @@ def simulate(
     coupling, step, stop_time : optional
         Override the scenario's values (``"gauss-seidel"``/``"jacobi"``, s, s).
     plots : bool
-        Write the PNG plots (with ``out``).
+        Write the PNG plots and ``plots.html`` (with ``out``), in this process, after
+        ``results.csv`` and ``metrics.json`` (:func:`draw_plots`).
     max_steps : int
         Most communication steps; a longer run is refused before it starts.
     results_format : {"csv", "parquet"}
@@ -209,6 +210,9 @@ def simulate(
         and stop time, ``overrides``): raised before any FMU is instantiated.
     OSError
         ``out`` cannot be created or written.
+    PlotError
+        A PNG plot cannot be written (an OSError; the results and ``metrics.json`` are
+        written).
     glider_cosim.master.Interrupted
         A KeyboardInterrupt (SIGINT or SIGTERM during the run), raised after the results
         so far are written (status ``"interrupted"``).
@@ -288,96 +292,126 @@ def simulate(
         options = {k: v for k, v in (("coupling", coupling), ("step", step),
                                      ("stop_time", stop_time)) if v is not None}  # fmt: skip
     record = run_record(scenario, sim, options)
-    # the plots' process forks now: it imports matplotlib while the run runs and draws
-    # when the results are in (drawing.py)
-    drawer = start_drawer() if plots and out is not None else None
+    files: dict[str, Path] = {}
+    if out is not None:
+        out = Path(out)
+        note = replaced_note(out, record)  # earlier results made otherwise: say so, once
+        if note is not None:
+            log.warning(note)
+        out.mkdir(parents=True, exist_ok=True)
+        clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
+        if results_format == "parquet":
+            from .parquet import ParquetRecorder
+
+            files["results"] = out / "results.parquet"
+            recorder: Any = ParquetRecorder(files["results"])
+        else:
+            files["results"] = out / "results.csv"
+            recorder = CsvRecorder(files["results"], keep=ArrayRecorder())
+    else:
+        recorder = ArrayRecorder()
+    from ..progress import RunProgress, mode
+
+    if mode() != "off":  # the simulated time reached, for runs of more than 2 s
+        wall = None if real_time is None else (stop - sim.t0) / real_time.rtf
+        recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop, wall)
+    status, message = "ok", ""
+    interrupt: Interrupted | None = None
+    failure: Exception | None = None
     try:
-        files: dict[str, Path] = {}
-        if out is not None:
-            out = Path(out)
-            note = replaced_note(out, record)  # earlier results made otherwise: say so, once
-            if note is not None:
-                log.warning(note)
-            out.mkdir(parents=True, exist_ok=True)
-            clear_owned(out)  # an earlier run's CSV, metrics and plots: they describe another run
-            if results_format == "parquet":
-                from .parquet import ParquetRecorder
-
-                files["results"] = out / "results.parquet"
-                recorder: Any = ParquetRecorder(files["results"])
-            else:
-                files["results"] = out / "results.csv"
-                recorder = CsvRecorder(files["results"], keep=ArrayRecorder())
-        else:
-            recorder = ArrayRecorder()
-        from ..progress import RunProgress, mode
-
-        if mode() != "off":  # the simulated time reached, for runs of more than 2 s
-            wall = None if real_time is None else (stop - sim.t0) / real_time.rtf
-            recorder = RunProgress(recorder, count_steps(stop, h, max_steps) + 1, stop, wall)
-        status, message = "ok", ""
-        interrupt: Interrupted | None = None
-        failure: Exception | None = None
-        try:
-            if pacer is not None:
-                paced_run(sim, stop, recorder, pacer)
-            else:
-                sim.run(stop, recorder)
-        except (FMUStopped, TooLate) as err:  # a discard, or later than --max-lateness-ms
-            status, message, failure = "stopped", str(err), err
-        except FMUCallError as err:
-            status, message, failure = "error", str(err), err
-        except SystemSpecError:
-            raise
-        except MasterError as err:
-            status, message, failure = "error", str(err), err
-        except KeyboardInterrupt as err:
-            interrupt = err if isinstance(err, Interrupted) else Interrupted()
-            status, message = "interrupted", interrupt.describe()
-        finally:
-            recorder.close()
-            sim.close()
-        if "results" in files and not files["results"].exists():
-            del files["results"]  # the run failed before its first row
-        if isinstance(recorder, RunProgress):
-            recorder = recorder.inner
-        empty = Table(array("d"), 0, len(sim.columns))
-        if hasattr(recorder, "read"):  # Parquet
-            data: Any = recorder.read() if recorder.n_rows else empty
-            columns = sim.columns
-        elif isinstance(recorder, CsvRecorder):
-            data = (
-                recorder.keep.table(len(sim.columns))
-                if recorder.n_rows and recorder.keep is not None
-                else empty
-            )
-            columns = sim.columns
-        else:
-            columns, data = recorder.columns or sim.columns, recorder.table(len(sim.columns))
-        metrics = compute_metrics(columns, data, scenario, sim, status)
-        metrics.update(status=status, message=message)
-        ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
-        if ext:
-            metrics["external"] = ext
         if pacer is not None:
-            metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
-        metrics["run"] = record
-        metrics["events"] = marked_events(sim, status, failure)
-        result = RunResult(scenario, columns, data, metrics, status, message, files)
-        if out is not None:
-            files["metrics"] = out / "metrics.json"
-            files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
-            if plots and len(data) > 1:
-                files.update(
-                    draw_plots(result, out) if drawer is None else drawer.draw(result, out)
-                )
-        if interrupt is not None:
-            interrupt.result = result  # what was kept, for the console's last line
-            raise interrupt
-        return result
+            paced_run(sim, stop, recorder, pacer)
+        else:
+            sim.run(stop, recorder)
+    except (FMUStopped, TooLate) as err:  # a discard, or later than --max-lateness-ms
+        status, message, failure = "stopped", str(err), err
+    except FMUCallError as err:
+        status, message, failure = "error", str(err), err
+    except SystemSpecError:
+        raise
+    except MasterError as err:
+        status, message, failure = "error", str(err), err
+    except KeyboardInterrupt as err:
+        interrupt = err if isinstance(err, Interrupted) else Interrupted()
+        status, message = "interrupted", interrupt.describe()
     finally:
-        if drawer is not None:
-            drawer.close()
+        recorder.close()
+        sim.close()
+    if "results" in files and not files["results"].exists():
+        del files["results"]  # the run failed before its first row
+    if isinstance(recorder, RunProgress):
+        recorder = recorder.inner
+    empty = Table(array("d"), 0, len(sim.columns))
+    if hasattr(recorder, "read"):  # Parquet
+        data: Any = recorder.read() if recorder.n_rows else empty
+        columns = sim.columns
+    elif isinstance(recorder, CsvRecorder):
+        data = (
+            recorder.keep.table(len(sim.columns))
+            if recorder.n_rows and recorder.keep is not None
+            else empty
+        )
+        columns = sim.columns
+    else:
+        columns, data = recorder.columns or sim.columns, recorder.table(len(sim.columns))
+    metrics = compute_metrics(columns, data, scenario, sim, status)
+    metrics.update(status=status, message=message)
+    ext = {n: e.summary() for n, e in getattr(sim, "external", {}).items()}
+    if ext:
+        metrics["external"] = ext
+    if pacer is not None:
+        metrics["real_time"] = {**pacer.summary(), **({"external": ext} if ext else {})}
+    metrics["run"] = record
+    metrics["events"] = marked_events(sim, status, failure)
+    result = RunResult(scenario, columns, data, metrics, status, message, files)
+    if out is not None:
+        files["metrics"] = out / "metrics.json"
+        files["metrics"].write_text(json.dumps(_jsonable(metrics), indent=2) + "\n")
+        if plots and len(data) > 1:
+            files.update(draw_plots(result, out))
+    if interrupt is not None:
+        interrupt.result = result  # what was kept, for the console's last line
+        raise interrupt
+    return result
+
+
+def draw_plots(result: RunResult, out: Path) -> dict[str, Path]:
+    """Draw a run's PNG plots (:func:`~glider_cosim.figures.plots.write_plots`, with
+    matplotlib) and write its ``plots.html`` from the same specs
+    (:func:`~glider_cosim.figures.pages.write_run_page`, bokeh) into ``out``, in this
+    process, once its results and ``metrics.json`` are written.
+
+    Parameters
+    ----------
+    result : RunResult
+        The run's rows and metrics.
+    out : Path
+        The run's output folder.
+
+    Returns
+    -------
+    dict of str to Path
+        ``{plot name: PNG, ..., "page": plots.html}`` of the files written (no ``"page"``
+        when it could not be written: a logged warning, e.g. bokeh missing).
+
+    Raises
+    ------
+    PlotError
+        A PNG could not be drawn or written: one line naming the file (the run's results
+        and ``metrics.json`` are kept).
+    """
+    from ..figures.pages import write_run_page
+    from ..progress import home, say
+
+    say(f"run: drawing the plots into {home(out)}")  # importing matplotlib takes a while
+    specs: list[dict[str, Any]] = []
+    try:
+        files = write_plots(result, out, keep=specs)
+    except (OSError, ValueError, RuntimeError) as err:
+        why = one_line(f"{type(err).__name__}: {err}")
+        raise PlotError(f"PNG plots not written ({why}); the run's results and metrics.json "
+                        "are kept") from err  # fmt: skip
+    return files | write_run_page(result, out, specs)
 
 
 def _jsonable(obj: Any) -> Any:

@@ -1,33 +1,26 @@
-"""A run's plots drawn off the critical path (issue 31 point 2, ``figures/drawing.py``):
-the forked drawing process writes the same files as drawing in the process, a failure
-there is a one-line ``PlotError`` with the run's results kept, a killed child is named,
-and no child, half-written file or zombie is left behind."""
+"""A run's plots, drawn in the run's own process once its results are written (issue 53,
+item 6: the forked drawing process went): the five PNGs (matplotlib, through
+``figures/mpl.py``) and ``plots.html`` (bokeh, ``figures/pages.py``) from the same specs,
+each PNG saying what it shows, the page the same for the same run, a progress line
+while they are drawn, and a drawing failure one line with the run's results kept."""
 
 from __future__ import annotations
 
-import multiprocessing
-import os
+import json
 import re
-import signal
-from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 
-from glider_cosim.figures import drawing
+from glider_cosim.figures.plots import PLOTS, PlotError, read_png_record, settings_text
 from glider_cosim.runner import simulate
+from glider_cosim.runner.run import draw_plots
 
-pytestmark = [
-    pytest.mark.integration,
-    pytest.mark.skipif(not hasattr(os, "fork"), reason="the drawing process is forked"),
-]
+pytestmark = pytest.mark.integration
 
-
-@pytest.fixture(scope="module")
-def result(native_dir):
-    """A short native run in memory (5 s, 251 rows), its metrics and events included."""
-    return simulate("default", out=None, fmu_dir=native_dir, stop_time=5.0)
-
-
+#: the five PNGs a run draws, and its page
+NAMES = [name for name, _, _ in PLOTS]
 #: the ids bokeh gives a page's models (a process's counter) and elements (random UUIDs)
 BOKEH_ID = re.compile(rb'"p\d+"|[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}')
 
@@ -39,196 +32,91 @@ def _same_ids(page: bytes) -> bytes:
     return BOKEH_ID.sub(lambda m: seen.setdefault(m.group(), b"<id%d>" % len(seen)), page)
 
 
-def _files(folder):
+def _drawn(folder):
+    """The PNGs and the page in ``folder``, the page's bokeh ids renumbered."""
     return {p.name: _same_ids(p.read_bytes()) if p.suffix == ".html" else p.read_bytes()
-            for p in sorted(folder.iterdir())}  # fmt: skip
+            for p in sorted(folder.iterdir()) if p.suffix in (".png", ".html")}  # fmt: skip
 
 
-def test_the_child_writes_what_the_process_writes(result, tmp_path):
-    here, there = tmp_path / "here", tmp_path / "there"
-    here.mkdir()
-    there.mkdir()
-    drawing.draw_plots(result, here)
-    drawer = drawing.start_drawer()
-    assert drawer is not None  # Linux forks
-    files = drawer.draw(result, there)
-    assert set(files) == {"glide_angle", "pitch", "tail_angle", "speed", "depth", "page"}
-    mine, theirs = _files(here), _files(there)
-    assert sorted(mine) == sorted(theirs)
-    for name in mine:  # byte for byte: the same figures, metadata and page
-        assert mine[name] == theirs[name], name
-    assert multiprocessing.active_children() == []
+@pytest.fixture(scope="module")
+def run(fmu_dir, tmp_path_factory):
+    """A 5 s run of the default scenario (251 rows) with its plots, in this process."""
+    out = tmp_path_factory.mktemp("run")
+    return simulate("default", out=out, fmu_dir=fmu_dir, stop_time=5.0), out
 
 
-def test_the_child_draws_after_its_warm_up_what_the_process_draws(result, tmp_path):
-    """A child given time to import matplotlib, load the fonts and fork its partner writes
-    what the process writes."""
-    import time
-
-    here, there = tmp_path / "here", tmp_path / "there"
-    here.mkdir()
-    there.mkdir()
-    drawing.draw_plots(result, here)
-    drawer = drawing.start_drawer()
-    _partner_of(drawer._process.pid)
-    time.sleep(0.5)
-    drawer.draw(result, there)
-    assert _files(here) == _files(there)
-    assert multiprocessing.active_children() == []
+def test_a_run_writes_five_pngs_and_its_page_in_its_own_process(run):
+    result, out = run
+    assert result.status == "ok"
+    assert list(result.files) == ["results", "metrics", *NAMES, "page"]
+    assert [p.name for p in result.files.values()] == [
+        "results.csv", "metrics.json", *(f"{n}.png" for n in NAMES), "plots.html"]  # fmt: skip
+    assert all(p.parent == out and p.stat().st_size > 0 for p in result.files.values())
+    assert not list(out.glob("*.part"))
+    assert b"Bokeh" in (out / "plots.html").read_bytes()
 
 
-_MAPPED = """
-import sys, time
-from pathlib import Path
-from glider_cosim.figures import drawing
-drawer = drawing.start_drawer()
-child = drawer._process.pid
-deadline = time.monotonic() + 20
-while not Path(f"/proc/{child}/task/{child}/children").read_text().split():
-    assert time.monotonic() < deadline, "no partner forked"
-    time.sleep(0.02)
-print(Path(f"/proc/{child}/maps").read_text())
-assert "matplotlib" not in sys.modules
-drawer.close()
-"""
+def test_every_png_says_what_it_shows(run):
+    """Each PNG carries the run's events and settings in its text chunks, read back by
+    ``read_png_record``, at 110 dpi, 770 px wide."""
+    from PIL import Image
+
+    result, out = run
+    for name in NAMES:
+        png = out / f"{name}.png"
+        record = read_png_record(png)
+        assert record["settings"] == settings_text(result.metrics), name
+        assert record["events"] == result.metrics["events"], name
+        with Image.open(png) as im:
+            assert im.width == 770 and round(im.info["dpi"][0]) == 110, name
 
 
-def test_the_drawing_process_loads_matplotlib_while_the_run_runs():
-    """The drawing process imports matplotlib (0.4-0.6 s) and warms it up while the run
-    runs, not after it: a fresh interpreter starts a drawing process and the libraries
-    mapped into it, once it has forked its partner (after the warm-up), are read from
-    /proc; the main process has not imported matplotlib."""
-    import subprocess
-    import sys
-
-    maps = subprocess.run([sys.executable, "-c", _MAPPED], capture_output=True, text=True,
-                          check=True, timeout=120).stdout  # fmt: skip
-    libraries = {line.split()[-1] for line in maps.splitlines() if line.endswith(".so")
-                 or ".so." in line or ".cpython-" in line}  # fmt: skip
-    assert any("/matplotlib/ft2font" in lib for lib in libraries), sorted(libraries)
+def test_the_same_run_draws_the_same_pngs_and_page(run, tmp_path):
+    """Drawn again from the same results, elsewhere: the same PNG bytes, and the same
+    page once bokeh's own ids are renumbered."""
+    result, out = run
+    files = draw_plots(result, tmp_path)
+    assert list(files) == [*NAMES, "page"]
+    mine, again = _drawn(out), _drawn(tmp_path)
+    assert sorted(mine) == sorted(again) == sorted([f"{n}.png" for n in NAMES] + ["plots.html"])
+    for name in mine:
+        assert mine[name] == again[name], name
 
 
-def test_a_failure_in_the_child_is_one_plot_error(result, tmp_path):
-    (tmp_path / "pitch.png.part").mkdir()  # the child cannot write pitch.png
-    drawer = drawing.start_drawer()
-    with pytest.raises(drawing.PlotError) as err:
-        drawer.draw(result, tmp_path)
+def test_a_drawing_failure_is_one_line_and_keeps_the_results(fmu_dir, tmp_path):
+    (tmp_path / "pitch.png.part").mkdir()  # pitch.png cannot be written
+    with pytest.raises(PlotError) as err:
+        simulate("default", out=tmp_path, fmu_dir=fmu_dir, stop_time=2.0)
     text = str(err.value)
     assert text.startswith("PNG plots not written (") and "pitch.png.part" in text
     assert text.endswith("the run's results and metrics.json are kept") and "\n" not in text
     assert not (tmp_path / "pitch.png").exists()
-    assert multiprocessing.active_children() == []
+    assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "ok"
+    assert len((tmp_path / "results.csv").read_text().splitlines()) == 102  # header, 101 rows
 
 
-def test_a_killed_child_is_named(result, tmp_path):
-    drawer = drawing.start_drawer()
-    os.kill(drawer._process.pid, signal.SIGKILL)
-    drawer._process.join(5)
-    with pytest.raises(drawing.PlotError, match=r"the drawing process exited \(signal 9\)"):
-        drawer.draw(result, tmp_path)
-    assert [p.name for p in tmp_path.iterdir()] == []
-    assert multiprocessing.active_children() == []
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "glider_cosim.cli", "run", *args],
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
 
 
-def test_an_unused_child_ends_and_is_reaped():
-    drawer = drawing.start_drawer()
-    pid = drawer._process.pid
-    drawer.close()
-    assert not drawer._process.is_alive() and drawer._process.exitcode == 0
-    with pytest.raises(ChildProcessError):  # reaped: no zombie left with that pid
-        os.waitpid(pid, os.WNOHANG)
-
-
-def test_a_run_with_plots_leaves_no_child_and_no_part_file(native_dir, tmp_path):
-    r = simulate("default", out=tmp_path, fmu_dir=native_dir, stop_time=5.0)
-    assert r.status == "ok" and (tmp_path / "plots.html").is_file()
-    assert {"glide_angle", "pitch", "tail_angle", "speed", "depth", "page"} <= set(r.files)
-    assert multiprocessing.active_children() == []
-    assert not list(tmp_path.glob("*.part"))
-
-
-def _partner_of(pid: int, timeout: float = 20.0) -> int:
-    """The drawing process's partner (its one child), once forked."""
-    import time
-
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        children = (Path(f"/proc/{pid}/task/{pid}/children").read_text()).split()
-        if children:
-            return int(children[0])
-        time.sleep(0.02)
-    raise AssertionError(f"the drawing process {pid} forked no partner in {timeout} s")
-
-
-def _dead(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in "ZX"
-    except FileNotFoundError:
-        return True
-
-
-def test_the_partner_draws_its_share_and_is_reaped(result, tmp_path):
-    here, there = tmp_path / "here", tmp_path / "there"
-    here.mkdir()
-    there.mkdir()
-    drawing.draw_plots(result, here)  # in this process, alone
-    drawer = drawing.start_drawer()
-    partner = _partner_of(drawer._process.pid)
-    child = drawer._process.pid
-    drawer.draw(result, there)
-    assert _files(here) == _files(there)
-    assert _dead(partner) and _dead(child)
-    from glider_cosim.figures.plots import PLOTS
-
-    names = [name for name, _, _ in PLOTS]
-    mine, theirs = drawing.shares()  # every plot once, the cost evenly split, the page theirs
-    assert sorted(mine + theirs) == sorted(names) and not set(mine) & set(theirs)
-    assert (mine, theirs) == (("pitch", "tail_angle", "depth"), ("glide_angle", "speed"))
-    cost = [sum(drawing.COST.get(n, 1.0) for n in share) for share in (mine, theirs + ("page",))]
-    assert cost == [5.0, 4.0]
-
-
-def test_a_failure_in_the_partners_share_is_one_plot_error(result, tmp_path):
-    assert "speed" in drawing.shares()[1]
-    (tmp_path / "speed.png.part").mkdir()  # the partner cannot write speed.png
-    drawer = drawing.start_drawer()
-    _partner_of(drawer._process.pid)
-    with pytest.raises(drawing.PlotError) as err:
-        drawer.draw(result, tmp_path)
-    text = str(err.value)
-    assert text.startswith("PNG plots not written (") and "speed.png.part" in text
-    assert "\n" not in text
-    assert not (tmp_path / "speed.png").exists()
-    assert multiprocessing.active_children() == []
-
-
-def test_the_partner_dies_with_the_drawing_process():
-    import time
-
-    drawer = drawing.start_drawer()
-    partner = _partner_of(drawer._process.pid)
-    os.kill(drawer._process.pid, signal.SIGKILL)
-    drawer._process.join(5)
-    deadline = time.monotonic() + 10
-    while not _dead(partner) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert _dead(partner)
-    drawer.close()
-
-
-def test_every_png_says_what_it_shows(result, tmp_path):
-    """Each of the run's five PNGs (matplotlib's) carries its events and settings in its
-    text chunks, read back by ``read_png_record``, at 110 dpi, 770 px wide."""
-    from PIL import Image
-
-    from glider_cosim.figures.plots import read_png_record, settings_text
-
-    files = drawing.draw_plots(result, tmp_path)
-    pngs = [p for p in files.values() if p.suffix == ".png"]
-    assert len(pngs) == 5
-    for png in pngs:
-        record = read_png_record(png)
-        assert record["settings"] == settings_text(result.metrics), png.name
-        assert record["events"] == result.metrics["events"], png.name
-        with Image.open(png) as im:
-            assert im.width == 770 and round(im.info["dpi"][0]) == 110, png.name
+def test_the_command_says_it_draws_and_a_failure_is_one_error_line(fmu_dir, tmp_path):
+    """In a pipe, one progress line while the plots are drawn; ``-q``, none. A PNG that
+    cannot be written: exit 2, one error line naming it, results.csv and metrics.json
+    kept."""
+    out = tmp_path / "run"
+    p = _cli("--fmu-dir", str(fmu_dir), "--stop-time", "2", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.splitlines() == [f"run: drawing the plots into {out}"]
+    assert "plots.html" in p.stdout and (out / "depth.png").is_file()
+    p = _cli("--fmu-dir", str(fmu_dir), "--stop-time", "2", "--out", str(out), "-q")
+    assert (p.returncode, p.stderr) == (0, "")
+    (out / "speed.png").unlink()
+    (out / "speed.png.part").mkdir()
+    p = _cli("--fmu-dir", str(fmu_dir), "--stop-time", "2", "--out", str(out), "-q")
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    (line,) = p.stderr.splitlines()
+    assert line.startswith("glider-cosim run: error: ") and "PNG plots not written" in line
+    assert "speed.png.part" in line and line.endswith("the run's results and metrics.json are kept")
+    assert (out / "results.csv").is_file() and (out / "metrics.json").is_file()
+    assert not (out / "speed.png").exists()

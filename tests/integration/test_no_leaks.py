@@ -204,7 +204,7 @@ def test_cli_keeps_matplotlibs_font_cache_in_our_cache_only(fmu_dir, tmp_path):
     before = fonts[0].stat().st_mtime_ns
     _draw_with_matplotlib(tmp_path, fmu_dir, env, "o2")
     assert fonts[0].stat().st_mtime_ns == before
-    # a run's PNGs: matplotlib's too, in the run's drawing process, with the same cache
+    # a run's PNGs: matplotlib's too, drawn in the run's process, with the same cache
     p = subprocess.run([sys.executable, "-c", CLI, "run", "--stop-time", "2", "--fmu-dir",
                         str(fmu_dir), "--out", str(tmp_path / "o3")], capture_output=True,
                        text=True, env=env | {"ZIG_GLOBAL_CACHE_DIR": _zig()},

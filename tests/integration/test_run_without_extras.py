@@ -35,8 +35,9 @@ def test_a_run_without_bokeh_writes_its_pngs_and_says_the_page_needs_the_extra(f
     p = _run(["bokeh"], "--out", str(out), "--fmu-dir", str(fmu_dir), "--stop-time", "5")
     assert p.returncode == 0, p.stderr
     assert p.stderr.splitlines() == [
+        f"run: drawing the plots into {out}",
         "glider-cosim: note: plots.html not written (needs bokeh: pip install "
-        "'glider-cosim[pages]'); the run's results and PNGs are kept"
+        "'glider-cosim[pages]'); the run's results and PNGs are kept",
     ]
     assert len(list(out.glob("*.png"))) == 5 and not (out / "plots.html").exists()
     assert (out / "results.csv").stat().st_size > 0 and (out / "metrics.json").is_file()
