@@ -11,22 +11,24 @@ the same picture.
 from __future__ import annotations
 
 import ast
-import tomllib
 from pathlib import Path
 
 import pytest
 
+from glider_cosim.components import COMPONENTS, package_dirs
+
 ROOT = Path(__file__).resolve().parents[1]
-SETUPTOOLS = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-#: import package -> its folder, as ``pyproject.toml``'s ``package-dir`` maps them
-ROOTS = {name: ROOT / folder for name, folder in SETUPTOOLS["package-dir"].items()}
-#: the layers, bottom first: the FMUs' own packages, then the groups of ``glider_cosim``
-#: (its subpackages and top-level modules); docs "Where things are" draws the same
+#: import package -> its folder, as ``setup.py`` maps them (from the component registry)
+ROOTS = {name: ROOT / folder for name, folder in package_dirs().items()}
+#: the components' packages (the registry's): one layer group, over the FMI layer
+COMPONENT_PACKAGES = tuple(c.package for c in COMPONENTS)
+#: the layers, bottom first: the FMI layer, the components' packages, then the groups of
+#: ``glider_cosim`` (its subpackages and top-level modules); docs "Where things are"
+#: draws the same
 LAYERS = (
     ("glider_fmi",),
-    ("glider_plant",),
-    ("glider_observer", "glider_controller"),
-    ("inputs", "progress", "extras"),
+    ("glider_<component>",),
+    ("inputs", "progress", "extras", "components"),
     ("fmus",),
     ("master",),
     ("scenarios",),
@@ -38,7 +40,7 @@ LAYERS = (
 )
 LEVEL = {group: i for i, names in enumerate(LAYERS) for group in names}
 #: the components' pure models: no FMI, no master
-MODEL_PACKAGES = ("glider_plant", "glider_observer", "glider_controller")
+MODEL_PACKAGES = COMPONENT_PACKAGES
 
 
 def modules() -> dict[str, Path]:
@@ -85,6 +87,8 @@ def group(name: str) -> str | None:
     """The layer group of a module: its top-level package, or for ``glider_cosim`` its
     subpackage or top-level module (None: ``glider_cosim`` itself)."""
     parts = name.split(".")
+    if parts[0] in COMPONENT_PACKAGES:
+        return "glider_<component>"
     if parts[0] != "glider_cosim":
         return parts[0]
     return parts[1] if len(parts) > 1 else None
@@ -169,10 +173,10 @@ def test_the_checks_catch_a_circle_and_an_upward_import():
     assert find_cycle(graph) == ["glider_cosim.master.a", "glider_cosim.runner.b",
                                  "glider_cosim.master.a"]  # fmt: skip
     assert upward_imports(graph) == [
-        "glider_cosim.master.a -> glider_cosim.runner.b (upward: master is on layer 5, "
-        "runner on 8)",
-        "glider_plant.model -> glider_cosim.runner.b (upward: glider_plant is on layer 1, "
-        "runner on 8)",
+        "glider_cosim.master.a -> glider_cosim.runner.b (upward: master is on layer 4, "
+        "runner on 7)",
+        "glider_plant.model -> glider_cosim.runner.b (upward: glider_<component> is on layer "
+        "1, runner on 7)",
     ]
     imported = imports("glider_cosim.x.y", ROOT / "tests" / "test_layout.py", modules())
     assert "glider_cosim" not in imported  # this file imports nothing of ours
@@ -208,11 +212,14 @@ def test_the_readme_draws_the_layers_and_every_module():
     want = {}
     for i, groups in enumerate(LAYERS):
         for g in groups:
-            package = g if g.startswith("glider_") else f"glider_cosim.{g}"
-            mods = {
-                n.removeprefix(package + ".")
-                for n in GRAPH
-                if n.startswith(package + ".") and not n.endswith((".__main__", ".__init__"))
-            }
-            want[package] = (i, mods)
+            packages = [g if g.startswith("glider_") else f"glider_cosim.{g}"]
+            if g == "glider_<component>":  # each registered component's package
+                packages = list(COMPONENT_PACKAGES)
+            for package in packages:
+                mods = {
+                    n.removeprefix(package + ".")
+                    for n in GRAPH
+                    if n.startswith(package + ".") and not n.endswith((".__main__", ".__init__"))
+                }
+                want[package] = (i, mods)
     assert rows == want

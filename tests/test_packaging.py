@@ -1,11 +1,13 @@
-"""Packaging and the FMU cache, without building anything: every package folder is
-listed in ``pyproject.toml``, and the cache's location and keys."""
+"""Packaging and the FMU cache, without building anything: every package folder is in
+the distribution ``setup.py`` describes (from the component registry), and the cache's
+location and keys."""
 
 from __future__ import annotations
 
+import runpy
 import sys
-import tomllib
 from pathlib import Path
+from unittest import mock
 
 import pytest
 
@@ -15,14 +17,20 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _setuptools() -> dict:
-    return tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    """The keyword arguments ``setup.py`` gives setuptools (run with ``setup`` caught)."""
+    import setuptools
+
+    given: dict = {}
+    with mock.patch.object(setuptools, "setup", lambda **kw: given.update(kw)):
+        runpy.run_path(str(ROOT / "setup.py"))
+    return given
 
 
 def package_folders() -> set[str]:
     """Every folder with an ``__init__.py`` under the roots of ``package-dir``, as the
     dotted name it installs as."""
     found = set()
-    for name, root in _setuptools()["package-dir"].items():
+    for name, root in _setuptools()["package_dir"].items():
         for init in (ROOT / root).rglob("__init__.py"):
             rel = init.parent.relative_to(ROOT / root)
             found.add(".".join((name, *rel.parts)))
@@ -32,9 +40,17 @@ def package_folders() -> set[str]:
 def test_every_package_folder_is_in_the_distribution():
     """A new subpackage (a folder with ``__init__.py``) missing from ``packages`` would
     import from a checkout and fail from the wheel: list it in pyproject.toml."""
-    listed = set(_setuptools()["packages"])
-    assert package_folders() - listed == set(), "add these to [tool.setuptools] packages"
+    given = _setuptools()
+    listed = set(given["packages"])
+    assert package_folders() - listed == set(), "setup.py leaves these out"
     assert listed - package_folders() == set()
+    # every registered component is a package, with its component.toml in the wheel
+    from glider_cosim.components import registry
+
+    for name, folder in registry().items():
+        assert given["package_dir"][f"glider_{name}"] == folder
+        assert "*.toml" in given["package_data"][f"glider_{name}"]
+    assert "components.toml" in given["package_data"]["glider_cosim"]
 
 
 def test_the_cache_follows_xdg_then_the_platform(monkeypatch, tmp_path):
