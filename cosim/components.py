@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["COMPONENTS", "Component", "ComponentError", "UnknownComponentError", "by_model",
-           "component", "default_connections", "every_run", "package_dirs", "registry"]  # fmt: skip
+           "bundled", "component", "default_connections", "every_run", "fmi_folder",
+           "names_in_words", "package_dirs", "registry"]  # fmt: skip
 
 #: the registry: ``[components]`` name = folder (relative to the project root)
 REGISTRY = Path(__file__).with_name("components.toml")
@@ -264,6 +265,27 @@ def component(name: str) -> Component:
             return c
     known = ", ".join(c.name for c in _components())
     raise UnknownComponentError(f"component {name!r} is unknown: expected one of {known}")
+
+
+def fmi_folder() -> Path:
+    """The shared FMI layer's folder (``glider_fmi``: ``src/fmi``)."""
+    return _folder("fmi", *FMI_PACKAGE)
+
+
+def bundled(c: Component) -> tuple[tuple[str, Path], ...]:
+    """The packages ``c``'s Python FMU bundles, its own first: (import name, folder)."""
+    out = [(c.package, c.folder)]
+    for b in c.bundles:
+        out.append((FMI_PACKAGE[0], fmi_folder()) if b == "fmi" else
+                   (component(b).package, component(b).folder))  # fmt: skip
+    return tuple(out)
+
+
+def names_in_words(names: list[str] | tuple[str, ...] | None = None) -> str:
+    """``"plant, observer or controller"``: the components' names (default: every
+    registered one) as a message lists the choices."""
+    names = [c.name for c in _components()] if names is None else list(names)
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
 
 
 def by_model(model: str) -> Component | None:

@@ -28,7 +28,8 @@ COMPONENT_PACKAGES = tuple(c.package for c in COMPONENTS)
 LAYERS = (
     ("glider_fmi",),
     ("glider_<component>",),
-    ("inputs", "progress", "extras", "components"),
+    ("components",),
+    ("inputs", "progress", "extras"),
     ("fmus",),
     ("master",),
     ("scenarios",),
@@ -173,10 +174,10 @@ def test_the_checks_catch_a_circle_and_an_upward_import():
     assert find_cycle(graph) == ["glider_cosim.master.a", "glider_cosim.runner.b",
                                  "glider_cosim.master.a"]  # fmt: skip
     assert upward_imports(graph) == [
-        "glider_cosim.master.a -> glider_cosim.runner.b (upward: master is on layer 4, "
-        "runner on 7)",
+        "glider_cosim.master.a -> glider_cosim.runner.b (upward: master is on layer 5, "
+        "runner on 8)",
         "glider_plant.model -> glider_cosim.runner.b (upward: glider_<component> is on layer "
-        "1, runner on 7)",
+        "1, runner on 8)",
     ]
     imported = imports("glider_cosim.x.y", ROOT / "tests" / "test_layout.py", modules())
     assert "glider_cosim" not in imported  # this file imports nothing of ours

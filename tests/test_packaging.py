@@ -4,26 +4,18 @@ location and keys."""
 
 from __future__ import annotations
 
-import runpy
 import sys
 from pathlib import Path
-from unittest import mock
 
 import pytest
+from setup_args import setup_kwargs
 
 from glider_cosim.fmus import folders as build
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _setuptools() -> dict:
-    """The keyword arguments ``setup.py`` gives setuptools (run with ``setup`` caught)."""
-    import setuptools
-
-    given: dict = {}
-    with mock.patch.object(setuptools, "setup", lambda **kw: given.update(kw)):
-        runpy.run_path(str(ROOT / "setup.py"))
-    return given
+_setuptools = setup_kwargs
 
 
 def package_folders() -> set[str]:

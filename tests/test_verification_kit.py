@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import fnmatch
 import re
-import tomllib
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 from fmpy.util import read_ref_opt_file
+from setup_args import setup_kwargs
 
 from glider_cosim.cli import main
 from glider_cosim.verify import (
@@ -98,9 +98,9 @@ def test_the_kit_is_small():
 
 def test_every_kit_file_is_package_data():
     """Every file of the kit matches a package-data pattern of glider_cosim (in the wheel)."""
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
-    patterns = project["tool"]["setuptools"]["package-data"]["glider_cosim"]
-    assert project["tool"]["setuptools"]["package-dir"]["glider_cosim"] == "cosim"
+    given = setup_kwargs()
+    patterns = given["package_data"]["glider_cosim"]
+    assert given["package_dir"]["glider_cosim"] == "cosim"
     files = kit_files(ROOT / "cosim" / "verification")
     assert len(files) == 3 + sum(3 + (c.parameters != {}) for c in map(
         lambda cn: load_case(*cn, with_reference=False), ALL))  # fmt: skip

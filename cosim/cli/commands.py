@@ -9,6 +9,7 @@ import os
 import sys
 from pathlib import Path
 
+from ..components import component
 from ..fmus.folders import default_dir
 from ..inputs.text import command_line, one_line, prefix, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
@@ -237,9 +238,7 @@ def _serve(args: argparse.Namespace) -> int:
     if args.fmu is not None:
         fmu, what = Path(args.fmu), shown_path(args.fmu)
     else:
-        name = {"plant": "GliderPlant", "observer": "GliderObserver"}.get(
-            args.component, "GliderController"
-        )
+        name = component(args.component).model
         fmu = prepare_fmus(None, args.flavor, host_only=True) / f"{name}.fmu"
         what = f"{fmu.name}, {args.flavor}"
 
@@ -276,7 +275,9 @@ def _report(args: argparse.Namespace) -> int:
 def _analyze(args: argparse.Namespace) -> int:
     from ..studies.analysis import analyze, format_report
 
-    result = analyze(plant_fmu=Path(args.fmu_dir) / "GliderPlant.fmu" if args.from_fmu else None)
+    result = analyze(
+        plant_fmu=Path(args.fmu_dir) / f"{component('plant').model}.fmu" if args.from_fmu else None
+    )
     if args.json:
         print(json.dumps(result))
     else:

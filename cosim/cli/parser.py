@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import re
 
+from ..components import COMPONENTS
 from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options, add_overwrite_option
 from ..inputs.text import did_you_mean, one_line, prefix
 from ..master.spec import DEFAULT_MAX_STEPS
@@ -249,7 +250,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         "serve",
         help="serve a component's FMU as a UDP endpoint (docs/how-to/real-time.md)",
     )
-    sv.add_argument("component", choices=("plant", "observer", "controller"))
+    sv.add_argument("component", choices=tuple(c.name for c in COMPONENTS))
     sv.add_argument("--listen", default="udp://127.0.0.1:9870", help="udp://HOST:PORT")
     sv.add_argument("--fmu", default=None, help="the FMU to serve (default: ours)")
     sv.add_argument(

@@ -24,14 +24,11 @@ import zipfile
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-import glider_controller
 import glider_fmi
-import glider_observer
-import glider_plant
 from glider_fmi import toolchain
 
+from .. import components as registry
 from . import lsref, objects, osp, platforms, wasm
 from .files import (  # noqa: F401 (same_sources re-exported)
     FLAVOR_FILE,
@@ -72,10 +69,6 @@ LAYER_FILES = ("fmi_layer.h", "fmi_layer.c", "fmi2_layer.c", "native_model.h", "
                "glider_fp.h")  # fmt: skip
 
 
-def _pkg(module: Any) -> Path:
-    return Path(module.__file__).resolve().parent
-
-
 @dataclass(frozen=True)
 class NativeComponent:
     """A native FMU: its slave class (variables) and its C files (model + glue)."""
@@ -89,33 +82,10 @@ class NativeComponent:
         return getattr(__import__(module, fromlist=[cls]), cls)
 
 
-PLANT_C = (_pkg(glider_plant) / "plant_model.h", _pkg(glider_plant) / "plant_model.c")
-NATIVE_COMPONENTS: tuple[NativeComponent, ...] = (
-    NativeComponent(
-        "GliderPlant",
-        "glider_plant.slave:GliderPlant",
-        (*PLANT_C, _pkg(glider_plant) / "plant_fmu.c"),
-    ),
-    NativeComponent(
-        "GliderObserver",
-        "glider_observer.slave:GliderObserver",
-        (
-            *PLANT_C,
-            _pkg(glider_observer) / "observer_model.h",
-            _pkg(glider_observer) / "observer_model.c",
-            _pkg(glider_observer) / "observer_fmu.c",
-        ),
-    ),
-    NativeComponent(
-        "GliderController",
-        "glider_controller.slave:GliderController",
-        (
-            *PLANT_C,
-            _pkg(glider_controller) / "controller_model.h",
-            _pkg(glider_controller) / "controller_model.c",
-            _pkg(glider_controller) / "controller_fmu.c",
-        ),
-    ),
+#: every registered component with C sources (:mod:`glider_cosim.components`), in
+#: registry order; one without has the Python flavor only
+NATIVE_COMPONENTS: tuple[NativeComponent, ...] = tuple(
+    NativeComponent(c.model, c.slave, c.c_sources) for c in registry.COMPONENTS if c.native
 )
 
 

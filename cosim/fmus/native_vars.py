@@ -13,12 +13,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-import glider_controller
-import glider_fmi
-import glider_observer
-import glider_plant
 from glider_fmi import toolchain
 
+from .. import components as registry
 from .files import cache_root, package_version
 from .native_description import c_name, jacobian_lines
 
@@ -36,10 +33,6 @@ def tables_not_kept():
         yield
     finally:
         _KEEP["on"] = before
-
-
-def _pkg(module: Any) -> Path:
-    return Path(module.__file__).resolve().parent
 
 
 class NativeBuildError(toolchain.ToolchainError):
@@ -78,13 +71,14 @@ def _pythonfmu_version_file() -> Path:
 
 
 def _header_key(c: Any) -> str:
-    """A hash over everything :func:`vars_header` reads: the Python sources of the four
-    packages the slaves come from (their variables, ranges, wording), this generator, the
+    """A hash over everything :func:`vars_header` reads: the Python sources of the
+    packages the slaves come from (the FMI layer's and every registered component's:
+    their variables, ranges, wording), this generator, the
     names and Jacobian lines it takes from :mod:`.native_description` and the pythonfmu
     that numbers the variables (its version file)."""
     files = [Path(__file__), Path(__file__).with_name("native_description.py")]
-    for pkg in (glider_fmi, glider_plant, glider_observer, glider_controller):
-        files += sorted(_pkg(pkg).glob("*.py"))
+    for folder in (registry.fmi_folder(), *(c.folder for c in registry.COMPONENTS)):
+        files += sorted(folder.glob("*.py"))
     files.append(_pythonfmu_version_file())
     stamp = tuple((str(f), st.st_mtime_ns, st.st_size) for f in files for st in [f.stat()])
     digest = hashlib.sha256(f"{c.slave}\n{_sources_digest(stamp)}".encode())

@@ -11,13 +11,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import glider_controller
-import glider_fmi
-import glider_observer
-import glider_plant
 from glider_fmi import bundle
 from glider_fmi import compile as runtime
 
+from .. import components as registry
 from . import lsref, osp
 from .files import made_once, replacing
 
@@ -42,23 +39,16 @@ class Component:
         return sorted(f for pkg in self.packages for f in pkg.glob("*.py"))
 
 
-def _pkg(module) -> Path:
-    return Path(module.__file__).resolve().parent
-
-
-COMPONENTS: tuple[Component, ...] = (
-    Component("GliderPlant", (_pkg(glider_plant), _pkg(glider_fmi))),
-    Component("GliderObserver", (_pkg(glider_observer), _pkg(glider_plant), _pkg(glider_fmi))),
-    Component("GliderController", (_pkg(glider_controller), _pkg(glider_plant), _pkg(glider_fmi))),
+#: every registered component's Python FMU (:mod:`glider_cosim.components`), in
+#: registry order: its model name and the packages it bundles
+COMPONENTS: tuple[Component, ...] = tuple(
+    Component(c.model, tuple(folder for _, folder in registry.bundled(c)))
+    for c in registry.COMPONENTS
 )
 
 
-PACKAGE_NAMES = {
-    _pkg(glider_plant): "glider_plant",
-    _pkg(glider_observer): "glider_observer",
-    _pkg(glider_controller): "glider_controller",
-    _pkg(glider_fmi): "glider_fmi",
-}
+#: package folder -> import name, of every package an FMU bundles
+PACKAGE_NAMES = {folder: name for c in registry.COMPONENTS for name, folder in registry.bundled(c)}
 
 
 #: the FMU's binary folder per platform of the runtime (FMI 2: ``linux64`` and, with no

@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ..components import COMPONENTS
 from ..inputs.check import our_table
 from ..inputs.values import has_unit, is_angle, unit_of
 
@@ -24,25 +25,16 @@ __all__ = ["LAW_NAMES", "LOOP_INTERFACE", "overrides_echo", "overrides_words",
 LAW_NAMES = {0: "open-loop", 1: "passivity", 2: "p", 3: "pi"}
 
 
-#: what the closed loop needs of an FMU swapped in for our controller or estimator:
-#: variable -> (causality, unit, when it is needed). ``"required"``: the loop refuses an
-#: FMU without it; ``"optional"``: connected when the FMU declares it, else skipped with
-#: a one-line note; ``"read"``: required when the other component in the loop reads it
-#: (our controller reads ``V_hat``). Any other input is connected to the loop's output
-#: of the same name if there is one. ``docs/reference/fmu-interfaces.md`` and the
-#: how-to pages show this table.
+#: what the closed loop needs of an FMU swapped in for our controller or estimator, from
+#: each component's ``component.toml`` ``[interface]`` (:mod:`glider_cosim.components`):
+#: component -> variable -> (causality, unit, when it is needed). ``"required"``: the
+#: loop refuses an FMU without it; ``"optional"``: connected when the FMU declares it,
+#: else skipped with a one-line note; ``"read"``: required when the other component in the
+#: loop reads it (our controller reads ``V_hat``). Any other input is connected to the
+#: loop's output of the same name if there is one. ``docs/reference/fmu-interfaces.md``
+#: and the how-to pages show this table (the controller first: the one swapped most).
 LOOP_INTERFACE: dict[str, dict[str, tuple[str, str, str]]] = {
-    "controller": {
-        "theta_g_hat": ("input", "rad", "required"),
-        "delta_cmd": ("output", "rad", "required"),
-        "V_hat": ("input", "m/s", "optional"),
-    },
-    "observer": {
-        "theta_meas": ("input", "rad", "required"),
-        "theta_g_hat": ("output", "rad", "required"),
-        "V_hat": ("output", "m/s", "read"),
-        "delta_cmd": ("input", "rad", "optional"),
-    },
+    c.name: c.interface for c in sorted(COMPONENTS, key=lambda c: c.estimator) if c.interface
 }
 
 

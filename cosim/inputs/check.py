@@ -15,6 +15,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from ..components import COMPONENTS
 from .text import did_you_mean, quote
 from .values import (
     Quantity,
@@ -25,12 +26,8 @@ from .values import (
     unit_of,
 )
 
-#: the slave class holding each of our FMUs' variable table
-SLAVES = {
-    "plant": "glider_plant.slave:GliderPlant",
-    "observer": "glider_observer.slave:GliderObserver",
-    "controller": "glider_controller.slave:GliderController",
-}
+#: the slave class holding each of our FMUs' variable table (the component registry's)
+SLAVES = {c.name: c.slave for c in COMPONENTS}
 Origin = Callable[[str], str]
 
 
@@ -227,8 +224,7 @@ def our_kinds(fmus: dict[str, Any]) -> dict[str, str]:
     (by model name and pythonfmu generation tool), e.g. the components of our SSP."""
     from .archives import InputFileError, read_description
 
-    names = {"GliderPlant": "plant", "GliderObserver": "observer",
-             "GliderController": "controller"}  # fmt: skip
+    names = {c.model: c.name for c in COMPONENTS}
     kinds = {}
     for inst, path in fmus.items():
         try:

@@ -140,10 +140,11 @@ def export_one_fmu(
     require("interop", "fmu_manipulation_toolbox")
     from fmu_manipulation_toolbox.container import FMUContainer, FMUContainerError
 
+    from ..components import component
     from ..fmus.folders import build_all, fmu_folder
     from ..scenarios.sampling import has_our_observer, with_sampling
     from ..scenarios.scenario import Scenario, load_scenario
-    from ..scenarios.system import DISTURBANCE_INPUTS, FMU_NAMES, default_connections
+    from ..scenarios.system import DISTURBANCE_INPUTS, scenario_connections
     from .container_order import initial_inputs, ordered
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
@@ -162,7 +163,7 @@ def export_one_fmu(
             "(the container is an FMI 2.0 FMU); use --fmu-dir with an FMI 2 folder"
         )
     built = build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False)  # handed on
-    files = {i: f"{n}.fmu" for i, n in FMU_NAMES.items() if sc.observer or i != "observer"}
+    files = {i: f"{component(i).model}.fmu" for i in sc.instances()}
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     log = logging.getLogger("fmu_manipulation_toolbox")
@@ -175,17 +176,18 @@ def export_one_fmu(
         with tempfile.TemporaryDirectory(prefix="glider_container_") as tmp:
             work = Path(tmp)
             for inst, fname in files.items():
-                shutil.copy2(built[FMU_NAMES[inst]], work / fname)
+                shutil.copy2(built[component(inst).model], work / fname)
             container = ordered(FMUContainer)(CONTAINER_NAME, work, fmi_version=2)
             container.initial_inputs = {f: initial_inputs(work / f) for f in files.values()}
             container.stop_time = float(sc.stop_time)
             for fname in files.values():
                 container.get_fmu(fname)
-            for src, dst in default_connections(sc.feedback, sc.observer):
+            for src, dst in scenario_connections(sc):
                 (si, sv), (di, dv) = src.split(".", 1), dst.split(".", 1)
                 container.add_link(files[si], sv, files[di], dv)
             for ref in DISTURBANCE_INPUTS:
-                container.add_input(ref, files["plant"], ref.split(".", 1)[1])
+                inst, name = ref.split(".", 1)
+                container.add_input(ref, files[inst], name)
             exposed = [r for r in EXPOSED if r.split(".", 1)[0] in files]
             for ref in exposed:
                 inst, name = ref.split(".", 1)

@@ -74,10 +74,11 @@ def export_ssp(
     """
     from fmpy import read_model_description
 
+    from ..components import component
     from ..fmus.folders import build_all, fmu_folder
     from ..scenarios.sampling import has_our_observer, with_sampling
     from ..scenarios.scenario import Scenario, load_scenario
-    from ..scenarios.system import FMU_NAMES, default_connections, swapped
+    from ..scenarios.system import scenario_connections, swapped
 
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if sc.events or sc.disturbances:
@@ -86,7 +87,7 @@ def export_ssp(
             f"{sc.source}: key '{key}': events and disturbances have no SSP 1.0 equivalent; "
             "export a scenario without them"
         )
-    insts = [i for i in FMU_NAMES if sc.observer or i != "observer"]
+    insts = sc.instances()
     ours = set(insts) - set(sc.fmus)  # handed on: every platform's binary
     built = (
         build_all(fmu_folder(fmu_dir), only_stale=True, host_only=False, skip=swapped(sc))
@@ -95,11 +96,11 @@ def export_ssp(
     )
     fmus: dict[str, Path] = {}
     for inst in insts:
-        fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[FMU_NAMES[inst]]
+        fmus[inst] = Path(sc.fmus[inst]) if inst in sc.fmus else built[component(inst).model]
     resources = {inst: f"resources/{fmu.name}" for inst, fmu in fmus.items()}
     if len(set(resources.values())) != len(resources):
         raise SSPError(f"{sc.source}: key 'fmus': two instances use FMU files of the same name")
-    conns = default_connections(sc.feedback, sc.observer)
+    conns = scenario_connections(sc)
     ospmd = {}  # inst -> (path in the archive, content): beside its FMU, as OSP looks
     for inst, fmu in fmus.items():
         found = osp.read_from_fmu(fmu)

@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from ..components import COMPONENTS, names_in_words
 from ..master.errors import MasterError
 from . import protocol as p
 
@@ -59,10 +60,9 @@ def parse_external(items: list[str]) -> dict[str, str]:
     out = {}
     for item in items:
         name, sep, url = item.partition("=")
-        if not sep or name.strip() not in ("plant", "observer", "controller"):
+        if not sep or name.strip() not in [c.name for c in COMPONENTS]:
             raise ValueError(
-                f"--external {item!r} is invalid: expected plant, observer or controller"
-                "=udp://HOST:PORT"
+                f"--external {item!r} is invalid: expected {names_in_words()}=udp://HOST:PORT"
             )
         p.parse_udp(url.strip(), f"--external {name.strip()}")
         out[name.strip()] = url.strip()

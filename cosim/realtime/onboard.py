@@ -17,6 +17,7 @@ from pathlib import Path
 
 from glider_fmi import toolchain
 
+from ..components import component as registry_component
 from ..fmus.native import CFLAGS, FMI_DIR, NATIVE_COMPONENTS, vars_header
 
 #: the ``--target`` values: the native FMUs' platforms (zig's target, glibc 2.17 on
@@ -52,7 +53,8 @@ def build_onboard(out: Path, target: str | None = None, component: str = "contro
         raise OnboardBuildError(f"{component!r}: only the controller is built onboard")
     if not toolchain.zig_available():
         raise OnboardBuildError("zig is missing: pip install ziglang")
-    c = next(c for c in NATIVE_COMPONENTS if c.name == "GliderController")
+    model = registry_component(component).model
+    c = next(c for c in NATIVE_COMPONENTS if c.name == model)
     name = "glider-controller-onboard" + (".exe" if "windows" in target else "")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

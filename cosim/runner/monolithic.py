@@ -21,21 +21,21 @@ from typing import Any
 
 import numpy as np
 
-import glider_controller
-import glider_fmi
-import glider_observer
-import glider_plant
 from glider_controller.laws import Law, PIController, passivity_law
 from glider_observer.filter import ButterworthFilter
 from glider_observer.model import observer_gain, observer_step
 from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
 from glider_plant.params import GliderParams
 
+from ..components import component, fmi_folder
 from ..fmus.variables import parameter_defaults
 from ..scenarios.fields import ScenarioError
 from ..scenarios.sampling import with_sampling
 from ..scenarios.scenario import Scenario
-from ..scenarios.system import FMU_NAMES
+
+#: the loop this module writes out without FMI: the paper's three components (registry
+#: names; their models are imported above, their C models compiled below)
+LOOP = ("plant", "observer", "controller")
 
 #: the contract's columns, in the order the master records them
 COLUMNS = [
@@ -65,15 +65,16 @@ def loop_parameters(
     ScenarioError
         The scenario has events, FMU swaps or inputs (the loops have none of them).
     """
-    if scenario.events or scenario.fmus or scenario.inputs:
+    if scenario.events or scenario.fmus or scenario.inputs or scenario.components:
         raise ScenarioError(
-            f"{scenario.source}: the {what} loop supports no events, FMU swaps or inputs"
+            f"{scenario.source}: the {what} loop supports no events, FMU swaps, inputs or "
+            "added components"
         )
     fmu_dir = _fmus(fmu_dir)
     params = with_sampling(scenario.parameters, step, scenario.source)  # f_sample follows h
     pp, op, cp = (
-        {**parameter_defaults(fmu_dir / f"{name}.fmu"), **params.get(inst, {})}
-        for inst, name in FMU_NAMES.items()
+        {**parameter_defaults(fmu_dir / f"{component(inst).model}.fmu"), **params.get(inst, {})}
+        for inst in LOOP
     )
     return pp, op, cp
 
@@ -172,12 +173,15 @@ def simulate_continuous(
 
     from glider_plant.model import derivatives
 
-    if scenario.events or scenario.disturbances or scenario.fmus:
+    if scenario.events or scenario.disturbances or scenario.fmus or scenario.components:
         raise ScenarioError(f"{scenario.source}: the continuous loop supports no events")
     fmu_dir = _fmus(fmu_dir)
     pp, op, cp = (
-        {**parameter_defaults(fmu_dir / f"{name}.fmu"), **scenario.parameters.get(inst, {})}
-        for inst, name in FMU_NAMES.items()
+        {
+            **parameter_defaults(fmu_dir / f"{component(inst).model}.fmu"),
+            **scenario.parameters.get(inst, {}),
+        }
+        for inst in LOOP
     )
     if cp["law"] != Law.PASSIVITY:
         raise ScenarioError(f"{scenario.source}: the continuous loop needs the passivity law")
@@ -210,12 +214,15 @@ def simulate_continuous(
 
 # ------------------------------------------------------------ the native floor, in C
 SOURCE = Path(__file__).with_name("monolithic.c")
-_DIRS = [Path(m.__file__).parent for m in (glider_plant, glider_observer, glider_controller)]
-#: the C files compiled into the helper, the headers they include
-SOURCES = (SOURCE, *(d / f"{d.name.removeprefix('glider_')}_model.c" for d in _DIRS))
+#: the C files compiled into the helper (each component's ``<name>_model.c`` of its
+#: registered C sources), the headers they include
+SOURCES = (
+    SOURCE,
+    *(f for n in LOOP for f in component(n).c_sources if f.name == f"{n}_model.c"),
+)
 HEADERS = (
-    *(d / f"{d.name.removeprefix('glider_')}_model.h" for d in _DIRS),
-    Path(glider_fmi.__file__).with_name("glider_fp.h"),
+    *(f for n in LOOP for f in component(n).c_sources if f.name == f"{n}_model.h"),
+    fmi_folder() / "glider_fp.h",
 )
 #: the native FMUs' language and optimisation flags (glider_fmi.compile.CFLAGS)
 FLAGS = ("-std=gnu11", "-O2", *(f"-I{p.parent}" for p in HEADERS))

@@ -1,4 +1,4 @@
-"""TOML scenarios: the system around the three glider FMUs, its parameters and events.
+"""TOML scenarios: the system around the glider's FMUs, its parameters and events.
 
 A scenario is data: it is parsed with :mod:`tomllib` and checked key by key; nothing
 in it is executed. Angles may be given in radians (numbers) or as ``"-35 deg"``.
@@ -13,7 +13,11 @@ Keys (all optional; defaults give the paper's Sec. 3.3 case)::
     feedback = "observer"     controller fed by the observer, or "state" (true state)
     with_observer = true      false: no observer instance (only with feedback = "state")
     record = [...]            instance.variable list (default: every output)
-    [plant] [observer] [controller]   parameters of each instance
+    components = [...]        components of the registry to add to the loop (e.g.
+                              ["noise"]: docs/how-to/add-a-component.md)
+    [connections]             "instance.input" = "instance.output": connections over
+                              the components' defaults
+    [plant] [observer] [controller]   parameters of each instance (any component's name)
                               (controller.law may be "open-loop", "passivity", "p", "pi")
     [fmus]                    instance = "path/to/other.fmu" (swap a component)
     [external]                instance = "udp://127.0.0.1:9870" (an endpoint outside)
@@ -32,13 +36,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from ..components import COMPONENTS, UnknownComponentError, component
 from ..inputs.archives import InputFileError, regular_file
 from ..inputs.text import did_you_mean, quote, shown_path
 from ..inputs.values import Quantity
 from ..master.spec import Disturbance, Event
 from .fields import ScenarioError, parse_choice, parse_float, parse_law, parse_number, parse_table
 
-INSTANCES = ("plant", "observer", "controller")
+#: every registered component's instance name (glider_cosim.components)
+INSTANCES = tuple(c.name for c in COMPONENTS)
 
 
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -49,7 +55,7 @@ FEEDBACKS = ("observer", "state")
 
 _TOP = {
     "name", "summary", "description", "notes", "stop_time", "step", "coupling", "feedback",
-    "with_observer", "record",
+    "with_observer", "record", "components", "connections",
     "fmus", "external", "inputs", "disturbance", "event", *INSTANCES,
 }  # fmt: skip
 
@@ -80,6 +86,10 @@ class Scenario:
     feedback: str = "observer"
     observer: bool = True
     record: list[str] | None = None
+    #: components added to the default loop (``components = [...]``), registry names
+    components: list[str] = field(default_factory=list)
+    #: ``"instance.input"`` -> ``"instance.output"``, over the components' defaults
+    connections: dict[str, str] = field(default_factory=dict)
     parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
     fmus: dict[str, str] = field(default_factory=dict)
     #: instance -> ``udp://HOST:PORT`` of the endpoint that serves it (``[external]``)
@@ -93,6 +103,47 @@ class Scenario:
     sha256: str = ""
     #: ``instance.variable`` (or ``event.instance.variable``) -> value set over the file's
     overrides: dict[str, Any] = field(default_factory=dict)
+
+    def instances(self) -> list[str]:
+        """The instances of the loop, in registry order: the components in every run (the
+        observer unless ``with_observer = false``) and those the scenario adds."""
+        return [
+            c.name
+            for c in COMPONENTS
+            if (c.in_every_run and (self.observer or c.name != "observer"))
+            or c.name in self.components
+        ]
+
+
+def _parse_components(data: dict[str, Any], sc: Scenario) -> None:
+    """``components`` (registry names added to the loop) and ``[connections]``."""
+    source = sc.source
+    comps = data.get("components", [])
+    if not (isinstance(comps, list) and all(isinstance(c, str) for c in comps)):
+        raise ScenarioError(f"{source}: key 'components': expected a list of component names")
+    for name in comps:
+        try:
+            c = component(name)
+        except UnknownComponentError as err:
+            raise ScenarioError(f"{source}: key 'components': {err}") from None
+        if c.in_every_run or name in sc.components:
+            raise ScenarioError(
+                f"{source}: key 'components': {quote(name)} is already in the loop: expected "
+                "a component the default loop does not have, once"
+            )
+        sc.components.append(name)
+    insts = sc.instances()
+    for target, src in parse_table(data.get("connections", {}),
+                                   f"{source}: key 'connections'").items():  # fmt: skip
+        where = f"{source}: key {quote(f'connections.{target}')}"
+        for ref, what in ((target, "input"), (src, "output")):
+            inst, dot, var = ref.partition(".") if isinstance(ref, str) else ("", "", "")
+            if not dot or not var or inst not in insts:
+                raise ScenarioError(
+                    f"{where}: {quote(str(ref))} is invalid: expected 'instance.{what}' of an "
+                    f"instance of the loop ({', '.join(insts)})"
+                )
+        sc.connections[target] = src
 
 
 def _tables(
@@ -159,8 +210,14 @@ def parse_scenario(data: dict[str, Any], source: str = "<string>") -> Scenario:
         if not (isinstance(rec, list) and all(isinstance(r, str) for r in rec)):
             raise ScenarioError(f"{source}: key 'record': expected a list of 'instance.variable'")
         sc.record = list(rec)
+    _parse_components(data, sc)
     for inst in INSTANCES:
         if inst in data:
+            if inst not in sc.instances():
+                raise ScenarioError(
+                    f"{source}: key {quote(inst)}: the scenario has no {inst}: expected "
+                    f"components = [{quote(inst)}] to add it"
+                )
             params = {}
             for k, v in parse_table(data[inst], f"{source}: key '{inst}'").items():
                 where = f"{source}: key {quote(f'{inst}.{k}')}"

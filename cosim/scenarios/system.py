@@ -6,7 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..fmus.variables import LOOP_INTERFACE
+from ..components import COMPONENTS, every_run
+from ..components import default_connections as registry_connections
 from ..inputs.text import quote
 from ..master.errors import SystemSpecError
 from ..master.spec import System
@@ -16,33 +17,40 @@ from .scenario import Scenario, load_scenario
 if TYPE_CHECKING:
     from ..master.cosimulation import CoSimulation
 
-FMU_NAMES = {"plant": "GliderPlant", "observer": "GliderObserver", "controller": "GliderController"}
+#: instance -> model name of the default loop's components (the registry's, in order)
+FMU_NAMES = {c.name: c.model for c in every_run()}
 
 
-DISTURBANCE_INPUTS = ("plant.F_x", "plant.F_z", "plant.M_y")
+#: the inputs the loop drives itself (the disturbances: 0 unless a scenario sets them)
+DISTURBANCE_INPUTS = tuple(f"{c.name}.{name}" for c in every_run() for name in c.driven)
 
 
 def default_connections(feedback: str = "observer", observer: bool = True) -> list[tuple[str, str]]:
-    """The closed loop: plant -> observer -> controller -> plant (and -> observer)."""
-    conns = [("controller.delta_cmd", "plant.delta_cmd")]
-    if observer:
-        conns += [
-            ("plant.theta_meas", "observer.theta_meas"),
-            ("controller.delta_cmd", "observer.delta_cmd"),
-        ]
-    if feedback == "state":
-        conns += [("plant.V", "controller.V_hat"), ("plant.theta_g", "controller.theta_g_hat")]
-    else:
-        conns += [
-            ("observer.V_hat", "controller.V_hat"),
-            ("observer.theta_g_hat", "controller.theta_g_hat"),
-        ]
+    """The default loop's connections, as the registry's components say (each
+    ``component.toml``'s ``[inputs]``, and ``[state_feedback]`` under ``feedback =
+    "state"``): plant -> observer -> controller -> plant (and -> observer)."""
+    return registry_connections([n for n in FMU_NAMES if observer or n != "observer"], feedback)
+
+
+def scenario_connections(scenario: Scenario) -> list[tuple[str, str]]:
+    """A scenario's connections: its components' defaults (those it adds included), each
+    input the scenario's ``[connections]`` names taken from its source there instead."""
+    conns = [
+        (scenario.connections.get(dst, src), dst)
+        for src, dst in registry_connections(scenario.instances(), scenario.feedback)
+    ]
+    given = {dst for _, dst in conns}
+    conns += [(src, dst) for dst, src in scenario.connections.items() if dst not in given]
     return conns
 
 
+def _loop_interface() -> dict[str, dict[str, tuple[str, str, str]]]:
+    return {c.name: c.interface for c in COMPONENTS if c.interface}
+
+
 #: where an input of a swapped-in FMU that the loop does not connect looks for an output
-#: of the same name, first to last (an estimate before the plant's true value)
-_BY_NAME = ("observer", "plant", "controller")
+#: of the same name, first to last: the estimators' before the others (registry order)
+_BY_NAME = tuple(c.name for c in sorted(every_run(), key=lambda c: not c.estimator))
 
 
 def loop_wiring(
@@ -87,7 +95,8 @@ def loop_wiring(
         A swapped FMU lacks a variable the loop requires (named, with its causality and
         unit), or an output the other component reads.
     """
-    interface = {inst: LOOP_INTERFACE.get(inst, {}) for inst in swapped_instances}
+    loop = _loop_interface()
+    interface = {inst: loop.get(inst, {}) for inst in swapped_instances}
 
     def who(inst: str) -> str:
         return f"{inst} ({quote(model_names.get(inst, inst))})"
@@ -176,7 +185,8 @@ def fit_swapped(sim: CoSimulation, swapped_instances: set[str]) -> list[str]:
 def swapped(scenario: Scenario) -> set[str]:
     """Our FMUs (model identifiers) a run of ``scenario`` does not take from the FMU
     folder: the instances its ``[fmus]`` table swaps (neither built nor checked there)."""
-    return {FMU_NAMES[inst] for inst in scenario.fmus}
+    models = {c.name: c.model for c in COMPONENTS}
+    return {models[inst] for inst in scenario.fmus}
 
 
 def swapped_in(scenario: str | Path | None) -> set[str]:
@@ -191,16 +201,16 @@ def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> 
     """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
     run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
     unless the scenario sets it (:func:`~glider_cosim.scenarios.sampling.with_sampling`)."""
+    models = {c.name: c.model for c in COMPONENTS}
     fmus = {
-        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{name}.fmu"))
-        for inst, name in FMU_NAMES.items()
-        if scenario.observer or inst != "observer"
+        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{models[inst]}.fmu"))
+        for inst in scenario.instances()
     }
     driven = dict.fromkeys(DISTURBANCE_INPUTS, 0.0)
     driven.update(scenario.inputs)
     return System(
         fmus=fmus,
-        connections=default_connections(scenario.feedback, scenario.observer),
+        connections=scenario_connections(scenario),
         parameters=with_sampling(
             scenario.parameters,
             step if step is not None else scenario.step,

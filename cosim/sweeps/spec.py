@@ -17,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from ..components import component
 from ..inputs.text import did_you_mean
 from ..inputs.values import parse_quantity
 from ..scenarios.scenario import INSTANCES, Scenario
-from ..scenarios.system import FMU_NAMES, system_for
+from ..scenarios.system import system_for
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _PCT = rf"({_NUM})(%?)"
@@ -281,7 +282,7 @@ def nominal_values(scenario: Scenario, fmu_dir: Path, targets: Iterable[str]) ->
         if inst not in defaults:
             defaults[inst] = parameter_defaults(fmus[inst])
         if name not in defaults[inst]:
-            raise SweepSpecError(f"--param {t}: {FMU_NAMES[inst]} has no parameter '{name}'")
+            raise SweepSpecError(f"--param {t}: {component(inst).model} has no parameter '{name}'")
         out[t] = float(defaults[inst][name])
     return out
 

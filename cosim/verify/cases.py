@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..components import COMPONENTS as REGISTERED
 from ..inputs.text import one_line, quote, shown_path
 
 if TYPE_CHECKING:  # numpy is imported where a table is read: the CLI's parser imports this
@@ -43,30 +44,18 @@ class CaseFileError(ValueError):
     """A case file of the kit cannot be read (names the file and what is wrong)."""
 
 
-#: the components, their model names (our FMUs) and the kit's default case
-COMPONENTS = {
-    "plant": "GliderPlant",
-    "observer": "GliderObserver",
-    "controller": "GliderController",
-}
+#: the kit's components (those whose ``component.toml`` has a ``[kit]`` table) and their
+#: model names (our FMUs), from the component registry
+COMPONENTS = {c.name: c.model for c in REGISTERED if c.core}
 
 
 #: each component's core interface: the variables without which no case can run (every
 #: case of the component needs them; the cases named in CORE_CASES need nothing more)
-CORE: dict[str, dict[str, str]] = {
-    "plant": {"delta_cmd": "input", "theta_meas": "output", "V": "output", "theta_g": "output"},
-    "observer": {
-        "theta_meas": "input",
-        "delta_cmd": "input",
-        "V_hat": "output",
-        "theta_g_hat": "output",
-    },
-    "controller": {"V_hat": "input", "theta_g_hat": "input", "delta_cmd": "output"},
-}
+CORE: dict[str, dict[str, str]] = {c.name: dict(c.core) for c in REGISTERED if c.core}
 
 
 #: the case exported as the cross-check case of each model (it uses no parameters)
-DEFAULT_CASE = {"plant": "release", "observer": "filter_step", "controller": "passivity"}
+DEFAULT_CASE = {c.name: c.default_case for c in REGISTERED if c.core and c.default_case}
 
 
 OPT_REQUIRED = ("StartTime", "StopTime", "StepSize", "RelTol", "AbsTol")

@@ -11,6 +11,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..components import component as registry_component
+from ..components import every_run
 from ..fmus.lsref import LSREF_DIR, MANIFEST, data_root
 from ..interop.lsref_write import (
     SMOKE_TOLERANCE,
@@ -24,17 +26,15 @@ from ..interop.lsref_write import (
     ssv_bytes,
 )
 
-# ------------------------------------------------------------------ our three FMUs
-#: model name -> component (the verification kit's name)
-OURS = {"GliderPlant": "plant", "GliderObserver": "observer", "GliderController": "controller"}
+# ------------------------------------------------------------------ our FMUs
+#: model name -> component, of the default loop's components (the registry's)
+OURS = {c.model: c.name for c in every_run()}
 #: the scenario the validation experiment is recorded from
 VALIDATION_SCENARIO = "default"
 
 
-def _package_dir(component: str) -> Path:
-    import importlib
-
-    return Path(importlib.import_module(f"glider_{component}").__file__).resolve().parent
+def _package_dir(name: str) -> Path:
+    return registry_component(name).folder
 
 
 def _differs(value: Any, start: Any) -> bool:

@@ -1,68 +1,50 @@
-"""Reference input/output CSVs of each FMU run alone (kept beside each component).
+"""Each component's reference case: its FMU run alone on the ``reference_input.csv`` of
+its folder, with the parameters of its ``component.toml`` ``[reference]``, gives its
+``reference_output.csv`` (data in the component's folder, named by the component registry).
 
-``python -m glider_cosim.verify.reference --write`` regenerates them; the integration tests
-run each FMU on ``reference_input.csv`` and compare with ``reference_output.csv``.
+``python -m glider_cosim.verify.reference`` runs every component's case on our FMUs and
+compares (exit 1 if one differs; ``--component NAME`` for one); ``--write`` rewrites the
+outputs from the FMUs. The integration tests and each FMU's FMI-LS-REF smoke test
+(:mod:`glider_cosim.verify.lsref_ours`) run the same cases.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
+import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-import glider_controller
-import glider_observer
-import glider_plant
-
+from ..components import COMPONENTS, component
 from ..master.cosimulation import CoSimulation
 from ..master.spec import System
 from ..runner.recorders import ArrayRecorder, csv_lines
 
 STEP = 0.02
 STOP = 10.0
-#: relative/absolute tolerance of the comparison (rad, m/s, m)
+#: absolute tolerance of the comparison (rad, m/s, m)
 ATOL = 1e-9
 
-CASES = {
-    "GliderPlant": {
-        "folder": Path(glider_plant.__file__).parent,
-        "parameters": {"noise_std": 0.01, "noise_seed": 7},
-        "inputs": {
-            "delta_cmd": lambda t: math.radians(20.0) if 2.0 <= t < 6.0 else 0.0,
-            "F_x": lambda t: 0.0,
-            "F_z": lambda t: 0.2 if 7.0 <= t < 8.0 else 0.0,
-            "M_y": lambda t: 0.0,
-        },
-    },
-    "GliderObserver": {
-        "folder": Path(glider_observer.__file__).parent,
-        "parameters": {"start_at_equilibrium": True},
-        "inputs": {
-            "theta_meas": lambda t: math.radians(-21.0 - 3.0 * math.exp(-t / 2) * math.cos(2 * t)),
-            "delta_cmd": lambda t: math.radians(2.0) if t >= 5.0 else 0.0,
-        },
-    },
-    "GliderController": {
-        "folder": Path(glider_controller.__file__).parent,
-        "parameters": {"law": 3, "K_P": 2.0, "K_I": 1.0, "t_enable": 1.0},
-        "inputs": {
-            "V_hat": lambda t: 0.2 + 0.003 * t,
-            "theta_g_hat": lambda t: math.radians(-35.0 + 2.0 * t),
-        },
-    },
-}
+
+def _cases() -> dict[str, dict[str, Any]]:
+    return {
+        c.model: {"folder": c.folder, "parameters": dict(c.reference), "component": c.name}
+        for c in COMPONENTS
+        if (c.folder / "reference_input.csv").is_file()
+    }
+
+
+#: model name -> its reference case: its folder (the CSVs) and parameters, for every
+#: registered component whose folder holds a ``reference_input.csv``
+CASES = _cases()
 
 
 def reference_inputs(name: str) -> tuple[list[str], np.ndarray]:
-    """Input table (time + one column per input) of a component's reference case."""
-    case = CASES[name]
-    n = round(STOP / STEP)
-    t = [k * STEP for k in range(n + 1)]
-    cols = list(case["inputs"])
-    data = np.array([[tk] + [case["inputs"][c](tk) for c in cols] for tk in t])
-    return ["time"] + cols, data
+    """Input table (time + one column per input) of a component's reference case, read
+    from its ``reference_input.csv``."""
+    return read_csv(CASES[name]["folder"] / "reference_input.csv")
 
 
 def run_reference(
@@ -83,7 +65,7 @@ def run_reference(
     sim = CoSimulation(system, step=STEP)
     rec = ArrayRecorder()
     try:
-        sim.run(STOP, rec)
+        sim.run(times[-1], rec)
     finally:
         sim.close()
     return [c.removeprefix("fmu.") for c in rec.columns], rec.array()
@@ -100,22 +82,52 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     return cols, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-def main(argv: list[str] | None = None) -> None:
+def compare(name: str, fmu: Path) -> tuple[bool, str]:
+    """Run ``name``'s reference case on ``fmu`` and compare with ``reference_output.csv``:
+    (equal within :data:`ATOL`, one line saying so)."""
+    cols, data = run_reference(name, fmu)
+    ref_cols, ref = read_csv(CASES[name]["folder"] / "reference_output.csv")
+    if cols != ref_cols or data.shape != ref.shape:
+        return False, f"{name}: columns {cols} or {data.shape[0]} rows differ from the reference"
+    worst = float(np.max(np.abs(data - ref))) if data.size else 0.0
+    ok = worst <= ATOL
+    verdict = "equal to" if ok else "differs from"
+    return ok, (
+        f"{name}: {len(data)} rows, {len(cols) - 1} outputs, {verdict} reference_output.csv "
+        f"(largest difference {worst:.3g}, tolerance {ATOL:g})"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the reference cases (``--write``: rewrite their outputs); 0 if all equal."""
     from ..fmus.folders import build_all, fmu_folder
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", action="store_true", help="rewrite the reference CSVs")
+    ap.add_argument("--component", default=None, help="one component (default: every one)")
+    ap.add_argument("--write", action="store_true", help="rewrite the reference outputs")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
+    names = list(CASES)
+    if args.component is not None:
+        try:
+            names = [component(args.component).model]
+        except ValueError as err:
+            ap.error(str(err))
+        if names[0] not in CASES:
+            ap.error(f"component {args.component!r} has no reference_input.csv in its folder")
     fmus = build_all(fmu_folder(args.fmu_dir), only_stale=True)
-    for name, case in CASES.items():
-        cols, data = run_reference(name, fmus[name])
-        in_cols, in_data = reference_inputs(name)
+    failed = 0
+    for name in names:
         if args.write:
-            write_csv(case["folder"] / "reference_input.csv", in_cols, in_data)
-            write_csv(case["folder"] / "reference_output.csv", cols, data)
-        print(f"{name}: {len(data)} rows, {len(cols) - 1} outputs")
+            cols, data = run_reference(name, fmus[name])
+            write_csv(CASES[name]["folder"] / "reference_output.csv", cols, data)
+            print(f"{name}: {len(data)} rows, {len(cols) - 1} outputs written")
+            continue
+        ok, line = compare(name, fmus[name])
+        failed += not ok
+        print(line)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
