@@ -18,7 +18,7 @@ _spec.loader.exec_module(components)
 
 package_dir = components.package_dirs()
 packages = [name for name in package_dir if name != "glider_cosim"]
-packages += ["glider_cosim", *(f"glider_cosim.{p}" for p in find_packages("cosim"))]
+packages += ["glider_cosim", *(f"glider_cosim.{p}" for p in find_packages(str(ROOT / "cosim")))]
 # what the wheel needs besides the modules: each component's C sources, readme,
 # reference CSVs and component.toml; the FMI runtime's C sources; the fast loop's and
 # helpers' C sources, the registry, the shipped scenarios and the verification kit

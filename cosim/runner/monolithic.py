@@ -63,12 +63,17 @@ def loop_parameters(
     Raises
     ------
     ScenarioError
-        The scenario has events, FMU swaps or inputs (the loops have none of them).
+        The scenario has events, FMU swaps, inputs or added components (the loops have
+        none of them).
     """
-    if scenario.events or scenario.fmus or scenario.inputs or scenario.components:
+    if scenario.events or scenario.fmus or scenario.inputs:
         raise ScenarioError(
-            f"{scenario.source}: the {what} loop supports no events, FMU swaps, inputs or "
-            "added components"
+            f"{scenario.source}: the {what} loop supports no events, FMU swaps or inputs"
+        )
+    if scenario.components:
+        raise ScenarioError(
+            f"{scenario.source}: the {what} loop runs the plant, observer and controller "
+            f"only, not {', '.join(scenario.components)}; run it with --loop fmpy"
         )
     fmu_dir = _fmus(fmu_dir)
     params = with_sampling(scenario.parameters, step, scenario.source)  # f_sample follows h

@@ -12,11 +12,11 @@ import os
 import shutil
 import subprocess
 import sys
-import tomllib
 import zipfile
 from pathlib import Path
 
 import pytest
+from setup_args import setup_kwargs
 
 pytestmark = pytest.mark.integration
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,8 +33,8 @@ def tracked_files() -> list[str]:
 
 def package_files() -> dict[str, str]:
     """Every tracked file under a package root -> its path in the wheel."""
-    dirs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    roots = {root.rstrip("/") + "/": name for name, root in dirs["package-dir"].items()}
+    dirs = setup_kwargs()["package_dir"]  # setup.py's, from the component registry
+    roots = {root.rstrip("/") + "/": name for name, root in dirs.items()}
     out = {}
     for f in tracked_files():
         for root, name in roots.items():
