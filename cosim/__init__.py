@@ -3,4 +3,4 @@ components, the master that runs them, and the studies of the paper
 (the package layout: docs/explanation/code-layout.md)."""
 
 #: the distribution's version (pyproject.toml reads it from here: one place)
-__version__ = "0.1.0"
+__version__ = "0.5.0"
