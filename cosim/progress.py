@@ -306,19 +306,17 @@ class RunProgress:
         self._lines = 0
         self._counted = False
         self._mask = 0 if real_time is not None else 63  # the clock read every 64 rows
+        if hasattr(inner, "rows_block"):  # the C loop's blocks: found without a call
+            self.rows_block = self._rows_block
 
     def __getattr__(self, name: str) -> Any:  # n_rows, path, ... of the inner recorder
-        value = getattr(self.inner, name)
-        if name != "rows_block":
-            return value
+        return getattr(self.inner, name)
 
-        def rows_block(values: Any, nrows: int, ncol: int) -> None:  # the C loop's blocks
-            value(values, nrows, ncol)
-            self.n += nrows
-            if self.mode != "off" and time.perf_counter() >= self._next:
-                self._show()
-
-        return rows_block
+    def _rows_block(self, values: Any, nrows: int, ncol: int) -> None:
+        self.inner.rows_block(values, nrows, ncol)
+        self.n += nrows
+        if self.mode != "off" and time.perf_counter() >= self._next:
+            self._show()
 
     def start(self, columns: Sequence[str]) -> None:
         self.inner.start(columns)

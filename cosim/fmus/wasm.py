@@ -47,19 +47,17 @@ ZIG_TARGET = "wasm32-wasi"
 #: (no main), stripped
 WASM_FLAGS = ("-mexec-model=reactor", "-s")
 
-WASM_DIR = Path(__file__).resolve().parents[2] / "src" / "fmi" / "wasm"
-
 
 class WasmBuildError(toolchain.ToolchainError):
     """A component cannot be built here (no zig, no wasm-tools, a tool failed)."""
 
 
 def wasm_dir() -> Path:
-    """The folder of the WIT and the glue (``glider_fmi``'s ``wasm/``)."""
+    """The folder of the WIT and the glue (``glider_fmi``'s ``wasm/``, its package data:
+    asked of the package, never of a checkout's layout)."""
     import glider_fmi
 
-    installed = Path(glider_fmi.__file__).resolve().parent / "wasm"
-    return installed if installed.is_dir() else WASM_DIR
+    return Path(glider_fmi.__file__).resolve().parent / "wasm"
 
 
 def wit_dir() -> Path:

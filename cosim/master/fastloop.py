@@ -18,13 +18,13 @@ endpoint), no compiler is found, or ``GLIDER_COSIM_FASTLOOP=0``.
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
 import subprocess
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from ..fmus.helpers import build_helper
 
 SOURCE = Path(__file__).with_name("fastloop.c")
 #: the files compiled into the helper
@@ -102,7 +102,7 @@ def _library(hold_gil: bool) -> ctypes.CDLL | None:
 def built_library() -> Path:
     """The compiled helper, built once per FMU cache (:func:`glider_cosim.fmus.folders.
     cache_root`): ``<cache>/<version>/fastloop-<hash>/fastloop<suffix>`` (see
-    :func:`build_helper`).
+    :func:`glider_cosim.fmus.helpers.build_helper`).
 
     Raises
     ------
@@ -110,76 +110,6 @@ def built_library() -> Path:
         No compiler for this machine, or it failed.
     """
     return build_helper("fastloop", SOURCES, HEADERS, FLAGS, "the master's C loop")
-
-
-def build_helper(
-    stem: str,
-    sources: Sequence[Path],
-    headers: Sequence[Path],
-    flags: Sequence[str],
-    what: str,
-    lto: bool = False,
-) -> Path:
-    """A shared library of ``sources`` for this process, built once per FMU cache.
-
-    Parameters
-    ----------
-    stem : str
-        The library's name: ``<cache>/<version>/<stem>-<hash>/<stem><suffix>``, the hash
-        over the sources, the headers they include, the flags and the compiler.
-    sources, headers : sequence of Path
-        The C files compiled, the files they include.
-    flags : sequence of str
-        Compile flags after the toolchain's shared-library ones.
-    what : str
-        What it is, for the compiler's error message.
-    lto : bool
-        Built with link-time optimisation where the native FMUs are
-        (:func:`glider_fmi.toolchain.host_command`).
-
-    Returns
-    -------
-    Path
-        The library. Built under a temporary name and renamed, so concurrent processes
-        never load a half-written file; in this process's temporary folder when the
-        cache cannot be written.
-
-    Raises
-    ------
-    OSError
-        No compiler for this machine, or it failed.
-    """
-    from glider_fmi import toolchain
-
-    from ..fmus.files import cache_root, package_version
-    from ..inputs.tempdirs import new_temp_dir
-
-    cmd = [*toolchain.host_command(lto=lto), *flags]
-    h = hashlib.sha256()
-    for path in (*sources, *headers):
-        h.update(path.read_bytes())
-    h.update(" ".join([*flags, toolchain.fingerprint(), f"lto={lto}"]).encode())
-    suffix = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
-    folder = cache_root() / package_version() / f"{stem}-{h.hexdigest()[:16]}"
-    out = folder / f"{stem}{suffix}"
-    if out.is_file():
-        return out
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        part = folder / f".{stem}-{os.getpid()}{suffix}"
-    except OSError:
-        out = new_temp_dir(f"{stem}_") / f"{stem}{suffix}"
-        part = out
-    try:
-        toolchain.run([*cmd, *map(str, sources), "-o", str(part)], what)
-        if part != out:
-            os.replace(part, out)
-    finally:
-        if part != out:
-            part.unlink(missing_ok=True)
-            for extra in folder.glob(f".{stem}-{os.getpid()}.*"):  # zig's .pdb/.lib
-                extra.unlink(missing_ok=True)
-    return out
 
 
 def fast_loop_wanted() -> bool:

@@ -4,7 +4,7 @@ the model code directly (no FMI): the reference for accuracy and FMI overhead.
 :func:`simulate_monolithic` calls the Python models. :class:`NativeMonolithic` is the
 native flavor's floor: ``monolithic.c`` (next to this module) and the native FMUs' C
 models (``src/<part>/<part>_model.c``), built as the FMUs are (flags, link-time
-optimisation) into a helper of the FMU cache (``master.fastloop.build_helper``),
+optimisation) into a helper of the FMU cache (``fmus.helpers.build_helper``),
 runs the same loop in C. Its rows are bit for bit those of the native co-simulation
 (tested), so its time is what the models cost, and the native flavor's time per macro
 step minus it is what FMI and the master add (``native_monolithic_us_per_macro_step``).
@@ -28,6 +28,7 @@ from glider_plant.model import PitchSensor, equilibrium, plant_step, saturate
 from glider_plant.params import GliderParams
 
 from ..components import component, fmi_folder
+from ..fmus.helpers import build_helper
 from ..fmus.variables import parameter_defaults
 from ..scenarios.fields import ScenarioError
 from ..scenarios.sampling import with_sampling
@@ -260,8 +261,6 @@ _LIB: list[ctypes.CDLL] = []
 
 def _library() -> ctypes.CDLL:
     if not _LIB:
-        from ..master.fastloop import build_helper
-
         out = build_helper(
             "monolithic", SOURCES, HEADERS, FLAGS, "the native monolithic loop", lto=True
         )  # the models built as the FMUs build them
