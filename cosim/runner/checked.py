@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..inputs.outputs import UsageError, check_out_dir, os_error
-from ..inputs.text import quote, shown_path
+from ..inputs.text import command_line, quote, shown_path
 from ..master.errors import Interrupted, SystemSpecError
 from ..master.spec import DEFAULT_MAX_STEPS
 from .run import RunResult
@@ -52,7 +52,7 @@ def run_checked(
     spin_ms: float | None = None,
     external: Sequence[str] = (),
     external_timeout: float | None = None,
-    command: str | None = None,
+    argv: Sequence[str] | None = None,
 ) -> RunResult:
     """Check a run's every input, then run it: what ``glider-cosim run`` does, its
     keyword arguments named as its options (``--stop-time``: ``stop_time``).
@@ -87,8 +87,8 @@ def run_checked(
     external : sequence of str
         ``COMPONENT=udp://HOST:PORT``: endpoints outside the process, over the
         scenario's ``[external]``; ``external_timeout``: their silence allowed, s.
-    command : str, optional
-        The command line, named by an interrupted run's "run it again with".
+    argv : sequence of str, optional
+        The command line as given, named by an interrupted run's "run it again with".
 
     Returns
     -------
@@ -184,7 +184,7 @@ def run_checked(
             rows = (
                 f"{m['rows']} rows to t = {_time(m.get('end_time_s'))} s in " if "rows" in m else ""
             )
-            again = f"; run it again with: {command}" if command is not None else ""
+            again = f"; run it again with: {command_line(argv)}" if argv is not None else ""
             err.kept = f"{rows}{out}{again}"
             raise
     finally:
