@@ -66,4 +66,4 @@ def test_model_description_questions_are_asked_of_the_fmus_room():
         not {"glider_cosim.runner.monolithic", "glider_cosim.runner.provenance"}
         & GRAPH["glider_cosim.sweeps.spec"]
     )
-    assert "glider_cosim.fmus.variables" in GRAPH["glider_cosim.cli.commands"]
+    assert "glider_cosim.fmus.variables" in GRAPH["glider_cosim.runner.checked"]

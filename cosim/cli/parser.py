@@ -7,15 +7,25 @@ import argparse
 import re
 
 from ..components import COMPONENTS
-from ..fmus.options import FLAVORS, FMI_VERSIONS, add_fmu_options, add_overwrite_option
+from ..fmus.options import FLAVORS, FMI_VERSIONS
+from ..inputs.outputs import UsageError
 from ..inputs.text import did_you_mean, one_line, prefix
 from ..master.spec import DEFAULT_MAX_STEPS
 from ..scenarios.scenario import shipped_scenarios
 from .argtypes import _count, _non_negative, _positive
+from .options import (
+    add_dask,
+    add_fmu_dir,
+    add_fmu_options,
+    add_format,
+    add_json,
+    add_no_plots,
+    add_out,
+    add_overwrite_option,
+    add_scenario,
+)
 
-
-class UsageError(ValueError):
-    """A command-line argument cannot be used (the message names the option)."""
+__all__ = ["UsageError", "build_parser"]
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -31,18 +41,6 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
         if "default" in text:
             return text
         return text + " (default: %(default)s)"
-
-
-def uses_fmu_options(args: argparse.Namespace) -> bool:
-    """True if ``--fmu-dir``/``--flavor`` name FMUs to prepare (not verify's; analyze's with
-    ``--from-fmu`` only: without it they are refused, the model's Jacobian uses no FMU)."""
-    if args.command == "analyze" and not args.from_fmu:
-        given = [o for o in ("fmu_dir", "flavor", "fmi") if getattr(args, o) is not None]
-        if given:
-            raise UsageError(f"--{given[0].replace('_', '-')} needs --from-fmu (the model's "
-                             "own Jacobian uses no FMU)")  # fmt: skip
-        return False
-    return hasattr(args, "fmu_dir") and args.command != "verify" and hasattr(args, "flavor")
 
 
 def _plain(text: str) -> str:
@@ -125,12 +123,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                            only=command)  # fmt: skip
 
     b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
-    b.add_argument(
-        "--out",
-        default=None,
-        help="output folder (default: fmus, fmus/native for native, fmus/fmi3 and "
-        "fmus/fmi3/native with --fmi 3)",
-    )
+    add_out(b, "output folder (default: fmus, fmus/native for native, fmus/fmi3 and "
+            "fmus/fmi3/native with --fmi 3)")  # fmt: skip
     b.add_argument(
         "--flavor", choices=FLAVORS, default="python", help="Python reference or native C99"
     )
@@ -153,20 +147,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="Run a TOML scenario, a shipped scenario or an SSP (.ssp archive, .ssd\n"
         "file) with our master; write results.csv, metrics.json and PNG plots.",
     )
-    r.add_argument(
-        "scenario",
-        nargs="?",
-        default=None,
-        help=f"TOML file, shipped name ({', '.join(shipped_scenarios())}) or .ssp/.ssd "
-        "file; default: default",
-    )
-    r.add_argument(
-        "--out",
-        default=None,
-        metavar="DIR",
-        help="results folder, written straight into (default: out/<scenario>); results "
-        "an earlier run made there with other settings are replaced, with a note naming them",
-    )
+    add_scenario(r, f"TOML file, shipped name ({', '.join(shipped_scenarios())}) or .ssp/.ssd "
+                 "file; default: default")  # fmt: skip
+    add_out(r, "results folder, written straight into (default: out/<scenario>); results an "
+            "earlier run made there with other settings are replaced, with a note naming them",
+            metavar="DIR")  # fmt: skip
     add_fmu_options(r, fmi=True, wasm=True)
     r.add_argument(
         "--coupling",
@@ -184,14 +169,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     r.add_argument(
         "--stop-time", type=_positive, default=None, help="stop time, s (default: the scenario's)"
     )
-    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots and plots.html")
-    r.add_argument(
-        "--format",
-        choices=("csv", "parquet"),
-        default="csv",
-        help="results file: results.csv (text) or results.parquet (binary float64, read by "
-        "pandas and polars; needs pyarrow)",
-    )
+    add_no_plots(r, "skip the PNG plots and plots.html")
+    add_format(r, "results file: results.csv (text) or results.parquet (binary float64, read "
+               "by pandas and polars; needs pyarrow)")  # fmt: skip
     r.add_argument(
         "--set",
         action="append",
@@ -264,13 +244,13 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     )
     ob.add_argument("component", choices=("controller",))
     ob.add_argument("--target", default=None, help="zig target, e.g. aarch64-linux-musl")
-    ob.add_argument("--out", required=True, help="output folder")
+    add_out(ob, "output folder", required=True)
 
     e = sub.add_parser(
         "export-ssp", help="write the system as an SSP archive (1.0; 2.0 for FMI 3.0 FMUs)"
     )
     e.add_argument("out", metavar="OUT", help="output .ssp file, in a folder that exists")
-    e.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
+    add_scenario(e)
     e.add_argument(
         "--ssp-version",
         choices=("1.0", "2.0"),
@@ -301,20 +281,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         "default run by up to 0.47 deg in glide angle on the default scenario.",
     )
     xf.add_argument("out", metavar="OUT", help="output .fmu file, in a folder that exists")
-    xf.add_argument("scenario", nargs="?", default=None, help="scenario; default: default")
+    add_scenario(xf)
     add_fmu_options(xf)
 
     rep = sub.add_parser("report", help="run every figure's scenario and write report.md")
-    rep.add_argument("--out", default="out/report", help="report folder")
+    add_out(rep, "report folder", default="out/report")
     add_fmu_options(rep)
     rep.add_argument("--no-progress", action="store_true", help="the same as --quiet")
-    rep.add_argument("--no-plots", action="store_true",
-                     help="skip report.html (the PNGs stay: report.md shows them)")  # fmt: skip
+    add_no_plots(rep, "skip report.html (the PNGs stay: report.md shows them)")
     rep.add_argument("--roa-grid", default="7x5", metavar="NxM|none",
                      help="region-of-attraction grid: N glide angles x M speeds (default "
                      "7x5; none: skip the map)")  # fmt: skip
-    rep.add_argument("--workers", type=int, default=2, help="local Dask workers for the map")
-    rep.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
+    add_dask(rep, "local Dask workers for the map")
 
     xp = sub.add_parser(
         "explore",
@@ -322,47 +300,48 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="Write one self-contained explore.html: the three FMUs' WebAssembly\n"
         "modules under a master in the page; every slider re-simulates the run.",
     )
-    xp.add_argument("scenario", nargs="?", default=None,
-                    help="TOML file or shipped name; default: default")  # fmt: skip
-    xp.add_argument("--out", default=None, metavar="DIR",
-                    help="folder of explore.html (default: out/<scenario>-explore)")  # fmt: skip
-    xp.add_argument("--fmu-dir", default=None,
-                    help="native FMI 3 FMUs with their components (default: the per-user "
-                    "cache's, built if missing)")  # fmt: skip
+    add_scenario(xp, "TOML file or shipped name; default: default")
+    add_out(xp, "folder of explore.html (default: out/<scenario>-explore)", metavar="DIR")
+    add_fmu_dir(xp, "native FMI 3 FMUs with their components (default: the per-user cache's, "
+                "built if missing)")  # fmt: skip
     add_overwrite_option(xp)
 
     a = sub.add_parser("analyze", help="equilibrium, eigenvalues, stable K_c range")
-    a.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    add_json(a, "one JSON object on stdout")
     a.add_argument("--from-fmu", action="store_true",
                    help="the continuous-time Jacobian from the plant FMU's directional "
                    "derivatives (of the --flavor and --fmi asked) instead of the model's "
                    "central differences")  # fmt: skip
     add_fmu_options(a, fmi=True)
 
-    from ..sweeps.options import add_parser as add_sweep_parser
+    s = sub.add_parser("sweep", help="parameter sweep / Monte Carlo on Dask",
+                       description=_SWEEP)  # fmt: skip
+    add_scenario(s, "scenario (default: default)")
+    s.add_argument("--param", action="append", default=[], metavar="INSTANCE.NAME=SPEC",
+                   help="swept parameter (repeatable): 6,8,10 | 2:20:10 | uniform(-20%%,+20%%)"
+                   " | normal(20%%)")  # fmt: skip
+    s.add_argument("--samples", type=int, default=10, help="draws for random specs")
+    s.add_argument("--seeds", type=int, default=None, help="noise seeds 0..N-1 per run")
+    s.add_argument("--rng-seed", type=int, default=0, help="seed of the random draws")
+    add_dask(s, "local worker processes")
+    add_out(s, "results folder: one sweep's (the same sweep resumes there)", default="out/sweep")
+    add_format(s, "format of the sweep's table (parquet needs pyarrow)")
+    s.add_argument("--trajectories", action="store_true", help="keep each run's results CSV")
+    s.add_argument("--stop-time", type=float, default=None, help="stop time, s")
+    add_fmu_options(s)
+    s.add_argument("--restart", action="store_true",
+                   help="replace the results in --out (another sweep's too)")  # fmt: skip
+    add_no_plots(s, "skip the PNG plots")
+    s.add_argument("--dashboard", action="store_true", help="serve and print the Dask dashboard")
 
-    add_sweep_parser(sub)
-    v = sub.add_parser(
-        "verify",
-        help="run the experiments an FMU carries (FMI-LS-REF), or the verification kit",
-        description="Run the FMI-LS-REF experiments an FMU carries (its files' checksums\n"
-        "first). Else (or with --kit): a controller or estimator gets the loop's checks\n"
-        "(interface, units, outputs in Initialization Mode, none one step late, the\n"
-        "default start settling), then the reference cases (counted for a port of our\n"
-        "laws only); a plant, or --case: the cases against the references. Exit 0 if\n"
-        "all counted pass, 1 if one failed or a file changed after the FMU was built,\n"
-        "2 on bad input, a missing interface or nothing that can run.",
-    )
+    v = sub.add_parser("verify", help="run the experiments an FMU carries (FMI-LS-REF), or the "
+                       "verification kit", description=_VERIFY)  # fmt: skip
     if command in (None, "verify"):
-        from ..verify.command import add_arguments, tolerance_arg
-
-        add_arguments(v, tolerance_arg)
+        _verify_options(v)
     ae = sub.add_parser("add-experiments", help="write an FMI-LS-REF experiment into a copy "
                         "of your FMU, from a run of our loop around it")  # fmt: skip
     if command in (None, "add-experiments"):
-        from ..verify.command import add_experiments_arguments
-
-        add_experiments_arguments(ae)
+        _add_experiments_options(ae)
     cm = sub.add_parser(
         "compare",
         help="your controller or estimator against ours, on the paper's benchmark set",
@@ -370,10 +349,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         "ours, on our master and plant: compare.md/.html/.csv, an overlay figure per case.\n"
         "Exit 0 when the runs complete, whatever the comparison says; 2 on bad input.",
     )
-    cm.add_argument("scenario", metavar="SCENARIO", help="TOML file whose [fmus] swaps the "
-                    "controller or the observer")  # fmt: skip
-    cm.add_argument("--out", default=None, metavar="DIR", help="output folder (default: "
-                    "out/<scenario>-compare)")  # fmt: skip
+    add_scenario(cm, "TOML file whose [fmus] swaps the controller or the observer",
+                 nargs=None, metavar="SCENARIO")  # fmt: skip
+    add_out(cm, "output folder (default: out/<scenario>-compare)", metavar="DIR")
     add_fmu_options(cm)
     sub.add_parser(
         "scenarios",
@@ -395,6 +373,104 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     for command in sub.choices.values():  # every command: builds, runs and sweeps wait
         command.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     return p
+
+
+_SWEEP = """Run a parameter sweep or a Monte Carlo study on Dask.
+
+Each --param INSTANCE.NAME=SPEC (repeatable) is a list (6,8,10), a range START:STOP:NUM
+(NUM values, both ends included) or random draws around the nominal value,
+uniform(-20%,+20%) or normal(20%) (absolute: uniform(LOW,HIGH), normal(SD)); lists and
+ranges form a full grid. An interrupted sweep resumes where it stopped; a folder that
+holds another sweep's results is refused."""
+
+_VERIFY = """Run the FMI-LS-REF experiments an FMU carries (its files' checksums
+first). Else (or with --kit): a controller or estimator gets the loop's checks
+(interface, units, outputs in Initialization Mode, none one step late, the
+default start settling), then the reference cases (counted for a port of our
+laws only); a plant, or --case: the cases against the references. Exit 0 if
+all counted pass, 1 if one failed or a file changed after the FMU was built,
+2 on bad input, a missing interface or nothing that can run."""
+
+
+def _verify_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``glider-cosim verify`` (and ``python -m glider_cosim.verify``)."""
+    from ..verify.cases import COMPONENTS
+
+    p.add_argument("fmu", nargs="?", default=None, help="the FMU to verify")
+    p.add_argument(
+        "--component",
+        choices=tuple(COMPONENTS),
+        default=None,
+        help="plant, observer or controller (default: found from the variables)",
+    )
+    p.add_argument("--case", default=None, help="one case (default: every case)")
+    p.add_argument("--kit", action="store_true",
+                   help="run the verification kit's cases of our components instead of the "
+                   "FMI-LS-REF experiments the FMU carries (implied by --component, --case, "
+                   "--rtol, --atol)")  # fmt: skip
+    p.add_argument(
+        "--rtol",
+        type=tolerance_arg,
+        default=None,
+        help="relative tolerance for every case (default: each case's)",
+    )
+    p.add_argument(
+        "--atol",
+        type=tolerance_arg,
+        default=None,
+        help="absolute tolerance for every case, SI units (default: each case's)",
+    )
+    add_json(p, "print the whole result as one JSON object (for CI systems) instead of the table")
+    p.add_argument(
+        "--write-references",
+        action="store_true",
+        help="rerun the cases on our FMUs and rewrite the shipped references",
+    )
+    p.add_argument(
+        "--export",
+        default=None,
+        metavar="DIR",
+        help="write the cases with our FMUs in the FMI Cross-Check layout",
+    )
+    add_fmu_dir(p, "our FMUs for --write-references/--export and the loop checks' closed loop, "
+                "built if missing or stale (default: the per-user cache)")  # fmt: skip
+    add_overwrite_option(p)
+
+
+def _add_experiments_options(p: argparse.ArgumentParser) -> None:
+    """The options of ``glider-cosim add-experiments``."""
+    from ..fmus.lsref import ROLES
+
+    p.description = (
+        "Put FMU in the loop of a scenario (the instance its [fmus] table gives it, else\n"
+        "the component whose interface it has), run the loop, and write a copy of FMU that\n"
+        "carries an FMI-LS-REF experiment: its recorded inputs as stimuli, its outputs as\n"
+        "references, the scenario's parameter values. FMU itself is never written over."
+    )
+    p.add_argument("fmu", metavar="FMU", help="your FMI 2.0 or 3.0 co-simulation FMU")
+    p.add_argument("--from", dest="case", required=True, metavar="CASE",
+                   help="a shipped scenario's name or a scenario file")  # fmt: skip
+    add_out(p, "the new FMU (not FMU; an existing file only if glider-cosim wrote it)",
+            required=True, metavar="NEW.fmu")  # fmt: skip
+    p.add_argument("--role", default=ROLES[0], choices=ROLES,
+                   help="the experiment's role (default: experiment, a smoke test)")  # fmt: skip
+    add_fmu_dir(p, "our other FMUs of the loop (default: the per-user cache)")
+
+
+def tolerance_arg(text: str) -> float:
+    """An ``--rtol``/``--atol`` argument as a float (argparse's type)."""
+    from ..inputs.text import quote
+    from ..verify.cases import VerifyInputError
+    from ..verify.compare import check_tolerance
+
+    try:
+        value = check_tolerance(text, "")
+    except VerifyInputError:
+        raise argparse.ArgumentTypeError(
+            f"{quote(text)} is invalid: expected a finite number >= 0"
+        ) from None
+    assert value is not None
+    return value
 
 
 #: ``--quiet``'s help, on every command

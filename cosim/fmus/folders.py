@@ -25,7 +25,7 @@ from .files import (  # noqa: F401 (re-exported)
 )
 from .fmi3 import build_fmi3
 from .native import NATIVE_COMPONENTS, build_native, native_hash
-from .options import FLAVORS, FMI_VERSIONS, add_fmu_options  # noqa: F401 (re-exported)
+from .options import FLAVORS, FMI_VERSIONS  # noqa: F401 (re-exported)
 from .python import (
     COMPONENTS,
     DEFAULT_DIRS_FMI3,
@@ -221,6 +221,60 @@ def build_all(
         built = _build(out, only_stale, flavor, fmi, host_only, names, force)
         _update_record(out, names, held, rec)
         return built
+
+
+def build(
+    out: str | Path | None = None,
+    *,
+    flavor: str = "python",
+    fmi: int = 2,
+    compiler: str | None = None,
+    overwrite_fmus: bool = False,
+) -> dict[str, Path]:
+    """Build our three FMUs into a folder: what ``glider-cosim build`` does.
+
+    Parameters
+    ----------
+    out : path, optional
+        The folder (default: :func:`default_dir` of the flavor and FMI version), checked
+        before anything is built.
+    flavor : {"python", "native"}
+        The Python reference or the native C99 build.
+    fmi : {2, 3}
+        The FMI version.
+    compiler : str, optional
+        ``CC[,CC...]``: the C compilers (zig or system ones), for every build step and
+        hash of this process (``$GLIDER_COSIM_COMPILER``; default: its value, else zig).
+    overwrite_fmus : bool
+        Replace what ``out`` holds under our FMUs' names.
+
+    Returns
+    -------
+    dict
+        Model name -> the FMU built.
+
+    Raises
+    ------
+    UsageError
+        ``out`` cannot be written, or a compiler chosen is missing or failed (one line
+        naming the option).
+    """
+    import os
+
+    from glider_fmi.toolchain import COMPILER_ENV, ToolchainError
+
+    from ..inputs.outputs import UsageError, check_out_dir, os_error
+
+    folder = Path(out) if out is not None else default_dir(flavor, fmi)
+    check_out_dir(folder, "--out")
+    if compiler is not None:  # every build step and hash of this process uses it
+        os.environ[COMPILER_ENV] = compiler
+    try:
+        return build_all(folder, flavor=flavor, fmi=fmi, overwrite=overwrite_fmus, option="--out")
+    except ToolchainError as err:  # a compiler chosen is missing or failed
+        raise UsageError(str(err)) from None
+    except OSError as err:
+        raise os_error(err, {"--out": folder}) from None
 
 
 def _build(

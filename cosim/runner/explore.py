@@ -246,3 +246,41 @@ def write_page(out: Path, scenario: Any, fmu_dir: Path) -> Path:
 
 
 __all__ = ["ExploreError", "core_module", "page_data", "page_html", "write_page"]
+
+
+def explore(
+    scenario: str | Path | None = None,
+    out: str | Path | None = None,
+    *,
+    fmu_dir: str | Path | None = None,
+    overwrite_fmus: bool = False,
+) -> Path:
+    """Write the explorer page of a scenario: what ``glider-cosim explore`` does.
+
+    Parameters
+    ----------
+    scenario : path or shipped name, optional
+        A TOML file or a shipped scenario's name (default: the default scenario).
+    out : path, optional
+        The page's folder (default: ``out/<scenario>-explore``), checked first.
+    fmu_dir : path, optional
+        Native FMI 3 FMUs with their WebAssembly components (default: the per-user
+        cache's, built if missing or stale).
+    overwrite_fmus : bool
+        Replace what ``fmu_dir`` holds under our FMUs' names.
+
+    Returns
+    -------
+    Path
+        ``explore.html``.
+    """
+    from ..fmus.folders import prepare_fmus
+    from ..inputs.outputs import check_out_dir
+    from ..scenarios.scenario import load_scenario
+
+    loaded = load_scenario(scenario)
+    out = Path(out) if out is not None else Path("out") / f"{loaded.name}-explore"
+    check_out_dir(out, "--out")
+    folder = None if fmu_dir is None else Path(fmu_dir)
+    fmus = prepare_fmus(folder, "native", 3, host_only=folder is None, overwrite=overwrite_fmus)
+    return write_page(out, loaded, fmus)

@@ -392,3 +392,11 @@ def shipped_scenarios() -> list[str]:
     """Names of the scenarios shipped in the package."""
     d = resources.files("glider_cosim") / "scenarios"
     return sorted(f.name[:-5] for f in d.iterdir() if f.name.endswith(".toml"))
+
+
+def describe_shipped() -> str:
+    """The shipped scenarios, one line each: the name, then what it is
+    (:func:`one_line_summary`); what ``glider-cosim scenarios`` prints (no final newline)."""
+    names = shipped_scenarios()
+    width = max(len(n) for n in names)
+    return "\n".join(f"{name:<{width}}  {one_line_summary(load_scenario(name))}" for name in names)

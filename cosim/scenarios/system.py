@@ -3,11 +3,13 @@ what a scenario sets."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..components import COMPONENTS, every_run
 from ..components import default_connections as registry_connections
+from ..inputs.outputs import os_error
 from ..inputs.text import quote
 from ..master.errors import SystemSpecError
 from ..master.spec import System
@@ -195,6 +197,61 @@ def swapped_in(scenario: str | Path | None) -> set[str]:
     if scenario is not None and str(scenario).endswith((".ssp", ".ssd")):
         return set()
     return swapped(load_scenario(scenario))
+
+
+def prepare_asked(
+    fmu_dir: str | Path | None = None,
+    flavor: str | None = None,
+    fmi: int | None = None,
+    *,
+    overwrite_fmus: bool = False,
+    host_only: bool = False,
+    scenario: str | Path | None = None,
+    swaps: bool = False,
+) -> Path:
+    """The FMU folder that ``--fmu-dir``, ``--flavor``, ``--fmi`` and ``--overwrite-fmus``
+    ask for, built if missing or stale (:func:`glider_cosim.fmus.folders.prepare_fmus`).
+
+    Parameters
+    ----------
+    fmu_dir : path, optional
+        The folder (default: the per-user cache). One that does not exist gets a fresh
+        set, with a note: a typo would build a whole new set.
+    flavor, fmi : optional
+        ``"python"``/``"native"``; 2 or 3 (default: what the folder holds).
+    overwrite_fmus : bool
+        Replace what the folder holds under our FMUs' names.
+    host_only : bool
+        The FMUs run on this machine alone (a run, a local sweep): the cache may serve a
+        set with this machine's binary only.
+    scenario : path or shipped name, optional
+        With ``swaps`` and a folder given: the scenario whose ``[fmus]`` swaps in a
+        user's FMU, which is then neither built nor checked there.
+    swaps : bool
+        Leave the scenario's swapped FMUs alone (see ``scenario``).
+
+    Returns
+    -------
+    Path
+        The folder of the FMUs.
+
+    Raises
+    ------
+    UsageError
+        The folder cannot be written (the message names ``--fmu-dir``).
+    """
+    from ..fmus import folders
+
+    folder = Path(fmu_dir) if fmu_dir is not None else None
+    if folder is not None and not folder.exists():
+        note = f"--fmu-dir {quote(str(folder))} does not exist: a fresh set of FMUs is built there"
+        logging.getLogger(__name__).warning(note)
+    skip = swapped_in(scenario) if swaps and folder is not None else set()
+    try:
+        return folders.prepare_fmus(folder, flavor, fmi, host_only=host_only,
+                                    overwrite=overwrite_fmus, skip=skip)  # fmt: skip
+    except OSError as err:
+        raise os_error(err, {"--fmu-dir": folder or folders.cache_root()}) from None
 
 
 def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> System:

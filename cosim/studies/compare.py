@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..fmus.variables import LAW_NAMES
+from ..inputs.outputs import check_out_dir
 from ..progress import Progress, home
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import Scenario, load_scenario
@@ -203,7 +204,8 @@ def compare(
         A scenario whose ``[fmus]`` swaps the controller or the observer (read only,
         and their FMU too).
     out : path, optional
-        Folder for the files (default ``out/<scenario name>-compare``).
+        Folder for the files (default ``out/<scenario name>-compare``), checked before
+        any run.
     fmu_dir : path, optional
         Our FMUs (built there if missing or stale; default: the per-user cache).
 
@@ -214,12 +216,13 @@ def compare(
 
     Raises
     ------
-    CompareError, ScenarioError
+    CompareError, ScenarioError, UsageError
         Bad input (one line); raised before any run.
     """
     user = load_scenario(scenario)
     component = swapped_component(user)
     out = Path(out) if out is not None else default_out(scenario)
+    check_out_dir(out, "--out")
     fmu = Path(user.fmus[component]).resolve()
     n_grid = len(GRID_DEG)
     cases: list[Case] = []

@@ -10,7 +10,7 @@ Every number in the report is computed here, from the code in this repository. T
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -159,6 +159,62 @@ def build_report(
     with Progress(total, "report", header, quiet=not progress) as bar:
         return _build(out, fmu_dir, analysis, roa_grid, workers, scheduler, page, bar, written,
                       command)  # fmt: skip
+
+
+def report(
+    out: str | Path = "out/report",
+    fmu_dir: str | Path | None = None,
+    *,
+    no_progress: bool = False,
+    no_plots: bool = False,
+    roa_grid: str = "7x5",
+    workers: int = 2,
+    scheduler: str | None = None,
+    argv: Sequence[str] | None = None,
+) -> list[Path]:
+    """Check the options, then :func:`build_report`: what ``glider-cosim report`` does.
+
+    Parameters
+    ----------
+    out : path
+        The report's folder, checked before anything runs.
+    fmu_dir : path, optional
+        Our FMUs (default: the per-user cache).
+    no_progress : bool
+        No step on stderr.
+    no_plots : bool
+        Skip ``report.html`` (the PNGs stay: ``report.md`` shows them).
+    roa_grid : str
+        ``"NxM"``: the region-of-attraction map's N glide angles x M speeds; ``"none"``
+        skips the map.
+    workers : int
+        Local Dask workers for the map (>= 1).
+    scheduler : str, optional
+        Address of an existing Dask scheduler.
+    argv : sequence of str, optional
+        The command line as given, recorded in "How this report was made".
+
+    Returns
+    -------
+    list of Path
+        ``report.md`` first, then the other documents written (``report.html`` if it
+        was, ``report.json``).
+    """
+    from ..inputs.outputs import check_out_dir
+    from ..inputs.text import command_line
+    from .analysis import analyze
+    from .roa import parse_grid
+
+    check_out_dir(Path(out), "--out")
+    grid = None if roa_grid.lower() == "none" else parse_grid(roa_grid)
+    if workers < 1:
+        raise ValueError(f"--workers {workers}: expected a number >= 1")
+    written: list[Path] = []
+    command = None if argv is None else command_line(argv)
+    path = build_report(out, fmu_dir, analysis=analyze, progress=not no_progress, roa_grid=grid,
+                        workers=workers, scheduler=scheduler, page=not no_plots,
+                        written=written, command=command)  # fmt: skip
+    return [path, *(f for f in written if f != path)]
 
 
 def _build(
