@@ -17,7 +17,9 @@ extensions = [
     "sphinx.ext.napoleon",
     "glider_docs",
 ]
-exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "jupyter_execute"]
+# how-to/add-a-component/: the example component's files (its readme is not a page)
+exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "jupyter_execute",
+                    "how-to/add-a-component/**"]  # fmt: skip
 source_suffix = {".md": "myst-nb"}
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3

@@ -5,9 +5,13 @@ from __future__ import annotations
 import pytest
 
 from glider_cosim.cli import main
+from glider_cosim.components import registry
 from glider_cosim.scenarios.fields import ScenarioError
 from glider_cosim.scenarios.overrides import parse_sets
 from glider_cosim.scenarios.scenario import parse_scenario
+
+#: the instance names a message lists: the registry's (plant, observer, controller)
+NAMES = ", ".join(registry())
 
 LAW = "expected one of 'open-loop', 'passivity', 'p', 'pi' (any case) or an integer 0..3"
 
@@ -125,8 +129,8 @@ def _error(capsys, argv: list[str]) -> str:
          "fig5-6-observer-noise, paper-p-gains, paper-pi-gains, sec52-tail15, sec52-tail30, "
          "sec52-tail45, sec53-literal, sec53-protocol); did you mean 'fig3-4-kc'?"),
         (["run", "--set", "contoller.K_c=3"], "glider-cosim run: error: --set 'contoller.K_c=3': "
-         "expected INSTANCE.NAME=VALUE with INSTANCE one of plant, observer, controller; did "
-         "you mean 'controller'?"),
+         f"expected INSTANCE.NAME=VALUE with INSTANCE one of {NAMES}; did you mean "
+         "'controller'?"),
         (["run", "--set", "controller.K_c=6", "--set", "controller.K_c = 8"],
          "glider-cosim run: error: --set 'controller.K_c=6' and --set 'controller.K_c = 8': "
          "controller.K_c is set twice: expected one value per name"),
@@ -135,8 +139,8 @@ def _error(capsys, argv: list[str]) -> str:
         (["sweep", "--param", "controller.K_c=-1,5"], "glider-cosim sweep: error: --param "
          "'controller.K_c=-1,5': -1 is invalid: expected a finite value in (0, inf)"),
         (["sweep", "--param", "contoller.K_c=1"], "glider-cosim sweep: error: --param "
-         "'contoller.K_c=1': expected INSTANCE.NAME=SPEC with INSTANCE one of plant, observer, "
-         "controller; did you mean 'controller'?"),
+         f"'contoller.K_c=1': expected INSTANCE.NAME=SPEC with INSTANCE one of {NAMES}; did "
+         "you mean 'controller'?"),
         (["report", "--workers", "0"], "glider-cosim report: error: --workers 0: expected a "
          "number >= 1"),
         # issue 28, point 4: exports refuse what makes no sense

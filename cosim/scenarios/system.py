@@ -258,11 +258,19 @@ def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> 
     """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
     run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
     unless the scenario sets it (:func:`~glider_cosim.scenarios.sampling.with_sampling`)."""
-    models = {c.name: c.model for c in COMPONENTS}
+    by_name = {c.name: c for c in COMPONENTS}
     fmus = {
-        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{models[inst]}.fmu"))
+        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{by_name[inst].model}.fmu"))
         for inst in scenario.instances()
     }
+    for inst in scenario.components:  # added to the loop: it may have no native flavor
+        c = by_name[inst]
+        if inst not in scenario.fmus and not c.native and not fmus[inst].exists():
+            raise SystemSpecError(
+                f"{scenario.source}: component {quote(inst)} has no native flavor (no "
+                f"c_sources in its component.toml), so {fmu_dir} has no {c.model}.fmu: "
+                "expected --flavor python"
+            )
     driven = dict.fromkeys(DISTURBANCE_INPUTS, 0.0)
     driven.update(scenario.inputs)
     return System(

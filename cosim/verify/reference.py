@@ -85,8 +85,14 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 def compare(name: str, fmu: Path) -> tuple[bool, str]:
     """Run ``name``'s reference case on ``fmu`` and compare with ``reference_output.csv``:
     (equal within :data:`ATOL`, one line saying so)."""
+    expected = CASES[name]["folder"] / "reference_output.csv"
+    if not expected.is_file():
+        return False, (
+            f"{name}: no reference_output.csv in {expected.parent}: expected the FMU's "
+            f"outputs on reference_input.csv (write them with --write)"
+        )
     cols, data = run_reference(name, fmu)
-    ref_cols, ref = read_csv(CASES[name]["folder"] / "reference_output.csv")
+    ref_cols, ref = read_csv(expected)
     if cols != ref_cols or data.shape != ref.shape:
         return False, f"{name}: columns {cols} or {data.shape[0]} rows differ from the reference"
     worst = float(np.max(np.abs(data - ref))) if data.size else 0.0
@@ -100,9 +106,13 @@ def compare(name: str, fmu: Path) -> tuple[bool, str]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the reference cases (``--write``: rewrite their outputs); 0 if all equal."""
-    from ..fmus.folders import build_all, fmu_folder
+    from ..fmus.folders import prepare_fmus
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m glider_cosim.verify.reference",
+        description="Run each component's FMU alone on its reference_input.csv and compare "
+        "with its reference_output.csv (exit 1 if one differs).",
+    )
     ap.add_argument("--component", default=None, help="one component (default: every one)")
     ap.add_argument("--write", action="store_true", help="rewrite the reference outputs")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
@@ -115,7 +125,10 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(str(err))
         if names[0] not in CASES:
             ap.error(f"component {args.component!r} has no reference_input.csv in its folder")
-    fmus = build_all(fmu_folder(args.fmu_dir), only_stale=True)
+    # the Python flavor's FMUs, from the per-user cache (built for this machine if
+    # missing or stale) or the folder given
+    folder = prepare_fmus(args.fmu_dir, None, host_only=True)
+    fmus = {name: folder / f"{name}.fmu" for name in names}
     failed = 0
     for name in names:
         if args.write:
