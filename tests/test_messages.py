@@ -232,7 +232,7 @@ def test_api_overrides_take_what_set_takes():
         ({"controller.K_c": -1},
          "overrides['controller.K_c']: -1 is invalid: expected a finite value in (0, inf)"),
         ({"K_c": 1}, "overrides['K_c']: expected INSTANCE.NAME=VALUE with INSTANCE one of "
-         "plant, observer, controller"),
+         f"{NAMES}"),
         ({"plant.V_0": "fast"},
          "overrides['plant.V_0']: 'fast' is not a number: expected a number (m/s) or 'X m/s'"),
     ]:  # fmt: skip
