@@ -20,18 +20,19 @@ package_dir = components.package_dirs()
 packages = [name for name in package_dir if name != "glider_cosim"]
 packages += ["glider_cosim", *(f"glider_cosim.{p}" for p in find_packages(str(ROOT / "cosim")))]
 # what the wheel needs besides the modules: each component's C sources, readme,
-# reference CSVs and component.toml; the FMI runtime's C sources; the fast loop's and
-# helpers' C sources, the registry, the shipped scenarios and the verification kit
-package_data = {name: ["*.md", "*.csv", "*.c", "*.h", "*.toml"] for name in package_dir}
+# reference CSVs, component.toml and FMI-LS-REF folder (lsref/, packed into its FMUs);
+# the FMI runtime's C sources; the fast loop's and helpers' C sources, the registry, the
+# shipped scenarios and the verification kit
+package_data = {
+    name: ["*.md", "*.csv", "*.c", "*.h", "*.toml", "lsref/*", "lsref/*/*"] for name in package_dir
+}
 package_data["glider_fmi"] = ["*.md", "*.c", "*.h", "wasm/*.c", "wasm/wit/*.wit"]
 package_data["glider_cosim"] = [
     "components.toml",
     "verification/*/*.csv",
     "verification/*/*.opt",
     "verification/*/README.md",
-    # FMI-LS-REF: our FMUs' folders (packed into every build), the vendored schemas
-    "verification/lsref/*/*",
-    "verification/lsref/*/*/*",
+    # FMI-LS-REF: the vendored schemas (each component's folder is in its package)
     "verification/schemas/*",
 ]
 package_data.update(

@@ -1,8 +1,8 @@
 """FMI-LS-REF in every FMU we build: the folder ``extra/org.fmi-standard.fmi-ls-ref/``
 (experiments, parameter sets, the readme, the manifest listing them with checksums).
 
-The folder's files are data shipped in the package, ``verification/lsref/<model>/``,
-written by :mod:`glider_cosim.verify.lsref_ours` (``python -m
+The folder's files are data in each component's folder, ``src/<component>/lsref/``
+(packaged with it), written by :mod:`glider_cosim.verify.lsref_ours` (``python -m
 glider_cosim.verify.lsref_ours --write``); what they hold and what the standards leave
 open is told in :mod:`glider_cosim.interop.lsref_write`. Every build (both flavors,
 FMI 2.0 and 3.0) packs them through :func:`entries`; the FMUs' binaries and model
@@ -15,9 +15,12 @@ import functools
 import hashlib
 import re
 import zipfile
-from importlib import resources
 from pathlib import Path
 
+from ..components import COMPONENTS, by_model
+
+#: the LS-REF folder in each component's folder (``src/<component>/lsref/``)
+FOLDER = "lsref"
 #: the folder of the layered standard in an FMU
 LSREF_DIR = "extra/org.fmi-standard.fmi-ls-ref"
 #: the manifest (the standard's fixed name)
@@ -41,9 +44,11 @@ def sha3(data: bytes) -> str:
     return hashlib.sha3_256(data).hexdigest()
 
 
-def data_root() -> Path:
-    """The shipped LS-REF folders, one per model (in the installed package)."""
-    return Path(str(resources.files("glider_cosim") / "verification" / "lsref"))
+def shipped_folder(model: str) -> Path | None:
+    """The LS-REF folder shipped for ``model`` (``lsref/`` in its component's folder,
+    :mod:`glider_cosim.components`), or None for a model not registered."""
+    c = by_model(model)
+    return None if c is None else c.folder / FOLDER
 
 
 def _model_name(md_xml: bytes) -> str:
@@ -52,25 +57,29 @@ def _model_name(md_xml: bytes) -> str:
 
 
 def _files(model: str) -> list[Path]:
-    folder = data_root() / model
-    return sorted(p for p in folder.rglob("*") if p.is_file()) if folder.is_dir() else []
+    folder = shipped_folder(model)
+    if folder is None or not folder.is_dir():
+        return []
+    return sorted(p for p in folder.rglob("*") if p.is_file())
 
 
 def fingerprint() -> str:
-    """Hash of the shipped LS-REF folders: part of the FMUs' source hashes and of the
-    cache's sources key (a change rebuilds the FMUs)."""
-    root = data_root()
-    files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else []
-    stamp = tuple((str(f), f.stat().st_mtime_ns, f.stat().st_size) for f in files)
+    """Hash of every component's shipped LS-REF folder: part of the FMUs' source hashes
+    and of the cache's sources key (a change rebuilds the FMUs)."""
+    stamp = tuple(
+        (c.model, str(f), f.stat().st_mtime_ns, f.stat().st_size)
+        for c in COMPONENTS
+        for f in _files(c.model)
+    )
     return _fingerprint(stamp)
 
 
 @functools.lru_cache(maxsize=8)
-def _fingerprint(stamp: tuple[tuple[str, int, int], ...]) -> str:
+def _fingerprint(stamp: tuple[tuple[str, str, int, int], ...]) -> str:
     h = hashlib.sha256()
-    root = data_root()
-    for path, _, _ in stamp:
-        h.update(Path(path).relative_to(root).as_posix().encode())
+    for model, path, _, _ in stamp:
+        rel = Path(path).relative_to(shipped_folder(model)).as_posix()
+        h.update(f"{model}/{rel}".encode())
         h.update(Path(path).read_bytes())
     return h.hexdigest()
 
@@ -79,9 +88,10 @@ def entries(md_xml: bytes) -> dict[str, bytes]:
     """Zip path -> bytes of the LS-REF folder of the model ``md_xml`` describes (one of
     ours); empty for a model that ships none. One function for every flavor and FMI
     version."""
-    folder = data_root() / _model_name(md_xml)
+    model = _model_name(md_xml)
+    folder = shipped_folder(model)
     return {f"{LSREF_DIR}/{p.relative_to(folder).as_posix()}": p.read_bytes()
-            for p in _files(folder.name)}  # fmt: skip
+            for p in _files(model)}  # fmt: skip
 
 
 def add_to_fmu(fmu: Path) -> None:
@@ -95,8 +105,9 @@ def add_to_fmu(fmu: Path) -> None:
 def is_current(z: zipfile.ZipFile) -> bool:
     """True if the FMU open in ``z`` carries the LS-REF manifest shipped for its model
     now (always true for a model that ships none)."""
-    shipped = data_root() / _model_name(z.read("modelDescription.xml")) / "fmi-ls-manifest.xml"
-    if not shipped.is_file():
+    folder = shipped_folder(_model_name(z.read("modelDescription.xml")))
+    shipped = folder / "fmi-ls-manifest.xml" if folder is not None else None
+    if shipped is None or not shipped.is_file():
         return True
     want = shipped.read_bytes()
     try:

@@ -224,7 +224,8 @@ def build_component(c: Component, out: Path, binary: Path | dict[str, Path]) -> 
         project = []
         for pkg in c.packages:
             dst = stage / PACKAGE_NAMES[pkg]
-            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.h", "*.so")
+            # its LS-REF folder goes to extra/ (lsref.add_to_fmu), not with the modules
+            ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.c", "*.h", "*.so", "lsref")
             shutil.copytree(pkg, dst, ignore=ignore)
             project.append(dst)
         (stage / "glider_cosim_source.sha256").write_text(source_hash(c) + "\n")

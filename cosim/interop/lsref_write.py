@@ -1,7 +1,8 @@
 """Writing FMI-LS-REF folders: experiments, parameter sets and documents that travel
-inside an FMU (``extra/org.fmi-standard.fmi-ls-ref/``); our three FMUs' folders
-(``python -m glider_cosim.verify.lsref_ours --write``, shipped in
-``verification/lsref/<model>/`` and packed by every build, :mod:`glider_cosim.fmus.lsref`).
+inside an FMU (``extra/org.fmi-standard.fmi-ls-ref/``); our FMUs' folders
+(``python -m glider_cosim.verify.lsref_ours --write``, shipped in each component's
+folder, ``src/<component>/lsref/``, and packed by every build,
+:mod:`glider_cosim.fmus.lsref`).
 
 The layered standard FMI-LS-REF (modelica/fmi-ls-ref, version 1.0.0-alpha.1) lists an
 FMU's related files in ``extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml``, each

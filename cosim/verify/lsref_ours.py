@@ -1,8 +1,9 @@
-"""Our three FMUs' FMI-LS-REF folders (``python -m glider_cosim.verify.lsref_ours
---write | --check``), shipped in ``verification/lsref/<model>/`` and packed by every
-build (:mod:`glider_cosim.fmus.lsref`), and recording an instance of a loop at component
-level (:func:`record_component`, also for ``glider-cosim add-experiments``).
-:mod:`glider_cosim.interop.lsref_write` says what the folders hold."""
+"""Our FMUs' FMI-LS-REF folders (``python -m glider_cosim.verify.lsref_ours --write |
+--check [--component NAME]``), shipped in each component's folder
+(``src/<component>/lsref/``) and packed by every build (:mod:`glider_cosim.fmus.lsref`),
+and recording an instance of a loop at component level (:func:`record_component`, also
+for ``glider-cosim add-experiments``). :mod:`glider_cosim.interop.lsref_write` says what
+the folders hold."""
 
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..components import COMPONENTS
 from ..components import component as registry_component
-from ..components import every_run
-from ..fmus.lsref import LSREF_DIR, MANIFEST, data_root
+from ..fmus.lsref import LSREF_DIR, MANIFEST, shipped_folder
 from ..interop.lsref_write import (
     SMOKE_TOLERANCE,
     SSV_MIME,
@@ -27,8 +28,10 @@ from ..interop.lsref_write import (
 )
 
 # ------------------------------------------------------------------ our FMUs
-#: model name -> component, of the default loop's components (the registry's)
-OURS = {c.model: c.name for c in every_run()}
+#: model name -> component, of every registered component with a reference case (its
+#: folder's reference_input.csv): the smoke test; those of the default loop also get the
+#: validation and the shipped scenarios' parameter sets
+OURS = {c.model: c.name for c in COMPONENTS if (c.folder / "reference_input.csv").is_file()}
 #: the scenario the validation experiment is recorded from
 VALIDATION_SCENARIO = "default"
 
@@ -106,6 +109,8 @@ def model_related(model: str, fmu_dir: Path) -> list[Related]:
         f"{model} smoke test",
         f"{model}: the reference case of glider-cosim's {component}",
     )
+    if not registry_component(component).in_every_run:  # added by a scenario: no
+        return [*related, _readme(model)]  # validation in the default loop
     sc = load_scenario(VALIDATION_SCENARIO)
     ex = record_component(sc, component, fmu_dir)
     ex.description = (
@@ -131,17 +136,19 @@ def model_related(model: str, fmu_dir: Path) -> list[Related]:
                 (("scenario", name),),
             )
         )
-    readme = _package_dir(component) / "README.md"
-    related.append(
-        Related(
-            "README.md",
-            "document",
-            "text/markdown",
-            f"{model}: the component's readme (model, equations, variables)",
-            readme.read_bytes(),
-        )
-    )
+    related.append(_readme(model))
     return related
+
+
+def _readme(model: str) -> Related:
+    """The component's readme, as the LS-REF folder's document."""
+    return Related(
+        "README.md",
+        "document",
+        "text/markdown",
+        f"{model}: the component's readme (model, equations, variables)",
+        (_package_dir(OURS[model]) / "README.md").read_bytes(),
+    )
 
 
 def folder_files(related: Sequence[Related]) -> dict[str, bytes]:
@@ -151,9 +158,14 @@ def folder_files(related: Sequence[Related]) -> dict[str, bytes]:
     return out
 
 
-def write_folders(fmu_dir: str | Path | None = None, dest: Path | None = None) -> list[Path]:
-    """Write our models' LS-REF folders (``dest``, default :func:`data_root`:
-    ``verification/lsref/<model>/``), each replaced whole; the FMUs of ``fmu_dir``
+def write_folders(
+    fmu_dir: str | Path | None = None,
+    dest: Path | None = None,
+    models: Sequence[str] | None = None,
+) -> list[Path]:
+    """Write our models' LS-REF folders (``models``, default every one of :data:`OURS`),
+    each replaced whole: into ``dest/<model>/``, or by default each component's
+    ``lsref/`` (:func:`~glider_cosim.fmus.lsref.shipped_folder`). The FMUs of ``fmu_dir``
     (default: the per-user cache's Python flavor, built if missing or stale) run the loop.
     Return the files written."""
     import shutil
@@ -162,11 +174,10 @@ def write_folders(fmu_dir: str | Path | None = None, dest: Path | None = None) -
 
     folder = fmu_folder(fmu_dir)
     build_all(folder, only_stale=True)
-    dest = data_root() if dest is None else Path(dest)
     written = []
-    for model in OURS:
+    for model in OURS if models is None else models:
         files = folder_files(model_related(model, folder))
-        out = dest / model
+        out = shipped_folder(model) if dest is None else Path(dest) / model
         if out.exists():
             shutil.rmtree(out)
         for rel, data in files.items():
@@ -300,22 +311,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     import argparse
     import tempfile
 
-    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap = argparse.ArgumentParser(
+        prog="python -m glider_cosim.verify.lsref_ours",
+        description="Write each component's FMI-LS-REF folder (src/<component>/lsref/, "
+        "packed into its FMUs), or check that it is what would be written (exit 1 if not).",
+    )
     group = ap.add_mutually_exclusive_group(required=True)
     group.add_argument("--write", action="store_true", help="rewrite the shipped folders")
     group.add_argument("--check", action="store_true", help="exit 1 if one is out of date")
+    ap.add_argument("--component", default=None, help="one component (default: every one)")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
+    models = list(OURS)
+    if args.component is not None:
+        try:
+            models = [registry_component(args.component).model]
+        except ValueError as err:
+            ap.error(str(err))
+        if models[0] not in OURS:
+            ap.error(f"component {args.component!r} has no reference_input.csv in its folder")
     if args.write:
-        for p in write_folders(args.fmu_dir):
+        for p in write_folders(args.fmu_dir, models=models):
             print(f"wrote {p}")
         return 0
+    stale = []
     with tempfile.TemporaryDirectory(prefix="glider_lsref_") as tmp:
-        write_folders(args.fmu_dir, Path(tmp))
-        stale = stale_files(Path(tmp), data_root())
-    for rel in stale:
-        print(f"{data_root() / rel}: out of date")
-    print(f"{data_root()}: {'out of date' if stale else 'up to date'}")
+        write_folders(args.fmu_dir, Path(tmp), models)
+        for model in models:
+            shipped = shipped_folder(model)
+            differ = [shipped / rel for rel in stale_files(Path(tmp) / model, shipped)]
+            print(f"{shipped}: {'out of date' if differ else 'up to date'}")
+            stale += differ
+    for path in stale:
+        print(f"{path}: out of date")
     return 1 if stale else 0
 
 

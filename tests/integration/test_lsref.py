@@ -14,7 +14,7 @@ import pytest
 
 import glider_cosim
 from glider_cosim.cli.main import main
-from glider_cosim.fmus.lsref import LSREF_DIR, MANIFEST, data_root
+from glider_cosim.fmus.lsref import LSREF_DIR, MANIFEST, shipped_folder
 from glider_cosim.interop.lsref_write import Experiment, experiment_files
 from glider_cosim.verify.lsref import verify_lsref
 from glider_cosim.verify.lsref_add import AddExperimentsError, write_copy
@@ -98,9 +98,9 @@ def test_every_fmu_we_build_carries_valid_experiments(kind, request, schemas):
         fmu = folder / f"{model}.fmu"
         with zipfile.ZipFile(fmu) as z:
             # the folder is the shipped one, byte for byte, in every flavor and version
-            shipped = {f"{LSREF_DIR}/{p.relative_to(data_root() / model).as_posix()}":
-                       p.read_bytes() for p in (data_root() / model).rglob("*")
-                       if p.is_file()}  # fmt: skip
+            own = shipped_folder(model)  # the component's lsref/
+            shipped = {f"{LSREF_DIR}/{p.relative_to(own).as_posix()}": p.read_bytes()
+                       for p in own.rglob("*") if p.is_file()}  # fmt: skip
             carried = {n: z.read(n) for n in z.namelist() if n.startswith(LSREF_DIR)}
             assert carried == shipped, (kind, model)
             assert _validate(z, schemas) >= 4
@@ -115,8 +115,10 @@ def test_every_fmu_we_build_carries_valid_experiments(kind, request, schemas):
 def test_the_shipped_folders_are_up_to_date(fmu_dir, tmp_path):
     from glider_cosim.verify.lsref_ours import stale_files, write_folders
 
-    write_folders(fmu_dir, tmp_path)
-    assert stale_files(tmp_path, data_root()) == []
+    written = write_folders(fmu_dir, tmp_path)
+    assert {p.relative_to(tmp_path).parts[0] for p in written} == set(MODELS)
+    for model in MODELS:
+        assert stale_files(tmp_path / model, shipped_folder(model)) == [], model
 
 
 def test_the_paper_cases_travel_as_parameter_sets(fmu_dir):
