@@ -66,15 +66,36 @@ def walked(tmp_path_factory) -> tuple[Path, dict[str, str], dict[str, str]]:
 def test_the_page_runs_as_written_and_prints_what_it_says(walked):
     clone, _, out = walked
     texts = [t for language, t in blocks() if language == "text"]
-    assert len(texts) == 3, "the page shows the run, the verification and git status"
-    run, verify, status = texts
+    assert len(texts) == 4, "the page shows the run, the two verifications and git status"
+    run, reference, carried, status = texts
     printed = out["glider-cosim run noisy-pitch.toml"]
     for line in run.strip().splitlines():
         assert line in printed.splitlines(), f"the run did not print {line!r}:\n{printed}"
-    assert verify.strip() in out["python -m glider_cosim.verify.reference --component noise"]
+    assert out["python -m glider_cosim.verify.reference --component noise"] == reference
+    verified = out["glider-cosim verify fmus/GliderPitchNoise.fmu"]
+    assert verified.strip().splitlines()[-1] == carried.strip()
+    assert "smoke-test.exp [experiment/smoke-test] experiment 'reference': pass" in verified
     shown = subprocess.run(["git", "status", "--short"], cwd=clone, capture_output=True,
                            text=True, check=True).stdout  # fmt: skip
     assert shown == status, "files other than the folder, the registry line and the scenario"
+
+
+def test_the_reference_case_is_checked_not_trusted(walked):
+    """A reference output that the FMU does not give fails the page's verification."""
+    clone, env, _ = walked
+    ref = clone / "src" / "noise" / "reference_output.csv"
+    good = ref.read_text()
+    try:
+        lines = good.splitlines(keepends=True)
+        t, v = lines[2].split(",")
+        lines[2] = f"{t},{float(v) + 1e-6!r}\n"  # one output 1e-6 rad off
+        ref.write_text("".join(lines))
+        p = subprocess.run(["python", "-m", "glider_cosim.verify.reference", "--component",
+                            "noise"], cwd=clone, env=env, capture_output=True, text=True,
+                           timeout=600, check=False)  # fmt: skip
+        assert p.returncode == 1 and "differs from reference_output.csv" in p.stdout, p.stdout
+    finally:
+        ref.write_text(good)
 
 
 def test_nothing_else_changed(walked):
@@ -84,8 +105,9 @@ def test_nothing_else_changed(walked):
     status = ["git", "status", "--porcelain", "--untracked-files=all"]
     shown = subprocess.run(status, cwd=clone, capture_output=True, text=True, check=True).stdout
     changed = {line[3:] for line in shown.splitlines()}
-    folder = {f"src/noise/{p.name}" for p in (ROOT / "docs/how-to/add-a-component/noise").iterdir()
-              if p.is_file()}  # fmt: skip
+    example = ROOT / "docs" / "how-to" / "add-a-component" / "noise"
+    folder = {f"src/noise/{p.relative_to(example).as_posix()}" for p in example.rglob("*")
+              if p.is_file() and "__pycache__" not in p.parts}  # fmt: skip
     assert changed == {"cosim/components.toml", "noisy-pitch.toml", *folder}
     diff = subprocess.run(["git", "diff", "-U0", "cosim/components.toml"], cwd=clone,
                           capture_output=True, text=True, check=True).stdout  # fmt: skip
