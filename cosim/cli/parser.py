@@ -122,7 +122,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", parser_class=_Parser, action=_Commands,
                            only=command)  # fmt: skip
 
-    b = sub.add_parser("build", help="build the three FMUs", description="Build the three FMUs.")
+    b = sub.add_parser(
+        "build",
+        help="build our FMUs, one per registered component",
+        description="Build our FMUs, one per component of the registry.",
+    )
     add_out(b, "output folder (default: fmus, fmus/native for native, fmus/fmi3 and "
             "fmus/fmi3/native with --fmi 3)")  # fmt: skip
     b.add_argument(
