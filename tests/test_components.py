@@ -159,3 +159,19 @@ def test_the_registry_file_is_the_one_setup_packages():
     assert Path(reg.REGISTRY).name == "components.toml"
     assert reg.package_dirs()["glider_cosim"] == "cosim"
     assert {f"glider_{n}" for n in registry()} <= set(reg.package_dirs())
+
+
+@pytest.mark.parametrize("module", ["reference", "lsref_ours"])
+def test_the_reference_commands_name_an_unknown_component(module, capsys):
+    """``python -m glider_cosim.verify.reference|lsref_ours --component NAME``: an unknown
+    name is a usage error (exit 2) naming the known ones, before anything is built."""
+    import importlib
+
+    main = importlib.import_module(f"glider_cosim.verify.{module}").main
+    argv = ["--component", "depth"] + (["--check"] if module == "lsref_ours" else [])
+    with pytest.raises(SystemExit) as err:
+        main(argv)
+    assert err.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    known = ", ".join(registry())
+    assert last.endswith(f"error: component 'depth' is unknown: expected one of {known}")

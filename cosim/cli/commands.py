@@ -116,11 +116,10 @@ def _host_env(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from ..sweeps.sweep import main as sweep_main
+    from ..sweeps.sweep import sweep
 
     check_out_dir(Path(args.out), "--out")  # up front, as run's: before any build and Dask
-    args.fmu_dir = _fmus(args)
-    return sweep_main(args)
+    return sweep(**_kwargs(args, sweep) | {"fmu_dir": _fmus(args)})
 
 
 def _report(args: argparse.Namespace) -> int:

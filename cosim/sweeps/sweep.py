@@ -26,12 +26,11 @@ Modules by purpose: :mod:`.spec` (specs, the list of runs, the up-front name che
 :mod:`.store` (``sweep.csv``, safe to kill), :mod:`.folder` (one sweep per folder:
 ``sweep.json``), :mod:`.cluster` (clients, version check,
 FMUs sent to workers), :mod:`.worker` (the runs of a task, on the worker), :mod:`.plots`;
-this module holds the client loop and the CLI.
+this module holds the client loop, :func:`sweep`.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -178,36 +177,43 @@ def run_sweep(
                        time.perf_counter() - t0, store.path, failed_total, failures)  # fmt: skip
 
 
-def spec_text(args: argparse.Namespace, specs: Sequence[ParamSpec]) -> str:
+def spec_text(
+    scenario: str | None,
+    param: Sequence[str],
+    specs: Sequence[ParamSpec],
+    samples: int,
+    rng_seed: int,
+    seeds: int | None,
+    stop_time: float | None,
+) -> str:
     """The options that make a sweep's list of runs, as the user wrote them (shell-quoted),
     e.g. ``--param controller.K_c=2:30:15 --stop-time 20``."""
     import shlex
 
-    words = [args.scenario] if args.scenario else []
-    for item in args.param:
+    words = [scenario] if scenario else []
+    for item in param:
         words += ["--param", item]
     if any(s.random for s in specs):
-        words += ["--samples", str(args.samples), "--rng-seed", str(args.rng_seed)]
-    if args.seeds is not None:
-        words += ["--seeds", str(args.seeds)]
-    if args.stop_time is not None:
-        words += ["--stop-time", f"{args.stop_time:g}"]
+        words += ["--samples", str(samples), "--rng-seed", str(rng_seed)]
+    if seeds is not None:
+        words += ["--seeds", str(seeds)]
+    if stop_time is not None:
+        words += ["--stop-time", f"{stop_time:g}"]
     return shlex.join(words)
 
 
 def interrupted(
-    err: KeyboardInterrupt, out: Path, ids: Sequence[str], args: argparse.Namespace
+    err: KeyboardInterrupt, out: Path, ids: Sequence[str], argv: Sequence[str] = ()
 ) -> Interrupted:
     """``err`` as :class:`Interrupted`, with what the console says is kept: ``37 of 240
-    runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...`` (the command as
-    given, without ``--restart``)."""
+    runs in out/sweep/sweep.csv; resume with: glider-cosim sweep ...`` (``argv``, the
+    command as given, without ``--restart``)."""
     stop = err if isinstance(err, Interrupted) else Interrupted()
     table = out / TABLE_FILE
     done = len(recorded_ids(table) & set(ids))
-    argv = getattr(args, "argv", [])
     restart = [w for w in argv if len(w) > 3 and "--restart".startswith(w)]  # "--rest" too
     stop.kept = (f"{done} of {len(set(ids))} runs in {table}; resume with: "
-                 f"{command_line(argv, drop=restart)}")  # fmt: skip
+                 f"{command_line(list(argv), drop=restart)}")  # fmt: skip
     return stop
 
 
@@ -245,60 +251,121 @@ def outcome_summary(path: Path, param_names: Sequence[str], shown: int = SHOWN_U
     return line
 
 
-def main(args: argparse.Namespace) -> int:
-    """Run the ``sweep`` sub-command; 0 all ok, 1 some run of the sweep failed (in this
-    call or an earlier one recorded in ``sweep.csv``)."""
+def sweep(
+    scenario: str | Path | None = None,
+    param: Sequence[str] = (),
+    *,
+    fmu_dir: str | Path,
+    samples: int = 10,
+    seeds: int | None = None,
+    rng_seed: int = 0,
+    workers: int = 2,
+    scheduler: str | None = None,
+    out: str | Path = "out/sweep",
+    format: str = "csv",  # noqa: A002
+    trajectories: bool = False,
+    stop_time: float | None = None,
+    restart: bool = False,
+    no_plots: bool = False,
+    dashboard: bool = False,
+    argv: Sequence[str] = (),
+) -> int:
+    """Run a parameter sweep or Monte Carlo study on Dask (``glider-cosim sweep``: each
+    keyword is the option of the same name).
+
+    Parameters
+    ----------
+    scenario : path or shipped name, optional
+        The scenario swept (default: ``default``).
+    param : sequence of str
+        ``INSTANCE.NAME=SPEC`` of each swept parameter (the module's docstring).
+    fmu_dir : path
+        Our FMUs (built there if missing or stale).
+    samples : int
+        Draws of the random specs per grid point.
+    seeds : int, optional
+        Repeat each run with sensor-noise seeds ``0..seeds-1``.
+    rng_seed : int
+        Seed of the random draws.
+    workers : int
+        Local Dask worker processes (without ``scheduler``).
+    scheduler : str, optional
+        Address of an existing Dask scheduler.
+    out : path
+        The sweep's folder (the same sweep resumes there).
+    format : {"csv", "parquet"}
+        Format of the table (parquet needs pyarrow).
+    trajectories : bool
+        Keep each run's results CSV.
+    stop_time : float, optional
+        Stop time of every run, s (default: the scenario's).
+    restart : bool
+        Replace the results in ``out`` (another sweep's too).
+    no_plots : bool
+        Skip the PNG plots.
+    dashboard : bool
+        Serve and print the Dask dashboard.
+    argv : sequence of str
+        The command line as given, for the "resume with:" line of an interrupted sweep.
+
+    Returns
+    -------
+    int
+        0 if every run succeeded, 1 if one failed (in this call or an earlier one
+        recorded in ``sweep.csv``).
+    """
     from ..fmus.folders import build_all
 
-    if not args.param and args.seeds is None:
+    if not param and seeds is None:
         raise SweepSpecError("nothing to sweep: give --param INSTANCE.NAME=SPEC or --seeds N")
-    if args.samples < 1 or args.workers < 1 or (args.seeds is not None and args.seeds < 1):
+    if samples < 1 or workers < 1 or (seeds is not None and seeds < 1):
         raise SweepSpecError("--samples, --workers and --seeds must be >= 1")
-    if args.stop_time is not None and not args.stop_time > 0:
-        raise SweepSpecError(f"--stop-time {args.stop_time}: expected a number > 0")
-    if args.format == "parquet":
+    if stop_time is not None and not stop_time > 0:
+        raise SweepSpecError(f"--stop-time {stop_time}: expected a number > 0")
+    if format == "parquet":
         try:
             import pyarrow  # noqa: F401
         except ImportError:
             raise SweepSpecError("--format parquet needs pyarrow (pip install pyarrow)") from None
-    scenario = load_scenario(args.scenario)
-    specs = [parse_param(p) for p in args.param]
-    check_ranges_of(specs, scenario)  # units and valid ranges, as run --set: before any run
-    fmu_dir = Path(args.fmu_dir).resolve()
-    build_all(fmu_dir, only_stale=True, skip=swapped(scenario))
-    seeds = list(range(args.seeds)) if args.seeds is not None else None
-    check_targets(scenario, fmu_dir, ["plant.noise_seed"] * bool(seeds), specs)
-    runs = expand(specs, scenario, fmu_dir, args.samples, seeds, args.rng_seed, args.stop_time)
-    out = Path(args.out)
-    spec = spec_text(args, specs)
-    check_folder(out, [r["run_id"] for r in runs], spec, args.restart)  # before Dask starts
+    shown = None if scenario is None else str(scenario)
+    sc = load_scenario(scenario)
+    specs = [parse_param(p) for p in param]
+    check_ranges_of(specs, sc)  # units and valid ranges, as run --set: before any run
+    fmu_dir = Path(fmu_dir).resolve()
+    build_all(fmu_dir, only_stale=True, skip=swapped(sc))
+    seed_list = list(range(seeds)) if seeds is not None else None
+    check_targets(sc, fmu_dir, ["plant.noise_seed"] * bool(seed_list), specs)
+    runs = expand(specs, sc, fmu_dir, samples, seed_list, rng_seed, stop_time)
+    out = Path(out)
+    spec = spec_text(shown, param, specs, samples, rng_seed, seeds, stop_time)
+    check_folder(out, [r["run_id"] for r in runs], spec, restart)  # before Dask starts
 
     from ..progress import dask_start, say, sweep_progress
 
-    say(f"sweep: {dask_start(args.workers, args.scheduler)}")
+    say(f"sweep: {dask_start(workers, scheduler)}")
     try:
-        client = make_client(args.workers, args.scheduler, dashboard=args.dashboard)
+        client = make_client(workers, scheduler, dashboard=dashboard)
         try:
             check_workers(client)
-            if args.dashboard:
+            if dashboard:
                 print(f"sweep: Dask dashboard at {client.dashboard_link}", flush=True)
             progress, bar = sweep_progress()  # runs done, failed, runs/s
             with bar:
-                res = run_sweep(scenario, runs, out, client, fmu_dir, stop_time=args.stop_time,
-                                trajectories=args.trajectories, restart=args.restart,
+                res = run_sweep(sc, runs, out, client, fmu_dir, stop_time=stop_time,
+                                trajectories=trajectories, restart=restart,
                                 progress=progress, spec=spec)  # fmt: skip
         finally:
             client.close()
-            if not args.scheduler and client.cluster is not None:
+            if not scheduler and client.cluster is not None:
                 client.cluster.close()
     except KeyboardInterrupt as err:  # Ctrl-C (SIGTERM: Interrupted): say what is kept
-        raise interrupted(err, out, [r["run_id"] for r in runs], args) from None
-    if args.format == "parquet":
+        raise interrupted(err, out, [r["run_id"] for r in runs], argv) from None
+    if format == "parquet":
         import pyarrow.csv as pacsv
         import pyarrow.parquet as pq
 
         pq.write_table(pacsv.read_csv(res.path), out / "sweep.parquet")
-    if not args.no_plots:
+    if not no_plots:
         say(f"sweep: drawing the plots into {out}")
         write_plots(res.path, out)
     print(f"sweep: {res.total} runs ({res.skipped} already done), {res.done} run now, "
@@ -322,7 +389,7 @@ __all__ = [
     "check_targets",
     "check_workers",
     "expand",
-    "main",
+    "sweep",
     "make_client",
     "nominal_values",
     "outcome_summary",

@@ -322,14 +322,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--component", default=None, help="one component (default: every one)")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
-    models = list(OURS)
-    if args.component is not None:
-        try:
-            models = [registry_component(args.component).model]
-        except ValueError as err:
-            ap.error(str(err))
-        if models[0] not in OURS:
-            ap.error(f"component {args.component!r} has no reference_input.csv in its folder")
+    from .reference import cases_asked  # the models with a reference case: OURS
+
+    try:
+        models = cases_asked(args.component)
+    except ValueError as err:
+        ap.error(str(err))
     if args.write:
         for p in write_folders(args.fmu_dir, models=models):
             print(f"wrote {p}")

@@ -41,6 +41,23 @@ def _cases() -> dict[str, dict[str, Any]]:
 CASES = _cases()
 
 
+def cases_asked(name: str | None) -> list[str]:
+    """The model names of the reference cases ``--component name`` asks for (None: every
+    one).
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not a registered component, or its folder has no reference case.
+    """
+    if name is None:
+        return list(CASES)
+    model = component(name).model  # UnknownComponentError names the known ones
+    if model not in CASES:
+        raise ValueError(f"component {name!r} has no reference_input.csv in its folder")
+    return [model]
+
+
 def reference_inputs(name: str) -> tuple[list[str], np.ndarray]:
     """Input table (time + one column per input) of a component's reference case, read
     from its ``reference_input.csv``."""
@@ -117,14 +134,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--write", action="store_true", help="rewrite the reference outputs")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
-    names = list(CASES)
-    if args.component is not None:
-        try:
-            names = [component(args.component).model]
-        except ValueError as err:
-            ap.error(str(err))
-        if names[0] not in CASES:
-            ap.error(f"component {args.component!r} has no reference_input.csv in its folder")
+    try:
+        names = cases_asked(args.component)
+    except ValueError as err:
+        ap.error(str(err))
     # the Python flavor's FMUs, from the per-user cache (built for this machine if
     # missing or stale) or the folder given
     folder = prepare_fmus(args.fmu_dir, None, host_only=True)
