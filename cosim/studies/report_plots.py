@@ -13,8 +13,7 @@ import numpy as np
 from ..figures.mpl import draw_png
 from ..figures.spec import exit_marks, line, panel, set_limits, share_x, sheet
 from ..runner.run import RunResult
-from .figures import DEG, Figure, Run
-from .kc_map import kc_cell
+from .figures import DEG, Figure, Run, how_it_ends
 
 
 def _bounded(r: RunResult) -> bool:
@@ -170,7 +169,7 @@ def _sec53_panels(run: Run, r: RunResult, row: int, col: int, xlim: tuple[float,
         bottom.append(line([t[-1]], [0.0], "stop (tail panel)", color="#ff0000", width=0.8,
                            span="x", gid="event:stop"))  # fmt: skip
     first = {"ylabel_pt": 8.0} if col == 0 else {}
-    p_top = panel(top, title=f"{run.label}\n{_feedback(r)} feedback: {kc_cell(r)}", row=row,
+    p_top = panel(top, title=f"{run.label}\n{_feedback(r)} feedback: {how_it_ends(r)}", row=row,
                   ylabel="angle [deg]" if col == 0 else "", grid=0.3)  # fmt: skip
     p_bottom = panel(bottom, row=row + 1, grid=0.3, xlabel="time [s]" if last else "",
                      ylabel="tail cmd [deg]" if col == 0 else "")  # fmt: skip

@@ -14,8 +14,8 @@ from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
-from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
-from .kc_map import kc_map_markdown, stop_reason
+from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain, stop_reason
+from .kc_map import kc_map_markdown
 
 
 def docs_reference(page: str, section: str, words: str) -> str:
