@@ -15,9 +15,10 @@ from report_fakes import THETA_E, FakeRun
 from glider_cosim.figures import plots as run_plots
 from glider_cosim.runner.provenance import marked_events
 from glider_cosim.studies.figures import FIGURES
-from glider_cosim.studies.report_plots import figure_spec, sec53_spec, steps_spec
+from glider_cosim.studies.report_plots import figure_spec, sec53_spec
 from glider_cosim.studies.roa import CASES, CATEGORIES, RoaMap, roa_spec
 from glider_cosim.studies.sec52 import TAILS_DEG, Sec52Run, sec52_spec
+from glider_cosim.studies.steps import steps_spec
 
 PLAIN = dimensionless()
 #: every column a figure reads

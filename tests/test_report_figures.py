@@ -198,7 +198,7 @@ def test_the_step_study_is_one_spec_drawn_to_png_and_to_the_page(tmp_path):
     spec: the glide angle at 50 Hz, 200 Hz and in continuous time over the differences."""
     from glider_cosim.figures.mpl import draw_png
     from glider_cosim.figures.pages import write_report_page
-    from glider_cosim.studies.report_plots import plot_steps, steps_spec
+    from glider_cosim.studies.steps import plot_steps, steps_spec
 
     t = np.linspace(0.0, 10.0, 101)
     study = {"traces": {"t": t, "50 Hz": t * 1e-3, "200 Hz": t * 2e-3, "continuous": 0 * t}}

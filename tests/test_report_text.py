@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from glider_cosim.runner.outcome import wrap_angle
-from glider_cosim.studies.figures import DEG, estimation_error
-from glider_cosim.studies.kc_map import kc_cell, stop_reason
+from glider_cosim.studies.figures import DEG, estimation_error, how_it_ends, stop_reason
 from glider_cosim.studies.report_text import _swing, provenance_markdown
 
 
@@ -82,7 +81,7 @@ def test_only_a_speed_that_fell_to_zero_stalls(instance, v, reason):
     r = _stopped(instance, v)
     assert stop_reason(r) == reason
     name, verb = reason.split()[:2]
-    assert kc_cell(r) == f"stops at 38.80 s ({name} {verb})"
+    assert how_it_ends(r) == f"stops at 38.80 s ({name} {verb})"
 
 
 def test_a_run_stopped_for_another_reason_has_no_stall():

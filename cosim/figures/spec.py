@@ -1,7 +1,8 @@
 """The plain-data spec of a figure: :mod:`.plots` makes a run's, :mod:`.mpl` draws
 every spec as a PNG (matplotlib) and :mod:`.pages` a run's as ``plots.html``;
-:func:`line`, :func:`panel` and :func:`figure` build one. A sweep's and a report's
-figures are specs too (:func:`sheet`).
+:func:`line`, :func:`panel` and :func:`figure` build one; :func:`exit_marks` marks where
+a curve leaves its panel's limits. A sweep's and a report's figures are specs too
+(:func:`sheet`).
 
 A spec is ``{"title", "suptitle", "notes", "panels", "size_in", "height_ratios", ...}``
 (the keys :mod:`.mpl` draws), each panel ``{"title", "xlabel", "ylabel", "xlim", "ylim",
@@ -152,6 +153,23 @@ def share_x(panels: Sequence[dict[str, Any]]) -> None:
     xlim = _limits([ln["x"] for p in panels for ln in p["lines"] if ln["span"] != "y"])
     for p in panels:
         set_limits(p, xlim=xlim)
+
+
+def exits(y: np.ndarray, lo: float, hi: float) -> list[tuple[int, bool]]:
+    """Where the curve ``y`` leaves ``[lo, hi]`` (a panel's limits): (sample, above) of
+    each exit, at each sample outside whose predecessor is inside or on the other side."""
+    side = np.where(y > hi, 1, np.where(y < lo, -1, 0))
+    prev = np.r_[0, side[:-1]]
+    return [(int(k), bool(side[k] > 0)) for k in np.nonzero((side != 0) & (side != prev))[0]]
+
+
+def exit_marks(t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str,
+                size: float) -> list[dict[str, Any]]:  # fmt: skip
+    """A triangle at the axes' edge wherever ``y`` leaves ``[lo, hi]`` (:func:`exits`): the
+    lines that mark a curve clipped at its panel's limits (the report's figures, Fig. 8)."""
+    return [{**line([t[k]], [hi if above else lo], marker="^" if above else "v", color=colour,
+                    size=size, width=1.5, gid="clipped"), "zorder": 5, "clip": False}
+            for k, above in exits(y, lo, hi)]  # fmt: skip
 
 
 def figure(kind: str, panels: Sequence[dict[str, Any]], subtitle: str = "") -> dict[str, Any]:

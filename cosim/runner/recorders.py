@@ -47,25 +47,6 @@ class Table:
         return np.frombuffer(self.values, dtype=float).reshape(self.nrows, self.ncol).copy()
 
 
-class ArrayOnAccess:
-    """A dataclass field (``RunResult.data``) set to a :class:`Table` or an array and read
-    as a numpy array, made on first access (the run itself needs no numpy)."""
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.slot = "_" + name
-
-    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
-        if obj is None:
-            raise AttributeError(self.slot[1:])  # no default for the dataclass field
-        value = obj.__dict__[self.slot]
-        if isinstance(value, Table):
-            value = obj.__dict__[self.slot] = value.array()
-        return value
-
-    def __set__(self, obj: Any, value: Any) -> None:
-        obj.__dict__[self.slot] = value
-
-
 class ArrayRecorder:
     """Keeps rows in memory (for the API): their doubles in an ``array.array``, no numpy
     until :meth:`array`."""

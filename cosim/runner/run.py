@@ -34,7 +34,7 @@ from ..scenarios.scenario import Scenario, load_scenario
 from ..scenarios.system import DISTURBANCE_INPUTS, fit_swapped, swapped, system_for
 from .metrics import compute_metrics
 from .provenance import clear_owned, marked_events, replaced_note, run_record
-from .recorders import ArrayOnAccess, ArrayRecorder, CsvRecorder, Table
+from .recorders import ArrayRecorder, CsvRecorder, Table
 
 if TYPE_CHECKING:
     import numpy as np
@@ -45,6 +45,26 @@ log = logging.getLogger(__name__)
 #: ``simulate``'s FMU folder unless one is given: None, the per-user cache
 #: (:func:`glider_cosim.fmus.folders.cache_dir`), never the current folder
 DEFAULT_FMU_DIR: Path | None = None
+
+
+class ArrayOnAccess:
+    """A dataclass field (``RunResult.data``) set to a
+    :class:`~glider_cosim.runner.recorders.Table` or an array and read as a numpy array,
+    made on first access (the run itself needs no numpy)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        if obj is None:
+            raise AttributeError(self.slot[1:])  # no default for the dataclass field
+        value = obj.__dict__[self.slot]
+        if isinstance(value, Table):
+            value = obj.__dict__[self.slot] = value.array()
+        return value
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.slot] = value
 
 
 @dataclass

@@ -8,13 +8,24 @@ from typing import Any
 
 import numpy as np
 
+from ..runner.metrics import describe_outcome, speed_stop
 from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
 
 DEG = 180.0 / math.pi
-__all__ = ["DEG", "FIGURES", "Figure", "Run", "estimation_error", "fmt", "passivity_gain"]
+__all__ = [
+    "DEG",
+    "FIGURES",
+    "Figure",
+    "Run",
+    "estimation_error",
+    "fmt",
+    "how_it_ends",
+    "passivity_gain",
+    "stop_reason",
+]
 
 
 @dataclass(frozen=True)
@@ -121,3 +132,29 @@ def passivity_gain(sc: Scenario) -> float | None:
     for ev in sc.events:
         law = ev.actions.get("controller.law", law)
     return float(ctrl["K_c"]) if law == LAWS["passivity"] and "K_c" in ctrl else None
+
+
+def how_it_ends(r: RunResult) -> str:
+    """How a run ends, in a few words: a cell of the K_c map, a heading of Figs. 11-20."""
+    m = r.metrics
+    if m.get("outcome") == "settled":
+        return f"settled in {m['settling_time_s']:.2f} s"
+    if r.status != "ok":
+        reason = stop_reason(r)
+        if reason:
+            name, verb = reason.split()[:2]
+            return f"stops at {r.data[-1, 0]:.2f} s ({name} {verb})"
+        return f"stops at {r.data[-1, 0]:.2f} s"
+    return describe_outcome(m, brief=True)
+
+
+def stop_reason(r: RunResult) -> str | None:
+    """How a stopped run's speed ended, or None if it did not stop on it:
+    ``V_hat stalls at 4.70 s (V_hat = -0.013 m/s)`` for a speed that fell to about zero
+    (:func:`glider_cosim.runner.metrics.speed_stop`), else
+    ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``."""
+    found = speed_stop(r.message or "")
+    if found is None:
+        return None
+    name, v, verb = found
+    return f"{name} {verb} at {float(r.data[-1, 0]):.2f} s ({name} = {v:.2g} m/s)"

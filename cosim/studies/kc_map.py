@@ -7,11 +7,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..runner.metrics import describe_outcome, speed_stop
-from ..runner.run import RunResult, simulate
+from ..runner.run import simulate
 from ..scenarios.overrides import apply_overrides
 from ..scenarios.scenario import load_scenario
-from .figures import fmt
+from .figures import fmt, how_it_ends
 
 #: the K_c grid of the map where the observer-fed loop works (default scenario)
 KC_MAP = tuple(3.0 + 0.5 * i for i in range(19))  # 3 .. 12
@@ -34,7 +33,7 @@ def kc_map(fmu_dir: str | Path, ks: Sequence[float] = KC_MAP) -> list[dict[str, 
             row[fb] = {
                 "status": r.status,
                 "outcome": m.get("outcome"),
-                "text": kc_cell(r),
+                "text": how_it_ends(r),
                 "settling_time_s": m.get("settling_time_s"),
                 "rate_per_s": m.get("outcome_rate_per_s"),
                 "end_time_s": float(r.data[-1, 0]) if len(r.data) else 0.0,
@@ -42,20 +41,6 @@ def kc_map(fmu_dir: str | Path, ks: Sequence[float] = KC_MAP) -> list[dict[str, 
             }
         rows.append(row)
     return rows
-
-
-def kc_cell(r: RunResult) -> str:
-    """One cell of the K_c map: how the run ends."""
-    m = r.metrics
-    if m.get("outcome") == "settled":
-        return f"settled in {m['settling_time_s']:.2f} s"
-    if r.status != "ok":
-        reason = stop_reason(r)
-        if reason:
-            name, verb = reason.split()[:2]
-            return f"stops at {r.data[-1, 0]:.2f} s ({name} {verb})"
-        return f"stops at {r.data[-1, 0]:.2f} s"
-    return describe_outcome(m, brief=True)
 
 
 def smallest_settling(rows: Sequence[dict[str, Any]], fb: str) -> float | None:
@@ -148,22 +133,3 @@ def kc_map_markdown(
         )
         lines.append("")
     return lines
-
-
-def stall_of(r: RunResult) -> tuple[str, float, float] | None:
-    """(variable, V, time) of the stall or divergence that stopped a run, from its
-    message (the models' check, V above their limit, catches both)."""
-    found = speed_stop(r.message or "")
-    return None if found is None else (found[0], found[1], float(r.data[-1, 0]))
-
-
-def stop_reason(r: RunResult) -> str | None:
-    """How a stopped run's speed ended, or None if it did not stop on it:
-    ``V_hat stalls at 4.70 s (V_hat = -0.013 m/s)`` for a speed that fell to about zero
-    (:func:`glider_cosim.runner.metrics.speed_stop`), else
-    ``V_hat diverges at 38.80 s (V_hat = -2.5e+02 m/s)``."""
-    found = speed_stop(r.message or "")
-    if found is None:
-        return None
-    name, v, verb = found
-    return f"{name} {verb} at {float(r.data[-1, 0]):.2f} s ({name} = {v:.2g} m/s)"

@@ -1,4 +1,5 @@
-"""The report's PNG figures: a paper figure's panels, Figs. 11-20, the step study."""
+"""The report's paper figures as specs (:mod:`glider_cosim.figures.spec`): a paper
+figure's panels (Figs. 2-6) and Figs. 11-20's small multiples, each drawn to its PNG."""
 
 from __future__ import annotations
 
@@ -10,36 +11,14 @@ from typing import Any
 import numpy as np
 
 from ..figures.mpl import draw_png
-from ..figures.spec import line, panel, set_limits, share_x, sheet
+from ..figures.spec import exit_marks, line, panel, set_limits, share_x, sheet
 from ..runner.run import RunResult
-from .figures import DEG, Figure, Run
-from .kc_map import kc_cell
+from .figures import DEG, Figure, Run, how_it_ends
 
 
 def _bounded(r: RunResult) -> bool:
     """A run that stays bounded: it ran to the end and does not diverge."""
     return r.status == "ok" and r.metrics.get("outcome") != "diverging"
-
-
-def mark_exits(
-    ax: Any, t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str, ms: float, **kw: Any
-) -> int:
-    """A triangle at the axes' edge wherever the curve ``y`` leaves ``[lo, hi]`` (every
-    exit, not only the first: at each sample outside whose predecessor is inside or on
-    the other side); the number of exits."""
-    found = exits(y, lo, hi)
-    for k, above in found:
-        ax.plot(t[k], hi if above else lo, marker="^" if above else "v", color=colour, ms=ms,
-                ls="none", clip_on=False, zorder=5, **kw)  # fmt: skip
-    return len(found)
-
-
-def exits(y: np.ndarray, lo: float, hi: float) -> list[tuple[int, bool]]:
-    """Where the curve ``y`` leaves ``[lo, hi]``: (sample, above) of each exit, at each
-    sample outside whose predecessor is inside or on the other side."""
-    side = np.where(y > hi, 1, np.where(y < lo, -1, 0))
-    prev = np.r_[0, side[:-1]]
-    return [(int(k), bool(side[k] > 0)) for k in np.nonzero((side != 0) & (side != prev))[0]]
 
 
 def _keys(clipped: bool, stopped: bool, marked: bool) -> list[dict[str, Any]]:
@@ -55,14 +34,6 @@ def _keys(clipped: bool, stopped: bool, marked: bool) -> list[dict[str, Any]]:
         keys.append(line([], [], "the controller takes over", dash="dashdot", color="0.3",
                          width=0.8))  # fmt: skip
     return keys
-
-
-def exit_marks(t: np.ndarray, y: np.ndarray, lo: float, hi: float, colour: str,
-                size: float) -> list[dict[str, Any]]:  # fmt: skip
-    """A triangle at the axes' edge wherever ``y`` leaves ``[lo, hi]`` (:func:`exits`)."""
-    return [{**line([t[k]], [hi if above else lo], marker="^" if above else "v", color=colour,
-                    size=size, width=1.5, gid="clipped"), "zorder": 5, "clip": False}
-            for k, above in exits(y, lo, hi)]  # fmt: skip
 
 
 def figure_spec(fig: Figure, results: Sequence[tuple[Run, RunResult]]) -> dict[str, Any]:
@@ -148,28 +119,6 @@ def plot_figure(fig: Figure, results: Sequence[tuple[Run, RunResult]], out: Path
     return draw_png(figure_spec(fig, results), out / f"{fig.key}.png")
 
 
-def steps_spec(study: dict[str, Any]) -> dict[str, Any]:
-    """The accuracy study's figure (50 Hz, 200 Hz and continuous time) as a spec
-    (:mod:`glider_cosim.figures.spec`): the glide angle over the differences."""
-    tr = study["traces"]
-    colours = dict(zip(("50 Hz", "200 Hz", "continuous"), ("tab:blue", "tab:orange",
-                                                           "tab:green"), strict=True))  # fmt: skip
-    top = [line(tr["t"], tr[k] * DEG, k, color=c) for k, c in colours.items()]
-    below = [line(tr["t"], (tr[k] - tr["continuous"]) * DEG, f"{k} - continuous",
-                  color=colours[k]) for k in ("50 Hz", "200 Hz")]  # fmt: skip
-    panels = [panel(top, title="Default scenario: effect of the communication step",
-                    ylabel="glide angle theta_g [deg]", grid=0.3, legend_pt=8.0),
-              panel(below, xlabel="time [s]", ylabel="difference [deg]", row=1, grid=0.3,
-                    legend_pt=8.0)]  # fmt: skip
-    return {**sheet(panels, (8.0, 4.8)), "layout": "constrained", "sharex": True,
-            "height_ratios": [3.0, 2.0]}  # fmt: skip
-
-
-def plot_steps(study: dict[str, Any], out: Path) -> Path:
-    """``communication_step.png``: :func:`steps_spec` drawn."""
-    return draw_png(steps_spec(study), out / "communication_step.png")
-
-
 def _feedback(r: RunResult) -> str:
     return "observer" if r.scenario.feedback == "observer" else "full-state"
 
@@ -220,7 +169,7 @@ def _sec53_panels(run: Run, r: RunResult, row: int, col: int, xlim: tuple[float,
         bottom.append(line([t[-1]], [0.0], "stop (tail panel)", color="#ff0000", width=0.8,
                            span="x", gid="event:stop"))  # fmt: skip
     first = {"ylabel_pt": 8.0} if col == 0 else {}
-    p_top = panel(top, title=f"{run.label}\n{_feedback(r)} feedback: {kc_cell(r)}", row=row,
+    p_top = panel(top, title=f"{run.label}\n{_feedback(r)} feedback: {how_it_ends(r)}", row=row,
                   ylabel="angle [deg]" if col == 0 else "", grid=0.3)  # fmt: skip
     p_bottom = panel(bottom, row=row + 1, grid=0.3, xlabel="time [s]" if last else "",
                      ylabel="tail cmd [deg]" if col == 0 else "")  # fmt: skip

@@ -14,8 +14,8 @@ from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult
 from ..scenarios.fields import LAWS
 from ..scenarios.scenario import Scenario
-from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain
-from .kc_map import kc_map_markdown, stop_reason
+from .figures import DEG, FIGURES, Run, estimation_error, fmt, passivity_gain, stop_reason
+from .kc_map import kc_map_markdown
 
 
 def docs_reference(page: str, section: str, words: str) -> str:
@@ -40,9 +40,10 @@ def _metrics_row(label: str, r: RunResult) -> str:
     )
 
 
-def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> str:
+def report_markdown(results, an, literal, pngs, sec52: list[str], kc_rows=(), steps=()) -> str:
     """The whole ``report.md`` from the runs, the analysis and the studies (``pngs``: the
-    figures' files, in the report's folder)."""
+    figures' files, in the report's folder; ``literal``: the run of the literal Sec. 5.3
+    protocol; ``sec52`` and ``steps``: those studies' sections, in markdown lines)."""
     metrics = docs_reference("reference/results.md", "Metrics", "the metrics' definitions")
     lines = [
         "# glider-cosim report",
@@ -78,25 +79,8 @@ def report_markdown(results, an, study, pngs, sec52: list[str], kc_rows=()) -> s
     lines += sec52
     lines += kc_map_markdown(kc_rows, an, metrics)
     lines += _analysis_section(an)
-    lines += [
-        "## Accuracy of the co-simulation",
-        "",
-        f"![steps]({pngs['steps'].name})",
-        "",
-        "- FMU loop at 50 Hz (3 FMUs, Gauss-Seidel) against the monolithic sampled loop "
-        f"(same model code, no FMI): they agree to "
-        f"{study['fmu_vs_monolithic_max_abs_rad']:.1g} (max |difference| over all 17 "
-        "columns and 60 s, in their SI units; target 1e-6 rad).",
-        "- Glide angle against the continuous-time loop (no sampling, no pre-filter), max "
-        f"difference: 50 Hz {study['theta_g_50Hz_vs_continuous_max_abs_rad'] * DEG:.3f} deg, "
-        f"200 Hz {study['theta_g_200Hz_vs_continuous_max_abs_rad'] * DEG:.3f} deg (with the "
-        "10 Hz pre-filter, whose lag does not shrink with the step); without the pre-filter "
-        f"50 Hz {study['theta_g_50Hz_no_prefilter_vs_continuous_max_abs_rad'] * DEG:.3f} deg, "
-        f"200 Hz {study['theta_g_200Hz_no_prefilter_vs_continuous_max_abs_rad'] * DEG:.3f} deg "
-        "(first order in the step).",
-        "",
-    ]
-    lines += _agreement_section(results, an, study)
+    lines += steps
+    lines += _agreement_section(results, an, literal)
     return "\n".join(lines) + "\n"
 
 
@@ -161,7 +145,7 @@ def _analysis_check(results, an) -> list[str]:
     return lines
 
 
-def _agreement_section(results, an, study) -> list[str]:
+def _agreement_section(results, an, lit: RunResult) -> list[str]:
     lines = ["## Where we agree with the paper, and where we do not", ""]
     lines += _analysis_check(results, an)
     if an is not None:
@@ -275,7 +259,6 @@ def _agreement_section(results, an, study) -> list[str]:
             + "; ".join(k for k, _ in bad)
             + f") do not settle in our model with the 2 deg hold{stall}."
         )
-    lit = study["literal"]
     lines.append(
         f"- **Disagreement**: the literal Sec. 5.3 protocol (tail held at 60 deg) ends "
         f"{lit.status} at t = {lit.metrics['end_time_s']:.2f} s before reaching 1 m: {lit.message}"

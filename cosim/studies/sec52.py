@@ -17,7 +17,7 @@ import numpy as np
 from glider_plant.params import GliderParams
 
 from ..figures.mpl import draw_png
-from ..figures.spec import line, panel, sheet
+from ..figures.spec import exit_marks, line, panel, sheet
 from ..runner.heldtail import (
     carried,
     held_glide,
@@ -28,7 +28,6 @@ from ..runner.heldtail import (
 from ..runner.outcome import wrap_angle
 from ..runner.run import RunResult, simulate
 from ..scenarios.scenario import load_scenario
-from .report_plots import exit_marks
 
 DEG = 180.0 / math.pi
 TAILS_DEG = (15.0, 30.0, 45.0)
