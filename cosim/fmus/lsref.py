@@ -57,7 +57,10 @@ def _model_name(md_xml: bytes) -> str:
 
 
 def _files(model: str) -> list[Path]:
-    folder = shipped_folder(model)
+    return _files_in(shipped_folder(model))
+
+
+def _files_in(folder: Path | None) -> list[Path]:
     if folder is None or not folder.is_dir():
         return []
     return sorted(p for p in folder.rglob("*") if p.is_file())
@@ -67,19 +70,25 @@ def fingerprint() -> str:
     """Hash of every component's shipped LS-REF folder: part of the FMUs' source hashes
     and of the cache's sources key (a change rebuilds the FMUs)."""
     stamp = tuple(
-        (c.model, str(f), f.stat().st_mtime_ns, f.stat().st_size)
-        for c in COMPONENTS
-        for f in _files(c.model)
+        (model, str(folder), str(f), f.stat().st_mtime_ns, f.stat().st_size)
+        for model, folder in _shipped_folders()
+        for f in _files_in(folder)
     )
     return _fingerprint(stamp)
 
 
+@functools.cache
+def _shipped_folders() -> tuple[tuple[str, Path], ...]:
+    """(model, LS-REF folder) of every registered component (the registry is read once
+    per process)."""
+    return tuple((c.model, c.folder / FOLDER) for c in COMPONENTS)
+
+
 @functools.lru_cache(maxsize=8)
-def _fingerprint(stamp: tuple[tuple[str, str, int, int], ...]) -> str:
+def _fingerprint(stamp: tuple[tuple[str, str, str, int, int], ...]) -> str:
     h = hashlib.sha256()
-    for model, path, _, _ in stamp:
-        rel = Path(path).relative_to(shipped_folder(model)).as_posix()
-        h.update(f"{model}/{rel}".encode())
+    for model, folder, path, _, _ in stamp:
+        h.update(f"{model}/{Path(path).relative_to(folder).as_posix()}".encode())
         h.update(Path(path).read_bytes())
     return h.hexdigest()
 

@@ -45,6 +45,8 @@ from .fields import ScenarioError, parse_choice, parse_float, parse_law, parse_n
 
 #: every registered component's instance name (glider_cosim.components)
 INSTANCES = tuple(c.name for c in COMPONENTS)
+#: those in the default loop (``in_every_run``)
+_EVERY_RUN = frozenset(c.name for c in COMPONENTS if c.in_every_run)
 
 
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -108,10 +110,10 @@ class Scenario:
         """The instances of the loop, in registry order: the components in every run (the
         observer unless ``with_observer = false``) and those the scenario adds."""
         return [
-            c.name
-            for c in COMPONENTS
-            if (c.in_every_run and (self.observer or c.name != "observer"))
-            or c.name in self.components
+            name
+            for name in INSTANCES
+            if (name in _EVERY_RUN and (self.observer or name != "observer"))
+            or name in self.components
         ]
 
 
