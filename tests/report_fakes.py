@@ -24,7 +24,7 @@ class FakeRun:
         self.status, self.message = status, message
         self.metrics = {"theta_ge_rad": THETA_E, "events": [], "outcome": "settled",
                         "settling_time_s": 5.0, **(metrics or {})}  # fmt: skip
-        self.scenario = SimpleNamespace(name="fake", feedback=feedback,
+        self.scenario = SimpleNamespace(name="fake", feedback=feedback, connections={},
                                         parameters={"controller": {}, "plant": {}})  # fmt: skip
 
     def column(self, name):

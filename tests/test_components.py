@@ -175,3 +175,32 @@ def test_the_reference_commands_name_an_unknown_component(module, capsys):
     last = capsys.readouterr().err.strip().splitlines()[-1]
     known = ", ".join(registry())
     assert last.endswith(f"error: component 'depth' is unknown: expected one of {known}")
+
+
+def test_the_pitch_plot_shows_what_the_observer_reads():
+    """A scenario that feeds the observer another component's pitch (the how-to's noise
+    block): the pitch plot draws that column as the measurement, named, not the plant's
+    sensor; without such a connection the plot is as it was."""
+    import numpy as np
+    from report_fakes import FakeRun
+
+    from glider_cosim.figures.plots import PLOTS
+
+    pitch = next(fn for name, _, fn in PLOTS if name == "pitch")
+    t = np.linspace(0.0, 10.0, 501)
+    cols = {
+        "plant.theta": -0.38 + 0 * t,
+        "plant.theta_meas": -0.38 + 0 * t,
+        "observer.theta_hat": -0.37 + 0 * t,
+        "noise.theta_out": -0.37 + 1e-3 * np.sin(t),
+    }
+    run = FakeRun(cols, t=t)
+
+    def names(spec):
+        return [ln["name"] for p in spec["panels"] for ln in p["lines"] if ln.get("name")]
+
+    assert names(pitch(run))[:2] == ["true = measured (noise std 0 deg)", "estimate"]
+    run.scenario.connections = {"observer.theta_meas": "noise.theta_out"}
+    shown = names(pitch(run))
+    assert shown[:3] == ["noise.theta_out (samples, the observer's input)", "true", "estimate"]
+    assert "noise.theta_out - true" in shown

@@ -94,25 +94,30 @@ def _pitch(result: Any) -> dict[str, Any]:
     cols = result.columns
     # a swapped-in plant may lack one of them: draw what was recorded
     true = result.column("plant.theta") * _DEG if "plant.theta" in cols else None
-    meas = result.column("plant.theta_meas") * _DEG if "plant.theta_meas" in cols else None
+    # the pitch the observer reads: the plant's sensor, or what a scenario's
+    # [connections] feed it instead (an added component's output, e.g. noise.theta_out)
+    src = result.scenario.connections.get("observer.theta_meas", "plant.theta_meas")
+    src = src if src in cols else "plant.theta_meas"
+    meas = result.column(src) * _DEG if src in cols else None
     est = result.column("observer.theta_hat") * _DEG if "observer.theta_hat" in cols else None
     std = float(result.scenario.parameters.get("plant", {}).get("noise_std", 0.0)) * _DEG
+    name = "measured" if src == "plant.theta_meas" else src
     # without noise the measurement is the true pitch: one series, named both ways
     same = meas is not None and true is not None and np.array_equal(meas, true)
     top, below = [], []
     if meas is not None and not same:
-        top.append(line(t, meas, f"measured (samples, noise std {std:.2g} deg)",
-                        color="tab:gray", alpha=0.3, marker=".", size=1.2)
-                   | {"legend_size": LEGEND_DOT})  # fmt: skip
+        what = f"noise std {std:.2g} deg" if src == "plant.theta_meas" else "the observer's input"
+        top.append(line(t, meas, f"{name} (samples, {what})", color="tab:gray", alpha=0.3,
+                        marker=".", size=1.2) | {"legend_size": LEGEND_DOT})  # fmt: skip
     if true is not None:  # drawn over the measured samples
-        top.append(line(t, true, "true = measured (noise std 0 deg)" if same else "true",
+        top.append(line(t, true, f"true = {name} (noise std 0 deg)" if same else "true",
                         width=1.6))  # fmt: skip
     if est is not None:
         top.append(line(t, est, "estimate", color="tab:orange", dash="dashed"))
     # below: differences to the true pitch, or to the measured one without it
-    ref, ref_name = (true, "true") if true is not None else (meas, "measured")
+    ref, ref_name = (true, "true") if true is not None else (meas, name)
     if meas is not None and true is not None and not same:
-        below.append(line(t, meas - true, "measured - true", color="tab:gray", alpha=0.3,
+        below.append(line(t, meas - true, f"{name} - true", color="tab:gray", alpha=0.3,
                           marker=".", size=1.2) | {"legend_size": LEGEND_DOT})  # fmt: skip
     if est is not None:
         below.append(line(t, est - ref, f"estimate - {ref_name}", color="tab:orange"))
