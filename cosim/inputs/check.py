@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from ..components import COMPONENTS
+from ..components import COMPONENTS, by_model
 from .text import did_you_mean, quote
 from .values import (
     Quantity,
@@ -224,13 +224,13 @@ def our_kinds(fmus: dict[str, Any]) -> dict[str, str]:
     (by model name and pythonfmu generation tool), e.g. the components of our SSP."""
     from .archives import InputFileError, read_description
 
-    names = {c.model: c.name for c in COMPONENTS}
     kinds = {}
     for inst, path in fmus.items():
         try:
             md = read_description(path)
         except InputFileError:  # an unreadable FMU is not ours
             continue
-        if md.modelName in names and str(md.generationTool or "").startswith("PythonFMU"):
-            kinds[inst] = names[md.modelName]
+        ours = by_model(md.modelName)
+        if ours is not None and str(md.generationTool or "").startswith("PythonFMU"):
+            kinds[inst] = ours.name
     return kinds

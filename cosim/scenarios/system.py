@@ -7,7 +7,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..components import COMPONENTS, every_run
+from ..components import COMPONENTS, component, every_run
 from ..components import default_connections as registry_connections
 from ..inputs.outputs import os_error
 from ..inputs.text import quote
@@ -19,8 +19,8 @@ from .scenario import Scenario, load_scenario
 if TYPE_CHECKING:
     from ..master.cosimulation import CoSimulation
 
-#: instance -> model name of the default loop's components (the registry's, in order)
-FMU_NAMES = {c.name: c.model for c in every_run()}
+#: the default loop's instances (the registry's, in order)
+DEFAULT_LOOP = tuple(c.name for c in every_run())
 
 
 #: the inputs the loop drives itself (the disturbances: 0 unless a scenario sets them)
@@ -31,7 +31,7 @@ def default_connections(feedback: str = "observer", observer: bool = True) -> li
     """The default loop's connections, as the registry's components say (each
     ``component.toml``'s ``[inputs]``, and ``[state_feedback]`` under ``feedback =
     "state"``): plant -> observer -> controller -> plant (and -> observer)."""
-    return registry_connections([n for n in FMU_NAMES if observer or n != "observer"], feedback)
+    return registry_connections([n for n in DEFAULT_LOOP if observer or n != "observer"], feedback)
 
 
 def scenario_connections(scenario: Scenario) -> list[tuple[str, str]]:
@@ -187,8 +187,7 @@ def fit_swapped(sim: CoSimulation, swapped_instances: set[str]) -> list[str]:
 def swapped(scenario: Scenario) -> set[str]:
     """Our FMUs (model identifiers) a run of ``scenario`` does not take from the FMU
     folder: the instances its ``[fmus]`` table swaps (neither built nor checked there)."""
-    models = {c.name: c.model for c in COMPONENTS}
-    return {models[inst] for inst in scenario.fmus}
+    return {component(inst).model for inst in scenario.fmus}
 
 
 def swapped_in(scenario: str | Path | None) -> set[str]:
@@ -258,13 +257,12 @@ def system_for(scenario: Scenario, fmu_dir: Path, step: float | None = None) -> 
     """The :class:`System` a scenario describes (FMUs from ``fmu_dir`` unless swapped),
     run at ``step`` (s; default the scenario's): the observer's ``f_sample`` follows it
     unless the scenario sets it (:func:`~glider_cosim.scenarios.sampling.with_sampling`)."""
-    by_name = {c.name: c for c in COMPONENTS}
     fmus = {
-        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{by_name[inst].model}.fmu"))
+        inst: Path(scenario.fmus.get(inst, fmu_dir / f"{component(inst).model}.fmu"))
         for inst in scenario.instances()
     }
     for inst in scenario.components:  # added to the loop: it may have no native flavor
-        c = by_name[inst]
+        c = component(inst)
         if inst not in scenario.fmus and not c.native and not fmus[inst].exists():
             raise SystemSpecError(
                 f"{scenario.source}: component {quote(inst)} has no native flavor (no "

@@ -12,7 +12,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..components import COMPONENTS
 from ..components import component as registry_component
 from ..fmus.lsref import LSREF_DIR, MANIFEST, shipped_folder
 from ..interop.lsref_write import (
@@ -26,12 +25,13 @@ from ..interop.lsref_write import (
     manifest_bytes,
     ssv_bytes,
 )
+from .reference import CASES, STEP, STOP, cases_asked
 
 # ------------------------------------------------------------------ our FMUs
 #: model name -> component, of every registered component with a reference case (its
 #: folder's reference_input.csv): the smoke test; those of the default loop also get the
 #: validation and the shipped scenarios' parameter sets
-OURS = {c.model: c.name for c in COMPONENTS if (c.folder / "reference_input.csv").is_file()}
+OURS = {model: case["component"] for model, case in CASES.items()}
 #: the scenario the validation experiment is recorded from
 VALIDATION_SCENARIO = "default"
 
@@ -73,7 +73,6 @@ def scenario_sets(component: str, starts: Mapping[str, Any]) -> list[tuple[str, 
 def smoke_experiment(model: str) -> Experiment:
     """The component's reference case (``src/<component>/reference_*.csv``)."""
     from .cases import read_table
-    from .reference import CASES, STEP, STOP
 
     pkg = _package_dir(OURS[model])
     return Experiment(
@@ -322,8 +321,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--component", default=None, help="one component (default: every one)")
     ap.add_argument("--fmu-dir", default=None, help="our FMUs (default: the per-user cache)")
     args = ap.parse_args(argv)
-    from .reference import cases_asked  # the models with a reference case: OURS
-
     try:
         models = cases_asked(args.component)
     except ValueError as err:
